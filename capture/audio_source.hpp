@@ -1,0 +1,32 @@
+#pragma once
+// A source of multichannel audio in fixed-size blocks with sample-accurate timestamps:
+// recordings (recording_source.hpp), live devices (portaudio_source.hpp), the simulator.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "doa/audio_block.hpp"
+
+namespace dronetrack::capture {
+
+struct SourceCounters {
+  std::int64_t overruns = 0;         // blocks lost because the consumer was late (live only)
+  std::int64_t clipped_samples = 0;  // |x| >= 0.999 of full scale
+  std::int64_t non_finite_samples = 0;
+  double peak_level_dbfs = -120.0;  // of the last block
+  double rms_level_dbfs = -120.0;   // of the last block
+};
+
+class AudioSource {
+ public:
+  virtual ~AudioSource() = default;
+  // Fills the source's internal block and returns a view of it, or false at end of stream.
+  // The view stays valid until the next call. Channel i of the view is mic i.
+  virtual bool next(doa::AudioBlockView& block) = 0;
+  virtual double sample_rate_hz() const = 0;
+  virtual int channels() const = 0;  // after the channel map: one per mic
+  virtual const SourceCounters& counters() const = 0;
+  virtual std::string describe() const = 0;  // for logs: file name or device name
+};
+
+}  // namespace dronetrack::capture

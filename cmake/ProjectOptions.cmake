@@ -1,0 +1,20 @@
+# Shared compile options as INTERFACE targets, linked by every target of ours (never by
+# third-party code, so their warnings stay theirs).
+add_library(dronetrack_options INTERFACE)
+target_compile_options(dronetrack_options INTERFACE
+  $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align
+                            -Woverloaded-virtual -Wnull-dereference -Wimplicit-fallthrough>)
+# Eigen's vectorised code is worth it on the per-measurement path; stay portable across x86-64
+# machines (no -march=native: the binary may move between nodes).
+if(DRONETRACK_SANITIZE)
+  target_compile_options(dronetrack_options INTERFACE
+    -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  target_link_options(dronetrack_options INTERFACE -fsanitize=address,undefined)
+endif()
+
+# Generated sources (idlc C files) get the sanitizer but not our warning set.
+add_library(dronetrack_sanitize_only INTERFACE)
+if(DRONETRACK_SANITIZE)
+  target_compile_options(dronetrack_sanitize_only INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer)
+  target_link_options(dronetrack_sanitize_only INTERFACE -fsanitize=address,undefined)
+endif()

@@ -1,0 +1,270 @@
+#include "config/site_config.hpp"
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "capture/recording_info.hpp"
+#include "config/config_reader.hpp"
+#include "config/parse_sections.hpp"
+
+namespace dronetrack::config {
+namespace {
+
+std::string join_lines(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& line : lines) out += (out.empty() ? "" : "\n") + line;
+  return out;
+}
+
+void parse_mics(const nlohmann::json& node, const std::string& path, Diagnostics& diagnostics,
+                std::vector<Eigen::Vector3d>& mics) {
+  if (!node.is_array()) {
+    diagnostics.error(path, "expected a list of [x, y, z], got " + describe_json_type(node));
+    return;
+  }
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    if (auto mic = read_vector3(node[i], path + "[" + std::to_string(i) + "]", diagnostics)) {
+      mics.push_back(*mic);
+    }
+  }
+  if (mics.size() != node.size()) return;
+  if (mics.size() < 2) {
+    diagnostics.error(path, "an array needs at least 2 mics, got " + std::to_string(mics.size()));
+    return;
+  }
+  constexpr double kMinSpacing_m = 1e-3;
+  for (std::size_t i = 0; i < mics.size(); ++i) {
+    for (std::size_t j = i + 1; j < mics.size(); ++j) {
+      if ((mics[i] - mics[j]).norm() < kMinSpacing_m) {
+        diagnostics.error(path, "mics " + std::to_string(i) + " and " + std::to_string(j) +
+                                    " coincide (closer than 1 mm)");
+      }
+    }
+  }
+}
+
+ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
+                        const std::filesystem::path& base_dir, Diagnostics& diagnostics) {
+  ArrayConfig array;
+  ObjectReader reader(node, path, diagnostics);
+  array.geometry.id = reader.required_string("id").value_or("");
+  if (reader.has("id") && array.geometry.id.empty()) {
+    diagnostics.error(reader.path_of("id"), "must not be empty");
+  }
+  if (array.geometry.id.size() > 64)
+    diagnostics.error(reader.path_of("id"), "longer than 64 characters");
+  if (auto position = reader.vector3("position_m", true)) array.geometry.position_m = *position;
+  array.geometry.yaw_deg = reader.number("yaw_deg", 0.0, -360.0, 360.0);
+  array.geometry.mic_position_std_m = reader.number("mic_position_std_m", 0.0, 0.0, 1.0);
+  reader.accept("mics_m");
+  if (!reader.has("mics_m")) {
+    diagnostics.error(reader.path_of("mics_m"), "required list of mic positions is missing");
+  } else {
+    parse_mics(node.at("mics_m"), reader.path_of("mics_m"), diagnostics, array.geometry.mics_m);
+  }
+  const std::string recording = reader.string("recording", "");
+  if (!recording.empty()) {
+    const std::filesystem::path recording_path(recording);
+    array.recording = recording_path.is_absolute() ? recording_path : base_dir / recording_path;
+  }
+  array.device = reader.optional_integer("device", 0, 100000);
+  if (auto map = reader.numbers("channel_map", 0, false)) {
+    std::set<int> seen;
+    for (std::size_t i = 0; i < map->size(); ++i) {
+      const double channel = (*map)[i];
+      const std::string element_path =
+          reader.path_of("channel_map") + "[" + std::to_string(i) + "]";
+      if (channel < 0 || channel > 1023 || channel != static_cast<int>(channel)) {
+        diagnostics.error(element_path, "expected a channel index >= 0");
+      } else if (!seen.insert(static_cast<int>(channel)).second) {
+        diagnostics.error(element_path, "channel " + std::to_string(static_cast<int>(channel)) +
+                                            " is mapped twice");
+      } else {
+        array.channel_map.push_back(static_cast<int>(channel));
+      }
+    }
+    if (!array.geometry.mics_m.empty() && map->size() != array.geometry.mics_m.size()) {
+      diagnostics.error(reader.path_of("channel_map"),
+                        "has " + std::to_string(map->size()) + " entries for " +
+                            std::to_string(array.geometry.mics_m.size()) + " mics");
+    }
+  }
+  if (array.channel_map.empty()) {
+    for (std::size_t i = 0; i < array.geometry.mics_m.size(); ++i) {
+      array.channel_map.push_back(static_cast<int>(i));
+    }
+  }
+  return array;
+}
+
+void check_recording(const ArrayConfig& array, const std::string& path, bool explicit_map,
+                     double band_high_hz, Diagnostics& diagnostics) {
+  capture::RecordingInfo info;
+  try {
+    info = capture::probe_recording(array.recording);
+  } catch (const std::exception& failure) {
+    diagnostics.error(path + ".recording", failure.what());
+    return;
+  }
+  const int mics = static_cast<int>(array.geometry.mics_m.size());
+  if (!explicit_map && info.channels != mics) {
+    diagnostics.error(path + ".recording",
+                      array.recording.string() + " has " + std::to_string(info.channels) +
+                          " channels but the array has " + std::to_string(mics) + " mics");
+  }
+  if (explicit_map) {
+    for (std::size_t mic = 0; mic < array.channel_map.size(); ++mic) {
+      if (array.channel_map[mic] >= info.channels) {
+        diagnostics.error(path + ".channel_map[" + std::to_string(mic) + "]",
+                          "channel " + std::to_string(array.channel_map[mic]) +
+                              " does not exist in " + array.recording.string() + " (" +
+                              std::to_string(info.channels) + " channels)");
+      }
+    }
+  }
+  if (info.sample_rate_hz / 2.0 < band_high_hz) {
+    diagnostics.error(path + ".recording",
+                      array.recording.string() + ": sample rate " +
+                          std::to_string(static_cast<int>(info.sample_rate_hz)) +
+                          " Hz puts the Nyquist frequency below the band's upper edge (" +
+                          std::to_string(static_cast<int>(band_high_hz)) + " Hz)");
+  }
+}
+
+void parse_zone(const nlohmann::json& node, const std::string& path, Diagnostics& diagnostics,
+                std::vector<fusion::Zone>& zones) {
+  ObjectReader reader(node, path, diagnostics);
+  fusion::Zone zone;
+  zone.name = reader.required_string("name").value_or("");
+  reader.for_each(
+      "polygon_m", true, [&](const nlohmann::json& vertex, const std::string& vertex_path) {
+        if (!vertex.is_array() || vertex.size() != 2 || !vertex[0].is_number() ||
+            !vertex[1].is_number()) {
+          diagnostics.error(vertex_path,
+                            "expected 2 numbers [x, y], got " + describe_json_type(vertex));
+          return;
+        }
+        zone.polygon_m.emplace_back(vertex[0].get<double>(), vertex[1].get<double>());
+      });
+  if (reader.has("polygon_m") && zone.polygon_m.size() < 3) {
+    diagnostics.error(reader.path_of("polygon_m"), "a zone needs at least 3 vertices");
+  }
+  if (auto band = reader.numbers("altitude_m", 2, false)) {
+    zone.altitude_min_m = (*band)[0];
+    zone.altitude_max_m = (*band)[1];
+    if (zone.altitude_min_m >= zone.altitude_max_m) {
+      diagnostics.error(reader.path_of("altitude_m"), "expected [min, max] with min < max");
+    }
+  }
+  for (const auto& other : zones) {
+    if (other.name == zone.name && !zone.name.empty()) {
+      diagnostics.error(reader.path_of("name"), "duplicate zone name \"" + zone.name + "\"");
+    }
+  }
+  zones.push_back(std::move(zone));
+}
+
+}  // namespace
+
+ConfigError::ConfigError(std::vector<std::string> problems)
+    : std::runtime_error(join_lines(problems)), problems_(std::move(problems)) {}
+
+std::vector<doa::ArrayGeometry> SiteConfig::geometries() const {
+  std::vector<doa::ArrayGeometry> out;
+  for (const auto& array : arrays) out.push_back(array.geometry);
+  return out;
+}
+
+int SiteConfig::array_index(const std::string& id) const {
+  for (std::size_t i = 0; i < arrays.size(); ++i) {
+    if (arrays[i].geometry.id == id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+SiteConfig parse_site_config(const std::string& json_text, const std::filesystem::path& base_dir,
+                             std::vector<std::string>& warnings, const LoadOptions& options) {
+  nlohmann::json document;
+  try {
+    document = nlohmann::json::parse(json_text);
+  } catch (const nlohmann::json::exception& failure) {
+    // Syntax errors and numbers that overflow a double (1e999) both land here.
+    throw ConfigError({std::string("invalid JSON: ") + failure.what()});
+  }
+  Diagnostics diagnostics;
+  SiteConfig site;
+  {
+    ObjectReader root(document, "", diagnostics);
+    site.speed_of_sound_mps = root.number("speed_of_sound_mps", 343.0, 100.0, 2000.0);
+    std::set<std::string> ids;
+    root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
+      ArrayConfig array = parse_array(node, path, base_dir, diagnostics);
+      if (!array.geometry.id.empty() && !ids.insert(array.geometry.id).second) {
+        diagnostics.error(path + ".id", "duplicate array id \"" + array.geometry.id + "\"");
+      }
+      site.arrays.push_back(std::move(array));
+    });
+    if (root.has("arrays") && document["arrays"].is_array() && document["arrays"].empty()) {
+      diagnostics.error("arrays", "at least one array is required");
+    }
+    {
+      ObjectReader doa_section = root.object("doa");
+      parse_doa_params(doa_section, site.doa);
+    }
+    {
+      ObjectReader fusion_section = root.object("fusion");
+      parse_fusion_params(fusion_section, site.fusion);
+    }
+    root.for_each("zones", false, [&](const nlohmann::json& node, const std::string& path) {
+      parse_zone(node, path, diagnostics, site.zones);
+    });
+    {
+      ObjectReader dds = root.object("dds");
+      site.dds.domain_id = dds.integer("domain_id", 0, 0, 232);
+    }
+    {
+      ObjectReader http = root.object("http");
+      site.http.bind = http.string("bind", site.http.bind);
+    }
+    root.accept("description");
+  }
+  if (diagnostics.errors.empty() && options.check_recordings) {
+    double band_high_hz = 0.0;
+    for (const auto& band : site.doa.bands_hz) band_high_hz = std::max(band_high_hz, band.high_hz);
+    for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+      const std::string path = "arrays[" + std::to_string(i) + "]";
+      if (site.arrays[i].recording.empty()) {
+        diagnostics.error(path + ".recording", "no recording given (needed for replay)");
+        continue;
+      }
+      const bool explicit_map = document["arrays"][i].contains("channel_map");
+      check_recording(site.arrays[i], path, explicit_map, band_high_hz, diagnostics);
+    }
+  }
+  warnings.insert(warnings.end(), diagnostics.warnings.begin(), diagnostics.warnings.end());
+  if (!diagnostics.errors.empty()) throw ConfigError(std::move(diagnostics.errors));
+  return site;
+}
+
+SiteConfig load_site_config(const std::filesystem::path& file, std::vector<std::string>& warnings,
+                            const LoadOptions& options) {
+  std::ifstream stream(file);
+  if (!stream) throw ConfigError({file.string() + ": cannot open site config"});
+  std::ostringstream text;
+  text << stream.rdbuf();
+  std::vector<std::string> local_warnings;
+  try {
+    SiteConfig site = parse_site_config(text.str(), file.parent_path(), local_warnings, options);
+    site.file = file;
+    for (const auto& warning : local_warnings) warnings.push_back(file.string() + ": " + warning);
+    return site;
+  } catch (const ConfigError& failure) {
+    std::vector<std::string> problems;
+    for (const auto& problem : failure.problems())
+      problems.push_back(file.string() + ": " + problem);
+    throw ConfigError(std::move(problems));
+  }
+}
+
+}  // namespace dronetrack::config

@@ -1,0 +1,70 @@
+#pragma once
+// The site config (SPEC 3.1) as plain structs. Parsed and validated once, at start-up, in
+// site_config.cpp; libraries take these structs, never file names.
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "doa/array_geometry.hpp"
+#include "doa/doa_params.hpp"
+#include "fusion/fusion_params.hpp"
+
+namespace dronetrack::config {
+
+struct ArrayConfig {
+  doa::ArrayGeometry geometry;
+  std::filesystem::path recording;  // absolute (resolved against the config file); may be empty
+  std::vector<int> channel_map;     // channel_map[mic] = channel of the recording/device
+  std::optional<int> device;        // PortAudio device index for live capture
+};
+
+struct DdsConfig {
+  int domain_id = 0;
+};
+
+struct HttpConfig {
+  std::string bind = "127.0.0.1:8080";
+};
+
+struct SiteConfig {
+  std::filesystem::path file;  // where it was read from (empty if built in memory)
+  double speed_of_sound_mps = 343.0;
+  std::vector<ArrayConfig> arrays;
+  doa::DoaParams doa;
+  fusion::FusionParams fusion;
+  std::vector<fusion::Zone> zones;
+  DdsConfig dds;
+  HttpConfig http;
+
+  std::vector<doa::ArrayGeometry> geometries() const;
+  // Index of the array with this id, or -1.
+  int array_index(const std::string& id) const;
+};
+
+// All problems found, one line each: "arrays[1].mics_m[2]: expected 3 numbers, got 2".
+class ConfigError : public std::runtime_error {
+ public:
+  explicit ConfigError(std::vector<std::string> problems);
+  const std::vector<std::string>& problems() const { return problems_; }
+
+ private:
+  std::vector<std::string> problems_;
+};
+
+struct LoadOptions {
+  // Check each recording exists and has one channel per mic (off when the recordings are about
+  // to be written, e.g. by the simulator, or when capturing live).
+  bool check_recordings = true;
+};
+
+// Reads and validates a site config file. Throws ConfigError (message prefixed with the file
+// name). Warnings (unknown keys) are appended to `warnings`.
+SiteConfig load_site_config(const std::filesystem::path& file, std::vector<std::string>& warnings,
+                            const LoadOptions& options = {});
+// Same from text already read; `base_dir` resolves relative recording paths.
+SiteConfig parse_site_config(const std::string& json_text, const std::filesystem::path& base_dir,
+                             std::vector<std::string>& warnings, const LoadOptions& options = {});
+
+}  // namespace dronetrack::config

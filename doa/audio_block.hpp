@@ -1,0 +1,20 @@
+#pragma once
+// A non-owning view of a block of interleaved float samples, as capture sources deliver them.
+// Channel i is mic i of the array (any channel_map is applied by the source).
+#include <cstddef>
+#include <cstdint>
+
+namespace dronetrack::doa {
+
+struct AudioBlockView {
+  std::int64_t first_sample = 0;  // index of the block's first sample since stream start (t = 0)
+  int channels = 0;
+  std::size_t frames = 0;  // samples per channel
+  const float* interleaved = nullptr;
+  float sample(std::size_t frame, int channel) const {
+    return interleaved[frame * static_cast<std::size_t>(channels) +
+                       static_cast<std::size_t>(channel)];
+  }
+};
+
+}  // namespace dronetrack::doa

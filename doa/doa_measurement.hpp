@@ -1,0 +1,38 @@
+#pragma once
+// One direction of arrival from one array: what the node publishes and the fusion consumes.
+// Carries who measured it and how (array id and index, time, covariance) so the fusion builds
+// its measurement model from the array pose alone.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include <Eigen/Core>
+
+namespace dronetrack::doa {
+
+inline constexpr int kMaxPairs = 28;  // 8 mics
+
+// What the geometry can and cannot tell (SPEC 4.2).
+enum class DoaAmbiguity : std::uint8_t {
+  none = 0,            // full 3-D direction
+  mirror_up_down = 1,  // planar array: direction and its mirror through the array plane
+  cone = 2,            // two mics: only the angle to the mic axis is known
+};
+
+struct DoaMeasurement {
+  std::string array_id;
+  int array_index = -1;  // index into the site's arrays
+  double time_s = 0.0;   // centre of the analysis frame, recording time
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();  // unit vector, SITE frame
+  // Covariance of (azimuth, elevation) in rad^2, propagated from the TDOA noise. The fusion's
+  // measurement noise.
+  Eigen::Matrix2d azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-4;
+  double quality = 0.0;  // 0..1, from GCC peak sharpness and LS residual
+  double snr_db = 0.0;   // in-band SNR against the adaptive noise floor
+  int source_index = 0;  // 0..K-1 when one frame yields several directions
+  DoaAmbiguity ambiguity = DoaAmbiguity::none;
+  int pair_count = 0;
+  std::array<double, kMaxPairs> tdoa_s{};  // per mic pair (i<j in lexicographic order)
+};
+
+}  // namespace dronetrack::doa

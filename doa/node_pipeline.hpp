@@ -1,0 +1,49 @@
+#pragma once
+// One array node: blocks of multichannel audio in, directions of arrival out.
+// Synchronous and preallocated: threads and queues wrap it from outside (capture/, apps/).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "doa/array_geometry.hpp"
+#include "doa/audio_block.hpp"
+#include "doa/doa_measurement.hpp"
+#include "doa/doa_params.hpp"
+
+namespace dronetrack::doa {
+
+struct NodeDiagnostics {
+  std::int64_t frames_processed = 0;
+  std::int64_t doas_published = 0;
+  std::int64_t non_finite_samples = 0;  // NaN/Inf replaced by 0 and counted
+  std::int64_t clipped_samples = 0;     // |x| >= 0.999
+  double level_dbfs = -120.0;           // RMS of the last frame, all channels
+  double noise_floor_dbfs = -120.0;     // adaptive in-band noise floor
+  double snr_db = 0.0;                  // in-band SNR of the last frame
+  bool detecting = false;
+};
+
+class NodePipeline {
+ public:
+  // Throws std::invalid_argument naming the bad parameter.
+  NodePipeline(ArrayGeometry geometry, int array_index, const DoaParams& params,
+               double sample_rate_hz, double speed_of_sound_mps);
+  ~NodePipeline();
+  NodePipeline(NodePipeline&&) noexcept;
+  NodePipeline& operator=(NodePipeline&&) noexcept;
+
+  // Feeds any number of samples; appends to `out` the DOAs of every analysis frame completed.
+  // Never throws on odd audio (silence, clipping, NaN, dropouts): counts it in diagnostics().
+  void process(const AudioBlockView& block, std::vector<DoaMeasurement>& out);
+
+  const NodeDiagnostics& diagnostics() const;
+  const ArrayGeometry& geometry() const;
+  int frame_length_samples() const;
+  int hop_samples() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,60 @@
+#pragma once
+// The fusion node's core: DOAs from all arrays in, 3-D tracks out. Plain C++ on Eigen; the
+// DDS fusion process and the in-process replay both drive it through this interface.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "doa/array_geometry.hpp"
+#include "doa/doa_measurement.hpp"
+#include "fusion/fusion_params.hpp"
+#include "fusion/track_report.hpp"
+
+namespace dronetrack::fusion {
+
+enum class DoaVerdict : std::uint8_t {
+  accepted = 0,   // queued for the tracker
+  non_finite,     // NaN/Inf in time, direction or covariance
+  unknown_array,  // array id/index not in the site
+  too_late,       // older than what the tracker has already processed
+  duplicate,      // same array, same time, same source index as one already queued
+  bad_direction,  // not a unit vector, or covariance not positive definite
+};
+const char* to_string(DoaVerdict verdict);
+
+struct FusionCounters {
+  std::int64_t accepted = 0;
+  std::int64_t rejected_non_finite = 0;
+  std::int64_t rejected_unknown_array = 0;
+  std::int64_t rejected_too_late = 0;
+  std::int64_t rejected_duplicate = 0;
+  std::int64_t rejected_bad_direction = 0;
+  std::int64_t gated_out = 0;  // valid DOAs that matched no track and started none
+  std::int64_t tracks_started = 0;
+  std::int64_t tracks_deleted = 0;
+};
+
+class FusionEngine {
+ public:
+  // Throws std::invalid_argument naming the bad parameter.
+  FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeometry> arrays,
+               double speed_of_sound_mps);
+  ~FusionEngine();
+  FusionEngine(FusionEngine&&) noexcept;
+  FusionEngine& operator=(FusionEngine&&) noexcept;
+
+  // Validates and queues a DOA (any order within the reorder window). Never throws.
+  DoaVerdict add(const doa::DoaMeasurement& measurement);
+  // Feeds every queued DOA older than time_s - reorder_window_s to the tracker, oldest first.
+  void advance_to(double time_s);
+  // Live tracks predicted to time_s (which should not precede the last advance_to).
+  void tracks_at(double time_s, std::vector<TrackReport>& out) const;
+  const FusionCounters& counters() const;
+  const std::vector<doa::ArrayGeometry>& arrays() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dronetrack::fusion

@@ -1,0 +1,26 @@
+#pragma once
+// What the fusion reports about one live track at one time (SPEC 3.2 tracks line).
+#include <cstdint>
+
+#include <Eigen/Core>
+
+namespace dronetrack::fusion {
+
+enum class TrackStatus : std::uint8_t { tentative = 0, confirmed = 1, coasting = 2 };
+const char* to_string(TrackStatus status);
+
+struct TrackReport {
+  int id = 0;
+  double time_s = 0.0;
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d acceleration_mps2 = Eigen::Vector3d::Zero();
+  // State order [px py pz vx vy vz ax ay az].
+  Eigen::Matrix<double, 9, 9> covariance = Eigen::Matrix<double, 9, 9>::Identity();
+  TrackStatus status = TrackStatus::tentative;
+  std::uint64_t contributing_arrays = 0;  // bit i: array index i updated this track recently
+  double last_update_s = 0.0;
+  Eigen::Vector3d position_std_m() const { return covariance.diagonal().head<3>().cwiseSqrt(); }
+};
+
+}  // namespace dronetrack::fusion

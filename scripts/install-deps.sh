@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Installs what dronetrack needs from Debian 12 packages, by name. Idempotent and quick when
+# everything is present (no apt-get update unless something is missing).
+#   scripts/install-deps.sh          build + run dependencies
+#   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core)
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+packages=(
+  build-essential cmake pkg-config git      # toolchain
+  libeigen3-dev                             # linear algebra of the DOA solver and filters
+  libfftw3-dev                              # FFTs for GCC-PHAT
+  libsndfile1-dev                           # reading/writing multichannel recordings
+  portaudio19-dev                           # live capture
+  cyclonedds-dev cyclonedds-tools           # DDS transport + idlc
+  nlohmann-json3-dev                        # JSON config and outputs
+  libcpp-httplib-dev                        # HTTP API for the web page
+  libcli11-dev                              # command line
+  libgtest-dev libgmock-dev libbenchmark-dev # tests and benchmarks
+)
+if [[ "${1:-}" == "--tests" ]]; then
+  packages+=(chromium clang-format)
+  command -v node >/dev/null 2>&1 || packages+=(nodejs)
+  command -v npm >/dev/null 2>&1 || packages+=(npm)
+fi
+
+missing=()
+for package in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$package")
+done
+if ((${#missing[@]})); then
+  echo "install-deps: installing ${missing[*]}" >&2
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# The browser test drives Debian's Chromium through playwright-core (no browser download).
+if [[ "${1:-}" == "--tests" && -f "$here/web/test/package.json" ]]; then
+  if [[ ! -d "$here/web/test/node_modules/playwright-core" ]]; then
+    (cd "$here/web/test" && npm install --no-audit --no-fund --silent >/dev/null)
+  fi
+fi

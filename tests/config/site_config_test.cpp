@@ -1,0 +1,310 @@
+// Site config parsing and validation (SPEC 3.1): every validation error names its JSON path.
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <sndfile.h>
+#include <nlohmann/json.hpp>
+
+#include "config/site_config.hpp"
+
+namespace dronetrack::config {
+namespace {
+
+using nlohmann::json;
+
+json tetra_array(const std::string& id, double x) {
+  return {{"id", id},
+          {"position_m", {x, 0.0, 1.5}},
+          {"yaw_deg", 0.0},
+          {"mics_m",
+           {{0, 0, 0.5}, {0.471, 0, -0.167}, {-0.236, 0.408, -0.167}, {-0.236, -0.408, -0.167}}},
+          {"recording", id + ".wav"}};
+}
+
+json two_array_site() {
+  return {{"speed_of_sound_mps", 343.0},
+          {"arrays", {tetra_array("A1", 0.0), tetra_array("A2", 20.0)}}};
+}
+
+LoadOptions no_recordings() {
+  LoadOptions options;
+  options.check_recordings = false;
+  return options;
+}
+
+// Parses and expects failure; returns the problem lines.
+std::vector<std::string> problems_of(const json& site, const LoadOptions& options = no_recordings(),
+                                     const std::filesystem::path& base = ".") {
+  std::vector<std::string> warnings;
+  try {
+    parse_site_config(site.dump(), base, warnings, options);
+  } catch (const ConfigError& failure) {
+    return failure.problems();
+  }
+  ADD_FAILURE() << "expected a ConfigError for " << site.dump();
+  return {};
+}
+
+void expect_problem(const json& site, const std::string& expected,
+                    const LoadOptions& options = no_recordings(),
+                    const std::filesystem::path& base = ".") {
+  const auto problems = problems_of(site, options, base);
+  bool found = false;
+  for (const auto& problem : problems) found = found || problem == expected;
+  std::string all;
+  for (const auto& problem : problems) all += "\n  " + problem;
+  EXPECT_TRUE(found) << "expected \"" << expected << "\" among:" << all;
+}
+
+TEST(SiteConfig, ParsesTheSpecExampleWithDefaults) {
+  std::vector<std::string> warnings;
+  const SiteConfig site =
+      parse_site_config(two_array_site().dump(), "/data/site", warnings, no_recordings());
+  ASSERT_EQ(site.arrays.size(), 2u);
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_DOUBLE_EQ(site.speed_of_sound_mps, 343.0);
+  EXPECT_EQ(site.arrays[1].geometry.id, "A2");
+  EXPECT_DOUBLE_EQ(site.arrays[1].geometry.position_m.x(), 20.0);
+  EXPECT_EQ(site.arrays[0].geometry.mics_m.size(), 4u);
+  EXPECT_EQ(site.arrays[0].recording, std::filesystem::path("/data/site/A1.wav"));
+  EXPECT_EQ(site.arrays[0].channel_map, (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(site.array_index("A2"), 1);
+  EXPECT_EQ(site.array_index("nope"), -1);
+  // Defaults for every processing parameter.
+  EXPECT_DOUBLE_EQ(site.doa.bands_hz.at(0).low_hz, 1500.0);
+  EXPECT_DOUBLE_EQ(site.doa.bands_hz.at(0).high_hz, 3500.0);
+  EXPECT_DOUBLE_EQ(site.fusion.output_rate_hz, 10.0);
+  EXPECT_EQ(site.dds.domain_id, 0);
+  EXPECT_EQ(site.http.bind, "127.0.0.1:8080");
+}
+
+TEST(SiteConfig, AbsoluteRecordingPathIsKept) {
+  json site = two_array_site();
+  site["arrays"][0]["recording"] = "/abs/A1.wav";
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(parsed.arrays[0].recording, std::filesystem::path("/abs/A1.wav"));
+}
+
+TEST(SiteConfig, MicWithTwoNumbersNamesItsPath) {
+  json site = two_array_site();
+  site["arrays"][1]["mics_m"][2] = {0.1, 0.2};
+  expect_problem(site, "arrays[1].mics_m[2]: expected 3 numbers, got a list of 2");
+}
+
+TEST(SiteConfig, MissingKeys) {
+  json site = two_array_site();
+  site["arrays"][0].erase("position_m");
+  site["arrays"][1].erase("id");
+  const auto problems = problems_of(site);
+  EXPECT_NE(std::find(problems.begin(), problems.end(),
+                      "arrays[0].position_m: required [x, y, z] is missing"),
+            problems.end());
+  EXPECT_NE(std::find(problems.begin(), problems.end(), "arrays[1].id: required string is missing"),
+            problems.end());
+  expect_problem(json{{"speed_of_sound_mps", 343}}, "arrays: required list is missing");
+  json no_mics = two_array_site();
+  no_mics["arrays"][0].erase("mics_m");
+  expect_problem(no_mics, "arrays[0].mics_m: required list of mic positions is missing");
+}
+
+TEST(SiteConfig, WrongTypes) {
+  json site = two_array_site();
+  site["speed_of_sound_mps"] = "fast";
+  expect_problem(site, "speed_of_sound_mps: expected a number, got a string");
+  json arrays_not_list = two_array_site();
+  arrays_not_list["arrays"] = json::object();
+  expect_problem(arrays_not_list, "arrays: expected a list, got an object");
+  json mic_string = two_array_site();
+  mic_string["arrays"][0]["mics_m"][1][0] = "x";
+  expect_problem(mic_string, "arrays[0].mics_m[1][0]: expected a number, got a string");
+  expect_problem(json::array(), "(top level): expected an object, got a list of 0");
+}
+
+TEST(SiteConfig, NonFiniteNumbersAreRejected) {
+  // JSON has no NaN literal; the only way to write a non-finite number is an overflowing one.
+  std::string text = two_array_site().dump();
+  const std::string needle = "\"yaw_deg\":0.0";
+  ASSERT_NE(text.find(needle), std::string::npos);
+  text.replace(text.find(needle), needle.size(), "\"yaw_deg\":1e999");
+  std::vector<std::string> warnings;
+  try {
+    parse_site_config(text, ".", warnings, no_recordings());
+    FAIL() << "expected an error";
+  } catch (const ConfigError& failure) {
+    ASSERT_EQ(failure.problems().size(), 1u);
+    EXPECT_NE(failure.problems()[0].find("number overflow"), std::string::npos)
+        << failure.problems()[0];
+  }
+}
+
+TEST(SiteConfig, OutOfRangeValues) {
+  json site = two_array_site();
+  site["speed_of_sound_mps"] = -5;
+  expect_problem(site, "speed_of_sound_mps: must be in [100, 2000], got -5");
+}
+
+TEST(SiteConfig, DuplicateArrayIds) {
+  json site = two_array_site();
+  site["arrays"][1]["id"] = "A1";
+  expect_problem(site, "arrays[1].id: duplicate array id \"A1\"");
+}
+
+TEST(SiteConfig, FewerThanTwoMics) {
+  json site = two_array_site();
+  site["arrays"][0]["mics_m"] = {{0, 0, 0}};
+  expect_problem(site, "arrays[0].mics_m: an array needs at least 2 mics, got 1");
+}
+
+TEST(SiteConfig, CoincidentMics) {
+  json site = two_array_site();
+  site["arrays"][0]["mics_m"][3] = {0, 0, 0.5};
+  expect_problem(site, "arrays[0].mics_m: mics 0 and 3 coincide (closer than 1 mm)");
+}
+
+TEST(SiteConfig, UnknownKeysWarnButParse) {
+  json site = two_array_site();
+  site["colour"] = "blue";
+  site["arrays"][0]["height"] = 3;
+  site["doa"] = {{"frame_s", 0.2}, {"hop", 0.2}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  EXPECT_DOUBLE_EQ(parsed.doa.frame_s, 0.2);
+  EXPECT_NE(std::find(warnings.begin(), warnings.end(), "colour: unknown key, ignored"),
+            warnings.end());
+  EXPECT_NE(std::find(warnings.begin(), warnings.end(), "arrays[0].height: unknown key, ignored"),
+            warnings.end());
+  EXPECT_NE(std::find(warnings.begin(), warnings.end(), "doa.hop: unknown key, ignored"),
+            warnings.end());
+}
+
+TEST(SiteConfig, ProcessingSectionsValidated) {
+  json site = two_array_site();
+  site["doa"] = {{"tdoa_tracker", "magic"}, {"bands_hz", {{3000, 1000}}}};
+  site["fusion"] = {{"confirm_hits", 9}, {"confirm_window", 4}};
+  const auto problems = problems_of(site);
+  auto has = [&](const std::string& line) {
+    return std::find(problems.begin(), problems.end(), line) != problems.end();
+  };
+  EXPECT_TRUE(has("doa.bands_hz[0]: expected 0 <= low_hz < high_hz"));
+  EXPECT_TRUE(
+      has("doa.tdoa_tracker: unknown value \"magic\", expected one of: per_frame, "
+          "bayesian_grid, multi_peak, robust_regression"));
+  EXPECT_TRUE(has("fusion.confirm_hits: must not exceed confirm_window"));
+}
+
+TEST(SiteConfig, ZonesParseAndValidate) {
+  json site = two_array_site();
+  site["zones"] = {
+      {{"name", "yard"}, {"polygon_m", {{0, 0}, {10, 0}, {10, 10}}}, {"altitude_m", {0, 50}}},
+      {{"name", "bad"}, {"polygon_m", {{0, 0}, {1, 1}}}}};
+  expect_problem(site, "zones[1].polygon_m: a zone needs at least 3 vertices");
+  site["zones"].erase(1);
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  ASSERT_EQ(parsed.zones.size(), 1u);
+  EXPECT_EQ(parsed.zones[0].polygon_m.size(), 3u);
+  EXPECT_DOUBLE_EQ(parsed.zones[0].altitude_max_m, 50.0);
+}
+
+TEST(SiteConfig, InvalidJsonIsOneLine) {
+  std::vector<std::string> warnings;
+  try {
+    parse_site_config("{\"arrays\": [", ".", warnings, no_recordings());
+    FAIL();
+  } catch (const ConfigError& failure) {
+    ASSERT_EQ(failure.problems().size(), 1u);
+    EXPECT_EQ(failure.problems()[0].rfind("invalid JSON: ", 0), 0u);
+  }
+}
+
+TEST(SiteConfig, ChannelMapValidated) {
+  json site = two_array_site();
+  site["arrays"][0]["channel_map"] = {3, 2, 1};
+  expect_problem(site, "arrays[0].channel_map: has 3 entries for 4 mics");
+  site["arrays"][0]["channel_map"] = {0, 1, 1, 2};
+  expect_problem(site, "arrays[0].channel_map[2]: channel 1 is mapped twice");
+}
+
+class SiteWithRecordings : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("dronetrack_config_test_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  void write_wav(const std::string& name, int channels, int rate) {
+    SF_INFO info{};
+    info.channels = channels;
+    info.samplerate = rate;
+    info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+    SNDFILE* file = sf_open((dir_ / name).c_str(), SFM_WRITE, &info);
+    ASSERT_NE(file, nullptr);
+    std::vector<float> samples(static_cast<std::size_t>(channels) * 100, 0.0f);
+    sf_writef_float(file, samples.data(), 100);
+    sf_close(file);
+  }
+  std::filesystem::path dir_;
+};
+
+TEST_F(SiteWithRecordings, ChannelCountMustMatchMics) {
+  write_wav("A1.wav", 4, 48000);
+  write_wav("A2.wav", 3, 48000);
+  const auto wav = (dir_ / "A2.wav").string();
+  expect_problem(two_array_site(),
+                 "arrays[1].recording: " + wav + " has 3 channels but the array has 4 mics",
+                 LoadOptions{}, dir_);
+}
+
+TEST_F(SiteWithRecordings, MissingRecording) {
+  write_wav("A1.wav", 4, 48000);
+  expect_problem(two_array_site(),
+                 "arrays[1].recording: " + (dir_ / "A2.wav").string() + ": recording not found",
+                 LoadOptions{}, dir_);
+}
+
+TEST_F(SiteWithRecordings, NyquistBelowBand) {
+  write_wav("A1.wav", 4, 48000);
+  write_wav("A2.wav", 4, 6000);
+  expect_problem(
+      two_array_site(),
+      "arrays[1].recording: " + (dir_ / "A2.wav").string() +
+          ": sample rate 6000 Hz puts the Nyquist frequency below the band's upper edge (3500 Hz)",
+      LoadOptions{}, dir_);
+}
+
+TEST_F(SiteWithRecordings, ChannelMapSelectsChannelsOfAWiderRecording) {
+  write_wav("A1.wav", 6, 48000);
+  write_wav("A2.wav", 4, 48000);
+  json site = two_array_site();
+  site["arrays"][0]["channel_map"] = {5, 4, 3, 2};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), dir_, warnings, LoadOptions{});
+  EXPECT_EQ(parsed.arrays[0].channel_map, (std::vector<int>{5, 4, 3, 2}));
+  site["arrays"][0]["channel_map"] = {6, 4, 3, 2};
+  expect_problem(site,
+                 "arrays[0].channel_map[0]: channel 6 does not exist in " +
+                     (dir_ / "A1.wav").string() + " (6 channels)",
+                 LoadOptions{}, dir_);
+}
+
+TEST_F(SiteWithRecordings, LoadPrefixesTheFileName) {
+  const auto file = dir_ / "site.json";
+  std::ofstream(file)
+      << R"({"arrays": [{"id": "A1", "position_m": [0, 0], "mics_m": [[0,0,0],[1,0,0]]}]})";
+  std::vector<std::string> warnings;
+  try {
+    load_site_config(file, warnings, no_recordings());
+    FAIL();
+  } catch (const ConfigError& failure) {
+    EXPECT_EQ(failure.problems().at(0),
+              file.string() + ": arrays[0].position_m: expected 3 numbers, got a list of 2");
+  }
+}
+
+}  // namespace
+}  // namespace dronetrack::config
