@@ -1,0 +1,64 @@
+#pragma once
+// Streams a multichannel recording (WAV PCM16/24/32/float, FLAC, anything libsndfile reads) as
+// fixed-size float blocks with sample-accurate timestamps, applying the array's channel map.
+//
+// Memory is flat: one file-sized block and one mapped block are allocated at construction and
+// reused; next() allocates nothing.
+//
+// Errors (std::runtime_error, one line "<file>: <what>") at construction: missing file, not
+// audio, empty recording, channel_map index outside the file's channels, and a truncated file
+// whose header declares more frames than the data holds (checked at open for RIFF WAV, where the
+// data chunk's declared size can be compared with the file size). A truncation only discovered
+// while reading (e.g. FLAC, whose STREAMINFO frame count cannot be checked without decoding)
+// is logged as an error with the same message, the frames that were present are delivered, the
+// stream ends there and truncated() becomes true: by then consumers hold state worth flushing.
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "capture/audio_source.hpp"
+
+struct sf_private_tag;  // libsndfile's SNDFILE, kept out of this header
+
+namespace dronetrack::capture {
+
+class RecordingSource : public AudioSource {
+ public:
+  // channel_map[mic] = channel of the file that mic i was recorded on; empty = identity.
+  RecordingSource(const std::filesystem::path& file, std::vector<int> channel_map,
+                  std::size_t block_frames);
+  ~RecordingSource() override;
+  RecordingSource(const RecordingSource&) = delete;
+  RecordingSource& operator=(const RecordingSource&) = delete;
+
+  bool next(doa::AudioBlockView& block) override;
+  double sample_rate_hz() const override { return sample_rate_hz_; }
+  int channels() const override { return static_cast<int>(channel_map_.size()); }
+  const SourceCounters& counters() const override { return counters_; }
+  std::string describe() const override { return file_.string(); }
+
+  std::int64_t total_frames() const { return total_frames_; }  // as the header declares
+  int file_channels() const { return file_channels_; }
+  std::int64_t frames_delivered() const { return position_; }
+  // True once a read came up short before the declared end (see the header comment).
+  bool truncated() const { return truncated_; }
+
+ private:
+  std::filesystem::path file_;
+  sf_private_tag* handle_ = nullptr;
+  std::vector<int> channel_map_;
+  std::size_t block_frames_ = 0;
+  int file_channels_ = 0;
+  double sample_rate_hz_ = 0.0;
+  std::int64_t total_frames_ = 0;
+  std::int64_t position_ = 0;  // frames delivered so far = first_sample of the next block
+  bool truncated_ = false;
+  bool ended_ = false;
+  std::vector<float> file_block_;    // block_frames x file channels, as read
+  std::vector<float> mapped_block_;  // block_frames x mics, as delivered
+  SourceCounters counters_;
+};
+
+}  // namespace dronetrack::capture
