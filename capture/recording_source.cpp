@@ -10,13 +10,11 @@
 
 #include <sndfile.h>
 
+#include "capture/block_mapping.hpp"
 #include "common/log.hpp"
 
 namespace dronetrack::capture {
 namespace {
-
-constexpr float kClipLevel = 0.999F;
-constexpr double kFloorDbfs = -120.0;
 
 std::runtime_error file_error(const std::filesystem::path& file, const std::string& what) {
   return std::runtime_error(file.string() + ": " + what);
@@ -73,10 +71,6 @@ std::optional<DataChunkExtent> riff_data_extent(const std::filesystem::path& fil
     offset += 8 + static_cast<std::int64_t>(size) + (size & 1U);  // chunks are word aligned
   }
   return std::nullopt;
-}
-
-double to_dbfs(double amplitude) {
-  return amplitude > 0.0 ? std::max(kFloorDbfs, 20.0 * std::log10(amplitude)) : kFloorDbfs;
 }
 
 }  // namespace
@@ -151,33 +145,11 @@ bool RecordingSource::next(doa::AudioBlockView& block) {
   }
 
   const auto frames = static_cast<std::size_t>(got);
-  const std::size_t mics = channel_map_.size();
-  const auto file_channels = static_cast<std::size_t>(file_channels_);
-  double peak = 0.0;
-  double sum_squares = 0.0;
-  for (std::size_t frame = 0; frame < frames; ++frame) {
-    const float* in = file_block_.data() + frame * file_channels;
-    float* out = mapped_block_.data() + frame * mics;
-    for (std::size_t mic = 0; mic < mics; ++mic) {
-      float sample = in[static_cast<std::size_t>(channel_map_[mic])];
-      if (!std::isfinite(sample)) {
-        // The DOA stage must never see NaN/Inf: one bad sample would poison a whole FFT.
-        sample = 0.0F;
-        ++counters_.non_finite_samples;
-      }
-      const float magnitude = std::fabs(sample);
-      if (magnitude >= kClipLevel) ++counters_.clipped_samples;
-      peak = std::max(peak, static_cast<double>(magnitude));
-      sum_squares += static_cast<double>(sample) * static_cast<double>(sample);
-      out[mic] = sample;
-    }
-  }
-  const double count = static_cast<double>(frames * mics);
-  counters_.peak_level_dbfs = to_dbfs(peak);
-  counters_.rms_level_dbfs = count > 0.0 ? to_dbfs(std::sqrt(sum_squares / count)) : kFloorDbfs;
+  map_channels_and_count(file_block_.data(), frames, static_cast<std::size_t>(file_channels_),
+                         channel_map_, mapped_block_.data(), counters_);
 
   block.first_sample = position_;
-  block.channels = static_cast<int>(mics);
+  block.channels = channels();
   block.frames = frames;
   block.interleaved = mapped_block_.data();
   position_ += got;
