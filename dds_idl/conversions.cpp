@@ -1,0 +1,252 @@
+#include "dds_idl/conversions.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace dronetrack::dds {
+
+namespace {
+
+constexpr std::size_t kArrayIdBound = sizeof(dronetrack_Doa{}.array_id);
+
+// A direction further than this from unit length is not a direction (the node normalises).
+constexpr double kUnitTolerance = 1e-3;
+
+bool finite(double value) { return std::isfinite(value); }
+template <std::size_t N>
+bool all_finite(const double (&values)[N]) {
+  return std::all_of(std::begin(values), std::end(values), finite);
+}
+
+// The key string of a sample from the wire: bounded by its array, so an unterminated one cannot
+// run past it.
+template <std::size_t N>
+std::string_view bounded_view(const char (&field)[N]) {
+  return {field, strnlen(field, N)};
+}
+
+int index_of(std::string_view id, const std::vector<std::string>& array_ids) {
+  for (std::size_t i = 0; i < array_ids.size(); ++i) {
+    if (array_ids[i] == id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Eigen::Vector3d vector3(const double (&values)[3]) { return {values[0], values[1], values[2]}; }
+void put_vector3(const Eigen::Vector3d& vector, double (&values)[3]) {
+  for (int i = 0; i < 3; ++i) values[i] = vector[i];
+}
+
+}  // namespace
+
+std::int64_t seconds_to_ns(double time_s) { return std::llround(time_s * 1e9); }
+double ns_to_seconds(std::int64_t time_ns) {
+  // Split so Unix-time nanoseconds keep their sub-microsecond part.
+  const std::int64_t whole_s = time_ns / 1'000'000'000;
+  const std::int64_t rest_ns = time_ns % 1'000'000'000;
+  return static_cast<double>(whole_s) + static_cast<double>(rest_ns) * 1e-9;
+}
+
+const char* to_string(SampleProblem problem) {
+  switch (problem) {
+    case SampleProblem::none:
+      return "none";
+    case SampleProblem::empty_key:
+      return "empty_key";
+    case SampleProblem::unknown_array:
+      return "unknown_array";
+    case SampleProblem::non_finite:
+      return "non_finite";
+    case SampleProblem::absurd_time:
+      return "absurd_time";
+    case SampleProblem::oversized_sequence:
+      return "oversized_sequence";
+    case SampleProblem::bad_value:
+      return "bad_value";
+  }
+  return "unknown";
+}
+
+// ---- Doa ----
+
+void to_idl(const doa::DoaMeasurement& measurement, std::int64_t time_offset_ns,
+            dronetrack_Doa& sample) {
+  copy_bounded(sample.array_id, measurement.array_id);
+  sample.time_ns = time_offset_ns + seconds_to_ns(measurement.time_s);
+  put_vector3(measurement.direction, sample.direction);
+  sample.azimuth_deg = doa::azimuth_deg(measurement.direction);
+  sample.elevation_deg = doa::elevation_deg(measurement.direction);
+  sample.azel_covariance_rad2[0] = measurement.azel_covariance_rad2(0, 0);
+  sample.azel_covariance_rad2[1] = measurement.azel_covariance_rad2(0, 1);
+  sample.azel_covariance_rad2[2] = measurement.azel_covariance_rad2(1, 1);
+  sample.quality = measurement.quality;
+  sample.snr_db = measurement.snr_db;
+  sample.source_index = measurement.source_index;
+  sample.ambiguity = static_cast<std::uint8_t>(measurement.ambiguity);
+  const auto pairs =
+      static_cast<std::uint32_t>(std::clamp(measurement.pair_count, 0, doa::kMaxPairs));
+  sample.tdoa_s._maximum = pairs;
+  sample.tdoa_s._length = pairs;
+  // dds_write only reads through this pointer; the cast drops const for the C struct's sake.
+  sample.tdoa_s._buffer = const_cast<double*>(measurement.tdoa_s.data());
+  sample.tdoa_s._release = false;
+}
+
+SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::string>& array_ids,
+                       doa::DoaMeasurement& out) {
+  const std::string_view id = bounded_view(sample.array_id);
+  if (id.empty()) return SampleProblem::empty_key;
+  const int index = index_of(id, array_ids);
+  if (index < 0) return SampleProblem::unknown_array;
+  if (!all_finite(sample.direction) || !finite(sample.azimuth_deg) ||
+      !finite(sample.elevation_deg) || !all_finite(sample.azel_covariance_rad2) ||
+      !finite(sample.quality) || !finite(sample.snr_db)) {
+    return SampleProblem::non_finite;
+  }
+  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  if (sample.tdoa_s._length > static_cast<std::uint32_t>(doa::kMaxPairs) ||
+      (sample.tdoa_s._length > 0 && sample.tdoa_s._buffer == nullptr)) {
+    return SampleProblem::oversized_sequence;
+  }
+  for (std::uint32_t i = 0; i < sample.tdoa_s._length; ++i) {
+    if (!finite(sample.tdoa_s._buffer[i])) return SampleProblem::non_finite;
+  }
+  const Eigen::Vector3d direction = vector3(sample.direction);
+  const double var_az = sample.azel_covariance_rad2[0];
+  const double cov_azel = sample.azel_covariance_rad2[1];
+  const double var_el = sample.azel_covariance_rad2[2];
+  if (std::abs(direction.norm() - 1.0) > kUnitTolerance || var_az <= 0.0 || var_el <= 0.0 ||
+      cov_azel * cov_azel >= var_az * var_el || sample.source_index < 0 || sample.ambiguity > 2) {
+    return SampleProblem::bad_value;
+  }
+  out.array_id.assign(id);  // within the id's capacity after the first sample: no allocation
+  out.array_index = index;
+  out.time_s = ns_to_seconds(sample.time_ns);
+  out.direction = direction.normalized();
+  out.azel_covariance_rad2 << var_az, cov_azel, cov_azel, var_el;
+  out.quality = sample.quality;
+  out.snr_db = sample.snr_db;
+  out.source_index = sample.source_index;
+  out.ambiguity = static_cast<doa::DoaAmbiguity>(sample.ambiguity);
+  out.pair_count = static_cast<int>(sample.tdoa_s._length);
+  out.tdoa_s.fill(0.0);
+  std::copy_n(sample.tdoa_s._buffer, sample.tdoa_s._length, out.tdoa_s.begin());
+  return SampleProblem::none;
+}
+
+// ---- NodeStatus ----
+
+void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_NodeStatus& sample) {
+  copy_bounded(sample.array_id, status.array_id);
+  sample.time_ns = time_ns;
+  sample.alive = status.alive;
+  sample.sample_rate_hz = status.sample_rate_hz;
+  sample.overruns = status.overruns;
+  sample.clipped_samples = status.clipped_samples;
+  sample.non_finite_samples = status.non_finite_samples;
+  sample.level_dbfs = status.level_dbfs;
+  sample.noise_floor_dbfs = status.noise_floor_dbfs;
+  sample.snr_db = status.snr_db;
+  sample.detecting = status.detecting;
+  copy_bounded(sample.software_version, status.software_version);
+}
+
+SampleProblem from_idl(const dronetrack_NodeStatus& sample,
+                       const std::vector<std::string>& array_ids, doa::NodeStatus& out) {
+  const std::string_view id = bounded_view(sample.array_id);
+  if (id.empty()) return SampleProblem::empty_key;
+  if (index_of(id, array_ids) < 0) return SampleProblem::unknown_array;
+  if (!finite(sample.sample_rate_hz) || !finite(sample.level_dbfs) ||
+      !finite(sample.noise_floor_dbfs) || !finite(sample.snr_db)) {
+    return SampleProblem::non_finite;
+  }
+  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
+      sample.non_finite_samples < 0) {
+    return SampleProblem::bad_value;
+  }
+  out.array_id.assign(id);
+  out.time_s = ns_to_seconds(sample.time_ns);
+  out.alive = sample.alive;
+  out.sample_rate_hz = sample.sample_rate_hz;
+  out.overruns = sample.overruns;
+  out.clipped_samples = sample.clipped_samples;
+  out.non_finite_samples = sample.non_finite_samples;
+  out.level_dbfs = sample.level_dbfs;
+  out.noise_floor_dbfs = sample.noise_floor_dbfs;
+  out.snr_db = sample.snr_db;
+  out.detecting = sample.detecting;
+  out.software_version.assign(bounded_view(sample.software_version));
+  return SampleProblem::none;
+}
+
+// ---- Track ----
+
+void to_idl(const fusion::TrackReport& report, dronetrack_Track& sample) {
+  sample.id = report.id;
+  sample.time_ns = seconds_to_ns(report.time_s);
+  put_vector3(report.position_m, sample.position_m);
+  put_vector3(report.velocity_mps, sample.velocity_mps);
+  put_vector3(report.acceleration_mps2, sample.acceleration_mps2);
+  std::size_t k = 0;
+  for (int row = 0; row < 9; ++row) {
+    for (int column = row; column < 9; ++column) {
+      sample.covariance_upper[k++] = report.covariance(row, column);
+    }
+  }
+  sample.status = static_cast<std::uint8_t>(report.status);
+  sample.contributing_arrays = report.contributing_arrays;
+  sample.last_update_ns = seconds_to_ns(report.last_update_s);
+}
+
+SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out) {
+  if (!all_finite(sample.position_m) || !all_finite(sample.velocity_mps) ||
+      !all_finite(sample.acceleration_mps2) || !all_finite(sample.covariance_upper)) {
+    return SampleProblem::non_finite;
+  }
+  if (sample.status > 2) return SampleProblem::bad_value;
+  out.id = sample.id;
+  out.time_s = ns_to_seconds(sample.time_ns);
+  out.position_m = vector3(sample.position_m);
+  out.velocity_mps = vector3(sample.velocity_mps);
+  out.acceleration_mps2 = vector3(sample.acceleration_mps2);
+  std::size_t k = 0;
+  for (int row = 0; row < 9; ++row) {
+    for (int column = row; column < 9; ++column) {
+      out.covariance(row, column) = sample.covariance_upper[k];
+      out.covariance(column, row) = sample.covariance_upper[k];
+      ++k;
+    }
+  }
+  out.status = static_cast<fusion::TrackStatus>(sample.status);
+  out.contributing_arrays = sample.contributing_arrays;
+  out.last_update_s = ns_to_seconds(sample.last_update_ns);
+  return SampleProblem::none;
+}
+
+// ---- Alert ----
+
+void to_idl(const fusion::ZoneEvent& event, dronetrack_Alert& sample) {
+  copy_bounded(sample.zone, event.zone);
+  sample.track_id = event.track_id;
+  sample.entered = event.entered;
+  sample.time_ns = seconds_to_ns(event.time_s);
+  put_vector3(event.position_m, sample.position_m);
+}
+
+SampleProblem from_idl(const dronetrack_Alert& sample, fusion::ZoneEvent& out) {
+  const std::string_view zone = bounded_view(sample.zone);
+  if (zone.empty()) return SampleProblem::empty_key;
+  if (!all_finite(sample.position_m)) return SampleProblem::non_finite;
+  out.zone.assign(zone);
+  out.track_id = sample.track_id;
+  out.entered = sample.entered;
+  out.time_s = ns_to_seconds(sample.time_ns);
+  out.position_m = vector3(sample.position_m);
+  return SampleProblem::none;
+}
+
+static_assert(kArrayIdBound == 65, "string<64> maps to char[65]");
+
+}  // namespace dronetrack::dds

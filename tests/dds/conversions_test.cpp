@@ -1,0 +1,140 @@
+// Incoming samples are validated field by field: each kind of damage is named, nothing throws.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "dds_idl/conversions.hpp"
+
+namespace dronetrack::dds {
+namespace {
+
+const std::vector<std::string> kArrays{"N1", "N2"};
+
+dronetrack_Doa valid_doa(std::array<double, doa::kMaxPairs>& tdoas) {
+  doa::DoaMeasurement measurement;
+  measurement.array_id = "N1";
+  measurement.time_s = 3.0;
+  measurement.direction = Eigen::Vector3d(0.0, 0.6, 0.8);
+  measurement.pair_count = 6;
+  measurement.tdoa_s[0] = 1e-4;
+  dronetrack_Doa sample{};
+  to_idl(measurement, 0, sample);
+  tdoas = measurement.tdoa_s;
+  sample.tdoa_s._buffer = tdoas.data();  // outlive `measurement`
+  return sample;
+}
+
+TEST(DdsConversions, ValidDoaIsAccepted) {
+  std::array<double, doa::kMaxPairs> tdoas{};
+  const dronetrack_Doa sample = valid_doa(tdoas);
+  doa::DoaMeasurement out;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+  EXPECT_EQ(out.array_index, 0);
+  EXPECT_NEAR(out.azel_covariance_rad2(0, 0), 1e-4, 1e-18);
+}
+
+TEST(DdsConversions, EachKindOfDamagedDoaIsNamed) {
+  std::array<double, doa::kMaxPairs> tdoas{};
+  std::array<double, 64> long_tdoas{};
+  struct Case {
+    const char* what;
+    void (*damage)(dronetrack_Doa&, std::array<double, 64>&);
+    SampleProblem expected;
+  };
+  const Case cases[] = {
+      {"empty key", [](dronetrack_Doa& s, auto&) { s.array_id[0] = '\0'; },
+       SampleProblem::empty_key},
+      {"unknown array", [](dronetrack_Doa& s, auto&) { copy_bounded(s.array_id, "X9"); },
+       SampleProblem::unknown_array},
+      {"unterminated key", [](dronetrack_Doa& s, auto&) { std::memset(s.array_id, 'A', 65); },
+       SampleProblem::unknown_array},
+      {"NaN direction",
+       [](dronetrack_Doa& s, auto&) { s.direction[1] = std::numeric_limits<double>::quiet_NaN(); },
+       SampleProblem::non_finite},
+      {"Inf quality",
+       [](dronetrack_Doa& s, auto&) { s.quality = std::numeric_limits<double>::infinity(); },
+       SampleProblem::non_finite},
+      {"NaN covariance",
+       [](dronetrack_Doa& s, auto&) {
+         s.azel_covariance_rad2[2] = std::numeric_limits<double>::quiet_NaN();
+       },
+       SampleProblem::non_finite},
+      {"negative time", [](dronetrack_Doa& s, auto&) { s.time_ns = -5; },
+       SampleProblem::absurd_time},
+      {"too many TDOAs",
+       [](dronetrack_Doa& s, std::array<double, 64>& storage) {
+         s.tdoa_s = {64, 64, storage.data(), false};
+       },
+       SampleProblem::oversized_sequence},
+      {"length without buffer",
+       [](dronetrack_Doa& s, auto&) {
+         s.tdoa_s = {3, 3, nullptr, false};
+       },
+       SampleProblem::oversized_sequence},
+      {"not a unit vector", [](dronetrack_Doa& s, auto&) { s.direction[0] = 0.5; },
+       SampleProblem::bad_value},
+      {"zero variance", [](dronetrack_Doa& s, auto&) { s.azel_covariance_rad2[0] = 0.0; },
+       SampleProblem::bad_value},
+      {"covariance not positive definite",
+       [](dronetrack_Doa& s, auto&) { s.azel_covariance_rad2[1] = 1.0; }, SampleProblem::bad_value},
+      {"ambiguity out of range", [](dronetrack_Doa& s, auto&) { s.ambiguity = 7; },
+       SampleProblem::bad_value},
+      {"negative source index", [](dronetrack_Doa& s, auto&) { s.source_index = -1; },
+       SampleProblem::bad_value},
+  };
+  for (const Case& test_case : cases) {
+    dronetrack_Doa sample = valid_doa(tdoas);
+    test_case.damage(sample, long_tdoas);
+    doa::DoaMeasurement out;
+    EXPECT_EQ(from_idl(sample, kArrays, out), test_case.expected)
+        << test_case.what << ": got " << to_string(from_idl(sample, kArrays, out));
+  }
+}
+
+TEST(DdsConversions, NaNTdoaInsideTheSequenceIsCaught) {
+  std::array<double, doa::kMaxPairs> tdoas{};
+  dronetrack_Doa sample = valid_doa(tdoas);
+  tdoas[5] = std::numeric_limits<double>::quiet_NaN();
+  doa::DoaMeasurement out;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
+}
+
+TEST(DdsConversions, DamagedStatusTrackAndAlert) {
+  dronetrack_NodeStatus status{};
+  copy_bounded(status.array_id, "N2");
+  doa::NodeStatus status_out;
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::none);
+  status.level_dbfs = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::non_finite);
+  status.level_dbfs = 0.0;
+  status.overruns = -1;
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::bad_value);
+  status.array_id[0] = '\0';
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::empty_key);
+
+  dronetrack_Track track{};
+  fusion::TrackReport track_out;
+  EXPECT_EQ(from_idl(track, track_out), SampleProblem::none);
+  track.covariance_upper[44] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(from_idl(track, track_out), SampleProblem::non_finite);
+  track.covariance_upper[44] = 1.0;
+  track.status = 9;
+  EXPECT_EQ(from_idl(track, track_out), SampleProblem::bad_value);
+
+  dronetrack_Alert alert{};
+  fusion::ZoneEvent alert_out;
+  EXPECT_EQ(from_idl(alert, alert_out), SampleProblem::empty_key);
+  copy_bounded(alert.zone, "yard");
+  EXPECT_EQ(from_idl(alert, alert_out), SampleProblem::none);
+}
+
+TEST(DdsConversions, LongIdsAreTruncatedToTheirBound) {
+  dronetrack_NodeStatus status{};
+  copy_bounded(status.software_version, std::string(100, 'v'));
+  EXPECT_EQ(std::strlen(status.software_version), 32u);
+}
+
+}  // namespace
+}  // namespace dronetrack::dds
