@@ -1,0 +1,306 @@
+#include "http_api/http_server.hpp"
+
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <utility>
+
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+namespace dronetrack::http_api {
+namespace {
+
+void send_json(httplib::Response& res, int status, const std::string& body) {
+  res.status = status;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(body, "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message) {
+  send_json(res, status,
+            nlohmann::json{{"error", message}}.dump(-1, ' ', false,
+                                                    nlohmann::json::error_handler_t::replace));
+}
+
+// Rejects query parameters the endpoint does not know, so a typo is a 400, not a silent default.
+bool check_params(const httplib::Request& req, httplib::Response& res,
+                  std::initializer_list<const char*> allowed) {
+  for (const auto& [name, value] : req.params) {
+    bool known = false;
+    for (const char* a : allowed) known = known || name == a;
+    if (!known) {
+      send_error(res, 400, "unknown query parameter '" + name + "'");
+      return false;
+    }
+  }
+  return true;
+}
+
+// Optional finite number parameter; absent gives `fallback`.
+bool number_param(const httplib::Request& req, httplib::Response& res, const char* name,
+                  double fallback, double& out) {
+  out = fallback;
+  if (!req.has_param(name)) return true;
+  const std::string text = req.get_param_value(name);
+  char* end = nullptr;
+  errno = 0;
+  const double value = text.empty() ? NAN : std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE ||
+      !std::isfinite(value)) {
+    send_error(res, 400, std::string("query parameter '") + name + "' must be a finite number");
+    return false;
+  }
+  out = value;
+  return true;
+}
+
+const char* content_type_for(const std::filesystem::path& file) {
+  const std::string ext = file.extension().string();
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".js" || ext == ".mjs") return "text/javascript; charset=utf-8";
+  if (ext == ".css") return "text/css; charset=utf-8";
+  if (ext == ".json") return "application/json";
+  if (ext == ".svg") return "image/svg+xml";
+  if (ext == ".png") return "image/png";
+  if (ext == ".ico") return "image/x-icon";
+  return "application/octet-stream";
+}
+
+// Maps a URL path to a file under `root`, or nothing. Only plain names: no "..", no hidden
+// files, no backslashes; and the resolved file must still lie under the root (symlinks).
+std::optional<std::filesystem::path> resolve_static(const std::filesystem::path& root,
+                                                    const std::string& url_path) {
+  std::string rel = url_path;
+  if (rel.empty() || rel.front() != '/') return std::nullopt;
+  rel.erase(0, 1);
+  if (rel.empty()) rel = "index.html";
+  for (char c : rel) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-' || c == '/';
+    if (!ok) return std::nullopt;
+  }
+  std::size_t begin = 0;
+  while (begin <= rel.size()) {
+    const std::size_t end = std::min(rel.find('/', begin), rel.size());
+    if (end == begin || rel[begin] == '.') return std::nullopt;  // empty, hidden or ".."
+    begin = end + 1;
+  }
+  if (rel.back() == '/') return std::nullopt;
+  std::error_code error;
+  const auto canonical_root = std::filesystem::canonical(root, error);
+  if (error) return std::nullopt;
+  const auto file = std::filesystem::weakly_canonical(canonical_root / rel, error);
+  if (error) return std::nullopt;
+  const auto [root_end, file_it] =
+      std::mismatch(canonical_root.begin(), canonical_root.end(), file.begin(), file.end());
+  if (root_end != canonical_root.end()) return std::nullopt;
+  if (!std::filesystem::is_regular_file(file, error)) return std::nullopt;
+  return file;
+}
+
+bool read_file(const std::filesystem::path& file, std::string& out) {
+  std::error_code error;
+  const auto size = std::filesystem::file_size(file, error);
+  if (error) return false;
+  out.resize(size);
+  std::FILE* f = std::fopen(file.c_str(), "rb");
+  if (f == nullptr) return false;
+  const std::size_t got = std::fread(out.data(), 1, out.size(), f);
+  std::fclose(f);
+  return got == out.size();
+}
+
+std::pair<std::string, int> parse_bind(const std::string& bind) {
+  const auto colon = bind.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == bind.size()) {
+    throw std::runtime_error("HTTP bind address '" + bind + "' is not HOST:PORT");
+  }
+  std::string host = bind.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') {
+    host = host.substr(1, host.size() - 2);
+  }
+  const std::string port_text = bind.substr(colon + 1);
+  int port = -1;
+  const auto [end, ec] =
+      std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
+  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 0 || port > 65535) {
+    throw std::runtime_error("HTTP bind address '" + bind + "': port must be 0..65535");
+  }
+  return {host, port};
+}
+
+}  // namespace
+
+HttpServer::HttpServer(LiveState& state, HttpOptions options)
+    : state_(state), options_(std::move(options)) {}
+
+HttpServer::~HttpServer() { stop(); }
+
+std::string HttpServer::url() const {
+  const bool v6 = host_.find(':') != std::string::npos;
+  return "http://" + (v6 ? "[" + host_ + "]" : host_) + ":" + std::to_string(port_) + "/";
+}
+
+void HttpServer::start() {
+  if (server_) throw std::runtime_error("HTTP server already started");
+  auto [host, port] = parse_bind(options_.bind);
+  host_ = host;
+  server_ = std::make_unique<httplib::Server>();
+  // Each SSE client holds a worker thread for as long as it stays connected; leave room for
+  // ordinary requests beside the maximum number of streams.
+  const std::size_t threads =
+      static_cast<std::size_t>(std::max(1, options_.max_stream_clients)) + 8;
+  server_->new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+  // A stuck client's write fails after this long; its queue has long since been dropped.
+  server_->set_write_timeout(2, 0);
+  server_->set_keep_alive_timeout(2);
+  install_routes();
+
+  errno = 0;
+  if (port == 0) {
+    port_ = server_->bind_to_any_port(host_);
+  } else {
+    port_ = server_->bind_to_port(host_, port) ? port : -1;
+  }
+  if (port_ <= 0) {
+    const int error = errno;
+    server_.reset();
+    throw std::runtime_error("cannot listen on " + options_.bind +
+                             (error != 0 ? std::string(": ") + std::strerror(error) : ""));
+  }
+  stopping_ = false;
+  thread_ = std::thread([this] { server_->listen_after_bind(); });
+}
+
+void HttpServer::stop() {
+  if (!server_) return;
+  stopping_ = true;
+  server_->stop();
+  if (thread_.joinable()) thread_.join();
+  server_.reset();
+}
+
+void HttpServer::install_routes() {
+  httplib::Server& svr = *server_;
+
+  svr.set_exception_handler(
+      [](const httplib::Request&, httplib::Response& res, std::exception_ptr error) {
+        std::string message = "internal error";
+        try {
+          if (error) std::rethrow_exception(error);
+        } catch (const std::exception& e) {
+          message = std::string("internal error: ") + e.what();
+        } catch (...) {
+        }
+        send_error(res, 500, message);
+      });
+  // Whatever 4xx/5xx httplib produces on its own (bad request line, unmatched method) still
+  // carries a JSON error body.
+  svr.set_error_handler(
+      httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+        send_error(res, res.status,
+                   "HTTP " + std::to_string(res.status) + " for " + req.method + " " + req.path);
+        return httplib::Server::HandlerResponse::Handled;
+      }));
+
+  svr.Get("/api/site", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_.site_json());
+  });
+  svr.Get("/api/tracks", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_.tracks_json());
+  });
+  svr.Get("/api/tracks/history", [this](const httplib::Request& req, httplib::Response& res) {
+    double since = 0.0;
+    if (!check_params(req, res, {"since"}) ||
+        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
+      return;
+    }
+    send_json(res, 200, state_.history_json(since));
+  });
+  svr.Get("/api/nodes", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_.nodes_json());
+  });
+  svr.Get("/api/alerts", [this](const httplib::Request& req, httplib::Response& res) {
+    double since = 0.0;
+    if (!check_params(req, res, {"since"}) ||
+        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
+      return;
+    }
+    send_json(res, 200, state_.alerts_json(since));
+  });
+  svr.Get("/api/stream", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    if (stream_clients_.fetch_add(1) >= options_.max_stream_clients) {
+      --stream_clients_;
+      send_error(res, 503, "too many stream clients");
+      return;
+    }
+    auto queue = state_.subscribe();
+    res.set_header("Cache-Control", "no-store");
+    res.set_header("X-Accel-Buffering", "no");
+    const auto heartbeat = std::chrono::milliseconds(std::max(50, options_.stream_heartbeat_ms));
+    auto next_nodes = std::chrono::steady_clock::now() + heartbeat;
+    res.set_chunked_content_provider(
+        "text/event-stream",
+        [this, queue, heartbeat, next_nodes,
+         batch = std::vector<std::shared_ptr<const std::string>>()](
+            std::size_t, httplib::DataSink& sink) mutable {
+          if (stopping_) return false;
+          batch.clear();
+          if (!queue->pop_all(batch, 100)) return false;  // dropped (too slow) or closed
+          std::string out;
+          for (const auto& event : batch) out += *event;
+          const auto now = std::chrono::steady_clock::now();
+          if (now >= next_nodes) {
+            // Stale flags change with stream time alone; resend node health regularly.
+            out += sse_event("nodes", state_.nodes_json());
+            next_nodes = now + heartbeat;
+          }
+          return out.empty() || sink.write(out.data(), out.size());
+        },
+        [this, queue](bool) {
+          state_.unsubscribe(queue);
+          --stream_clients_;
+        });
+  });
+  svr.Get(R"(/api(/.*)?)", [](const httplib::Request& req, httplib::Response& res) {
+    send_error(res, 404, "no such endpoint: " + req.path);
+  });
+  svr.Get(R"(/.*)", [this](const httplib::Request& req, httplib::Response& res) {
+    if (options_.web_root.empty()) {
+      send_error(res, 404, "no web root configured");
+      return;
+    }
+    const auto file = resolve_static(options_.web_root, req.path);
+    if (!file) {
+      send_error(res, 404, "not found: " + req.path);
+      return;
+    }
+    std::string body;
+    if (!read_file(*file, body)) {
+      send_error(res, 500, "cannot read " + req.path);
+      return;
+    }
+    res.set_header("Cache-Control", "no-cache");
+    res.set_content(std::move(body), content_type_for(*file));
+  });
+  const auto method_not_allowed = [](const httplib::Request& req, httplib::Response& res) {
+    send_error(res, 405, "method " + req.method + " not allowed on " + req.path);
+  };
+  svr.Post(R"(/.*)", method_not_allowed);
+  svr.Put(R"(/.*)", method_not_allowed);
+  svr.Delete(R"(/.*)", method_not_allowed);
+  svr.Patch(R"(/.*)", method_not_allowed);
+}
+
+}  // namespace dronetrack::http_api

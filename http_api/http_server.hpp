@@ -1,0 +1,52 @@
+#pragma once
+// The operator's HTTP server: the JSON API and Server-Sent Events over a LiveState, and the
+// static web page. Handlers only serialise snapshots; a slow client never slows the publisher.
+#include <atomic>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "http_api/live_state.hpp"
+
+namespace httplib {
+class Server;
+}
+
+namespace dronetrack::http_api {
+
+struct HttpOptions {
+  std::string bind = "127.0.0.1:8080";  // HOST:PORT; port 0 picks a free port (see port())
+  std::filesystem::path web_root;       // the page (index.html, app.js, ...); empty: API only
+  int max_stream_clients = 64;          // further /api/stream requests get 503
+  int stream_heartbeat_ms = 1000;       // a nodes event (stale flags) at least this often
+};
+
+class HttpServer {
+ public:
+  HttpServer(LiveState& state, HttpOptions options);
+  ~HttpServer();  // stops
+  HttpServer(const HttpServer&) = delete;
+  HttpServer& operator=(const HttpServer&) = delete;
+
+  // Binds and serves on a background thread. Throws std::runtime_error with a one-line message
+  // if the address is malformed or cannot be bound.
+  void start();
+  void stop();
+  int port() const { return port_; }
+  std::string url() const;  // http://HOST:PORT/
+
+ private:
+  void install_routes();
+
+  LiveState& state_;
+  HttpOptions options_;
+  std::string host_;
+  int port_ = 0;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<int> stream_clients_{0};
+};
+
+}  // namespace dronetrack::http_api
