@@ -18,11 +18,41 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.gate_probability =
       section.number("gate_probability", params.gate_probability, 0.5, 0.999999);
   params.confirm_hits = section.integer("confirm_hits", params.confirm_hits, 1, 1000);
-  params.confirm_window = section.integer("confirm_window", params.confirm_window, 1, 1000);
+  params.confirm_window = section.integer("confirm_window", params.confirm_window, 1, 32);
   if (params.confirm_hits > params.confirm_window) {
     section.diagnostics().error(section.path_of("confirm_hits"), "must not exceed confirm_window");
   }
   params.coast_timeout_s = section.number("coast_timeout_s", params.coast_timeout_s, 0.1, 600.0);
+  params.ukf_alpha = section.number("ukf_alpha", params.ukf_alpha, 1e-4, 10.0);
+  params.ukf_beta = section.number("ukf_beta", params.ukf_beta, 0.0, 10.0);
+  params.ukf_kappa = section.number("ukf_kappa", params.ukf_kappa, -8.9, 100.0);
+  params.particle_count = section.integer("particle_count", params.particle_count, 10, 1000000);
+  params.model_propagation_delay =
+      section.boolean("model_propagation_delay", params.model_propagation_delay);
+  const std::string triangulation = section.choice("triangulation", "least_squares_3d",
+                                                   {"least_squares_3d", "seed_xy_projection"});
+  params.triangulation = triangulation == "seed_xy_projection"
+                             ? fusion::TriangulationMethod::seed_xy_projection
+                             : fusion::TriangulationMethod::least_squares_3d;
+  params.doa_noise_floor_deg =
+      section.number("doa_noise_floor_deg", params.doa_noise_floor_deg, 0.0, 45.0);
+  params.coast_after_s = section.number("coast_after_s", params.coast_after_s, 0.01, 600.0);
+  params.tentative_timeout_s =
+      section.number("tentative_timeout_s", params.tentative_timeout_s, 0.01, 600.0);
+  if (params.coast_after_s > params.coast_timeout_s) {
+    section.diagnostics().error(section.path_of("coast_after_s"),
+                                "must not exceed coast_timeout_s");
+  }
+  params.init_pair_window_s =
+      section.number("init_pair_window_s", params.init_pair_window_s, 0.001, 10.0);
+  params.init_max_range_m = section.number("init_max_range_m", params.init_max_range_m, 1.0, 1e5);
+  params.init_max_speed_mps =
+      section.number("init_max_speed_mps", params.init_max_speed_mps, 0.0, 1000.0);
+  params.init_velocity_std_mps =
+      section.number("init_velocity_std_mps", params.init_velocity_std_mps, 0.01, 1000.0);
+  params.init_acceleration_std_mps2 =
+      section.number("init_acceleration_std_mps2", params.init_acceleration_std_mps2, 0.01, 1000.0);
+  params.max_tracks = section.integer("max_tracks", params.max_tracks, 1, 1000);
 }
 
 }  // namespace dronetrack::config

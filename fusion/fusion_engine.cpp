@@ -1,7 +1,21 @@
-// PLACEHOLDER until the fusion lands (issue 5): keeps the build linking.
+// The tracker: a reorder buffer feeding frames (one array, one time) oldest first into a short
+// loop of small parts: predict every track to the frame time, gate, assign (Hungarian), update,
+// initiate from unassigned DOAs by triangulation, then the life cycle (confirm, coast, delete).
 #include "fusion/fusion_engine.hpp"
 
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <numbers>
 #include <stdexcept>
+#include <string>
+
+#include "fusion/assignment.hpp"
+#include "fusion/measurement_model.hpp"
+#include "fusion/track_filter.hpp"
+#include "fusion/triangulation.hpp"
 
 namespace dronetrack::fusion {
 
@@ -23,22 +37,532 @@ const char* to_string(DoaVerdict verdict) {
   return "unknown";
 }
 
-struct FusionEngine::Impl {
-  std::vector<doa::ArrayGeometry> arrays;
-  FusionCounters counters;
+namespace {
+
+constexpr double kRadPerDeg = std::numbers::pi / 180.0;
+constexpr int kMaxArrays = 64;               // contributing_arrays is a 64-bit mask
+constexpr std::size_t kRecentPerArray = 64;  // recent DOAs kept per array for initiation
+constexpr double kUnitTolerance = 1e-3;
+constexpr double kNeverS = -std::numeric_limits<double>::infinity();
+// A DOA heard by a track within this long counts in contributing_arrays.
+constexpr double kContributionMemoryS = 1.0;
+
+void check(bool ok, const char* parameter, const char* what) {
+  if (!ok) throw std::invalid_argument(std::string("fusion.") + parameter + ": " + what);
+}
+
+// One recent DOA of one array, kept for initiation and ghost checks.
+struct RecentDoa {
+  double time_s = 0.0;
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+  Measurement azel = Measurement::Zero();
+  MeasurementCovariance noise = MeasurementCovariance::Identity();  // R incl. floor
+  bool associated = false;                                          // went to a track
+  bool used = false;                                                // started a track
 };
 
-FusionEngine::FusionEngine(const FusionParams&, std::vector<doa::ArrayGeometry> arrays, double)
+class RecentRing {
+ public:
+  void push(const RecentDoa& doa) {
+    items_[(start_ + size_) % kRecentPerArray] = doa;
+    if (size_ < kRecentPerArray) {
+      ++size_;
+    } else {
+      start_ = (start_ + 1) % kRecentPerArray;
+    }
+  }
+  // Drops entries older than `oldest_s`; returns how many left never associated nor used.
+  int expire(double oldest_s) {
+    int unclaimed = 0;
+    while (size_ > 0 && items_[start_].time_s < oldest_s) {
+      if (!items_[start_].associated && !items_[start_].used) ++unclaimed;
+      start_ = (start_ + 1) % kRecentPerArray;
+      --size_;
+    }
+    return unclaimed;
+  }
+  std::size_t size() const { return size_; }
+  RecentDoa& operator[](std::size_t i) { return items_[(start_ + i) % kRecentPerArray]; }
+  RecentDoa& back() { return (*this)[size_ - 1]; }
+
+ private:
+  std::array<RecentDoa, kRecentPerArray> items_{};
+  std::size_t start_ = 0;
+  std::size_t size_ = 0;
+};
+
+struct Track {
+  int id = 0;
+  std::unique_ptr<TrackFilter> filter;
+  double time_s = 0.0;         // the filter's state time
+  double last_update_s = 0.0;  // last DOA it took
+  std::uint32_t hits = 0;      // M-of-N history, newest frame in bit 0
+  bool confirmed = false;
+  std::array<double, kMaxArrays> heard_by_array_s{};
+  Innovation innovation;  // of the current frame
+  bool innovation_ok = false;
+};
+
+}  // namespace
+
+struct FusionEngine::Impl {
+  FusionParams params;
+  std::vector<doa::ArrayGeometry> arrays;
+  std::vector<DoaMeasurementModel> models;
+  FilterSettings filter_settings;
+  FusionCounters counters;
+  double gate_chi2 = 0.0;  // 2 dof
+  double floor_variance_rad2 = 0.0;
+
+  std::vector<doa::DoaMeasurement> queue;  // sorted by (time, array, source)
+  double fed_time_s = kNeverS;             // newest time handed to the tracker
+  std::vector<double> last_fed_time_by_array;
+  std::vector<std::uint64_t> last_fed_sources_by_array;
+
+  std::vector<Track> tracks;
+  std::vector<RecentRing> recent;
+  int next_id = 1;
+  // Per-frame workspace, reused.
+  Assignment assignment;
+  std::vector<double> cost;
+  std::vector<int> track_to_doa;
+  std::vector<char> doa_taken;
+  std::vector<Ray> rays;
+
+  void feed_until(double cutoff_s);
+  void process_frame(std::size_t begin, std::size_t end);
+  bool try_initiate(int array, std::size_t recent_index, double time_s);
+  void life_cycle(double now_s);
+  void note(FilterStatus status) {
+    if (status == FilterStatus::repaired) ++counters.filter_repairs;
+    if (status == FilterStatus::failed) ++counters.filter_failures;
+  }
+  MeasurementCovariance noise_of(const doa::DoaMeasurement& m) const {
+    return m.azel_covariance_rad2 + MeasurementCovariance::Identity() * floor_variance_rad2;
+  }
+};
+
+FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeometry> arrays,
+                           double speed_of_sound_mps)
     : impl_(std::make_unique<Impl>()) {
-  impl_->arrays = std::move(arrays);
-  throw std::logic_error("FusionEngine not implemented yet");
+  check(params.jerk_noise_std_mps3 > 0.0, "jerk_noise_std_mps3", "must be > 0");
+  check(params.output_rate_hz > 0.0, "output_rate_hz", "must be > 0");
+  check(params.reorder_window_s >= 0.0, "reorder_window_s", "must be >= 0");
+  check(params.gate_probability > 0.0 && params.gate_probability < 1.0, "gate_probability",
+        "must be in (0, 1)");
+  check(params.confirm_window >= 1 && params.confirm_window <= 32, "confirm_window",
+        "must be in [1, 32]");
+  check(params.confirm_hits >= 1 && params.confirm_hits <= params.confirm_window, "confirm_hits",
+        "must be in [1, confirm_window]");
+  check(params.coast_timeout_s > 0.0, "coast_timeout_s", "must be > 0");
+  check(params.coast_after_s > 0.0, "coast_after_s", "must be > 0");
+  check(params.tentative_timeout_s > 0.0, "tentative_timeout_s", "must be > 0");
+  check(params.ukf_alpha > 0.0, "ukf_alpha", "must be > 0");
+  check(params.ukf_alpha * params.ukf_alpha * (kStateSize + params.ukf_kappa) > 0.0, "ukf_kappa",
+        "alpha^2 (9 + kappa) must be > 0");
+  check(params.particle_count >= 10, "particle_count", "must be >= 10");
+  check(params.doa_noise_floor_deg >= 0.0, "doa_noise_floor_deg", "must be >= 0");
+  check(params.init_pair_window_s > 0.0, "init_pair_window_s", "must be > 0");
+  check(params.init_max_range_m > 0.0, "init_max_range_m", "must be > 0");
+  check(params.init_max_speed_mps >= 0.0, "init_max_speed_mps", "must be >= 0");
+  check(params.init_velocity_std_mps > 0.0, "init_velocity_std_mps", "must be > 0");
+  check(params.init_acceleration_std_mps2 > 0.0, "init_acceleration_std_mps2", "must be > 0");
+  check(params.max_tracks >= 1, "max_tracks", "must be >= 1");
+  if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
+    throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
+  }
+  if (arrays.size() < 2 || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
+    throw std::invalid_argument("arrays: fusion needs 2 to 64 arrays, got " +
+                                std::to_string(arrays.size()));
+  }
+  Impl& s = *impl_;
+  s.params = params;
+  s.arrays = std::move(arrays);
+  for (const auto& array : s.arrays) {
+    s.models.push_back(
+        {array.centre_site_m(), speed_of_sound_mps, params.model_propagation_delay ? 3 : 0});
+  }
+  s.filter_settings.motion.jerk_variance_m2ps6 =
+      params.jerk_noise_std_mps3 * params.jerk_noise_std_mps3;
+  s.filter_settings.ukf_alpha = params.ukf_alpha;
+  s.filter_settings.ukf_beta = params.ukf_beta;
+  s.filter_settings.ukf_kappa = params.ukf_kappa;
+  s.filter_settings.particle_count = params.particle_count;
+  s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
+  s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
+  s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
+  s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
+  s.recent.resize(s.arrays.size());
+  s.queue.reserve(1024);
+  s.tracks.reserve(static_cast<std::size_t>(params.max_tracks));
 }
+
 FusionEngine::~FusionEngine() = default;
 FusionEngine::FusionEngine(FusionEngine&&) noexcept = default;
 FusionEngine& FusionEngine::operator=(FusionEngine&&) noexcept = default;
-DoaVerdict FusionEngine::add(const doa::DoaMeasurement&) { return DoaVerdict::accepted; }
-void FusionEngine::advance_to(double) {}
-void FusionEngine::tracks_at(double, std::vector<TrackReport>&) const {}
+
+DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
+  Impl& s = *impl_;
+  auto reject = [&s](DoaVerdict verdict) {
+    switch (verdict) {
+      case DoaVerdict::non_finite:
+        ++s.counters.rejected_non_finite;
+        break;
+      case DoaVerdict::unknown_array:
+        ++s.counters.rejected_unknown_array;
+        break;
+      case DoaVerdict::too_late:
+        ++s.counters.rejected_too_late;
+        break;
+      case DoaVerdict::duplicate:
+        ++s.counters.rejected_duplicate;
+        break;
+      case DoaVerdict::bad_direction:
+        ++s.counters.rejected_bad_direction;
+        break;
+      case DoaVerdict::accepted:
+        break;
+    }
+    return verdict;
+  };
+  if (!std::isfinite(measurement.time_s) || !measurement.direction.allFinite() ||
+      !measurement.azel_covariance_rad2.allFinite()) {
+    return reject(DoaVerdict::non_finite);
+  }
+  // The index is trusted only when it agrees with the id (or the id is absent).
+  int index = measurement.array_index;
+  const auto count = static_cast<int>(s.arrays.size());
+  const bool index_ok =
+      index >= 0 && index < count &&
+      (measurement.array_id.empty() || s.arrays[index].id == measurement.array_id);
+  if (!index_ok) {
+    index = -1;
+    for (int i = 0; i < count; ++i) {
+      if (!measurement.array_id.empty() && s.arrays[i].id == measurement.array_id) index = i;
+    }
+    if (index < 0) return reject(DoaVerdict::unknown_array);
+  }
+  if (std::abs(measurement.direction.norm() - 1.0) > kUnitTolerance) {
+    return reject(DoaVerdict::bad_direction);
+  }
+  const MeasurementCovariance& r = measurement.azel_covariance_rad2;
+  if (!(r(0, 0) > 0.0) || !(r.determinant() > 0.0) ||
+      std::abs(r(0, 1) - r(1, 0)) > 1e-12 * r.norm()) {
+    return reject(DoaVerdict::bad_direction);
+  }
+  if (measurement.source_index < 0 || measurement.source_index >= 64) {
+    return reject(DoaVerdict::bad_direction);
+  }
+  if (measurement.time_s < s.fed_time_s) return reject(DoaVerdict::too_late);
+  const std::uint64_t source_bit = std::uint64_t{1} << measurement.source_index;
+  if (measurement.time_s == s.last_fed_time_by_array[index] &&
+      (s.last_fed_sources_by_array[index] & source_bit) != 0) {
+    return reject(DoaVerdict::duplicate);
+  }
+  const auto key = [](const doa::DoaMeasurement& m) {
+    return std::make_tuple(m.time_s, m.array_index, m.source_index);
+  };
+  doa::DoaMeasurement queued = measurement;
+  queued.array_index = index;
+  queued.direction.normalize();
+  const auto position =
+      std::upper_bound(s.queue.begin(), s.queue.end(), queued,
+                       [&key](const doa::DoaMeasurement& a, const doa::DoaMeasurement& b) {
+                         return key(a) < key(b);
+                       });
+  if (position != s.queue.begin() && key(*(position - 1)) == key(queued)) {
+    return reject(DoaVerdict::duplicate);
+  }
+  s.queue.insert(position, std::move(queued));
+  ++s.counters.accepted;
+  return DoaVerdict::accepted;
+}
+
+void FusionEngine::advance_to(double time_s) {
+  if (!std::isfinite(time_s)) return;
+  impl_->feed_until(time_s - impl_->params.reorder_window_s);
+}
+
+void FusionEngine::Impl::feed_until(double cutoff_s) {
+  std::size_t begin = 0;
+  while (begin < queue.size() && queue[begin].time_s <= cutoff_s) {
+    std::size_t end = begin + 1;
+    while (end < queue.size() && queue[end].time_s == queue[begin].time_s &&
+           queue[end].array_index == queue[begin].array_index) {
+      ++end;
+    }
+    process_frame(begin, end);
+    begin = end;
+  }
+  queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(begin));
+  if (cutoff_s > fed_time_s) life_cycle(cutoff_s);
+}
+
+void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
+  const int array = queue[begin].array_index;
+  const double time_s = queue[begin].time_s;
+  const auto doa_count = static_cast<int>(end - begin);
+  fed_time_s = std::max(fed_time_s, time_s);
+  if (last_fed_time_by_array[array] != time_s) last_fed_sources_by_array[array] = 0;
+  last_fed_time_by_array[array] = time_s;
+  for (std::size_t i = begin; i < end; ++i) {
+    last_fed_sources_by_array[array] |= std::uint64_t{1} << queue[i].source_index;
+  }
+  const DoaMeasurementModel& model = models[array];
+  const MeasurementCovariance floor = MeasurementCovariance::Identity() * floor_variance_rad2;
+
+  // Predict and gate: cost = d^2 + ln det S (the negative log-likelihood up to a constant), so a
+  // vague track does not steal DOAs from a sharp one.
+  const auto track_count = static_cast<int>(tracks.size());
+  cost.assign(static_cast<std::size_t>(track_count) * doa_count, kForbidden);
+  for (int t = 0; t < track_count; ++t) {
+    Track& track = tracks[t];
+    track.filter->predict(time_s - track.time_s);
+    track.time_s = time_s;
+    const FilterStatus status = track.filter->innovation(model, floor, track.innovation);
+    note(status);
+    track.innovation_ok = status != FilterStatus::failed;
+    if (!track.innovation_ok) continue;
+    for (int j = 0; j < doa_count; ++j) {
+      const doa::DoaMeasurement& m = queue[begin + j];
+      Innovation candidate = track.innovation;
+      candidate.covariance += m.azel_covariance_rad2;
+      const double d2 = candidate.mahalanobis2(azel_of(m.direction));
+      if (d2 <= gate_chi2) {
+        cost[static_cast<std::size_t>(t) * doa_count + j] =
+            d2 + std::log(candidate.covariance.determinant());
+      }
+    }
+  }
+  assignment.solve(cost, track_count, doa_count, track_to_doa);
+
+  doa_taken.assign(static_cast<std::size_t>(doa_count), 0);
+  for (int t = 0; t < track_count; ++t) {
+    Track& track = tracks[t];
+    track.hits <<= 1;
+    const int j = track_to_doa[t];
+    if (j < 0) continue;
+    const doa::DoaMeasurement& m = queue[begin + j];
+    Innovation innovation = track.innovation;
+    innovation.covariance += m.azel_covariance_rad2;
+    innovation.noise = noise_of(m);
+    const FilterStatus status = track.filter->update(innovation, azel_of(m.direction));
+    note(status);
+    doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
+    if (status == FilterStatus::failed) continue;
+    track.hits |= 1u;
+    track.last_update_s = time_s;
+    track.heard_by_array_s[array] = time_s;
+  }
+
+  // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
+  RecentRing& ring = recent[array];
+  counters.gated_out += ring.expire(time_s - 2.0 * params.init_pair_window_s);
+  for (int j = 0; j < doa_count; ++j) {
+    const doa::DoaMeasurement& m = queue[begin + j];
+    RecentDoa entry;
+    entry.time_s = time_s;
+    entry.direction = m.direction;
+    entry.azel = azel_of(m.direction);
+    entry.noise = noise_of(m);
+    entry.associated = doa_taken[j] != 0;
+    ring.push(entry);
+    if (!entry.associated) try_initiate(array, ring.size() - 1, time_s);
+  }
+}
+
+bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, double time_s) {
+  if (tracks.size() >= static_cast<std::size_t>(params.max_tracks)) return false;
+  RecentDoa& seed = recent[array][recent_index];
+  const auto array_count = static_cast<int>(arrays.size());
+  // The rays of a pair are at most dt apart in arrival time and up to baseline / c apart in
+  // emission time; a drone moves init_max_speed_mps * that in between. Widen each ray's angular
+  // noise by that motion seen from 50 m (closer targets have wider angles; the ranges refine).
+  const auto widened = [this](const RecentDoa& doa, double dt_s, double range_m) {
+    const double motion_m = params.init_max_speed_mps * dt_s;
+    const double extra = std::pow(motion_m / std::max(range_m, 1.0), 2);
+    return MeasurementCovariance(doa.noise + MeasurementCovariance::Identity() * extra);
+  };
+  const auto chi2_against = [&](const RecentDoa& doa, int doa_array, const Eigen::Vector3d& point,
+                                double dt_s) {
+    const Eigen::Vector3d to_point = point - models[doa_array].centre_m;
+    const double range = to_point.norm();
+    const double delay_spread = range / models[doa_array].speed_of_sound_mps;
+    const Measurement residual = azel_residual(doa.azel, azel_of(to_point));
+    const MeasurementCovariance r = widened(doa, dt_s + delay_spread * 0.1, range);
+    return residual.dot(r.ldlt().solve(residual));
+  };
+
+  struct Candidate {
+    Triangulation fix;
+    int partner_array = -1;
+    std::size_t partner_index = 0;
+    double score = std::numeric_limits<double>::infinity();
+  };
+  Candidate best;
+  for (int other = 0; other < array_count; ++other) {
+    if (other == array) continue;
+    RecentRing& ring = recent[other];
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      RecentDoa& partner = ring[i];
+      if (partner.used || partner.associated) continue;
+      const double dt = std::abs(time_s - partner.time_s);
+      if (dt > params.init_pair_window_s) continue;
+      std::array<Ray, 2> pair{Ray{models[array].centre_m, seed.direction, seed.noise},
+                              Ray{models[other].centre_m, partner.direction, partner.noise}};
+      const auto fix = triangulate(pair, params.triangulation);
+      if (!fix || !fix->in_front) continue;
+      const Eigen::Vector3d p = fix->position_m;
+      if ((p - models[array].centre_m).norm() > params.init_max_range_m) continue;
+      const double chi2 = chi2_against(seed, array, p, 0.0) + chi2_against(partner, other, p, dt);
+      // Two rays, three unknowns: one degree of freedom left to test consistency.
+      if (chi2 > chi_square_quantile(params.gate_probability, 1)) continue;
+      if (chi2 < best.score) best = {*fix, other, i, chi2};
+    }
+  }
+  if (best.partner_array < 0) return false;
+
+  // Every other array that heard something meanwhile must agree with the point (ghost rejection
+  // where rays of different drones cross); agreeing, unclaimed DOAs sharpen the fix.
+  rays.clear();
+  rays.push_back({models[array].centre_m, seed.direction, seed.noise});
+  const RecentDoa& partner = recent[best.partner_array][best.partner_index];
+  rays.push_back({models[best.partner_array].centre_m, partner.direction, partner.noise});
+  std::array<int, kMaxArrays> extra_index{};
+  extra_index.fill(-1);
+  for (int other = 0; other < array_count; ++other) {
+    if (other == array || other == best.partner_array) continue;
+    RecentRing& ring = recent[other];
+    bool heard = false;
+    double best_chi2 = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      const double dt = std::abs(time_s - ring[i].time_s);
+      if (dt > params.init_pair_window_s) continue;
+      heard = true;
+      const double chi2 = chi2_against(ring[i], other, best.fix.position_m, dt);
+      if (chi2 < best_chi2) {
+        best_chi2 = chi2;
+        extra_index[other] = static_cast<int>(i);
+      }
+    }
+    if (!heard) continue;
+    if (best_chi2 > gate_chi2) {
+      ++counters.ghosts_rejected;
+      return false;
+    }
+    const RecentDoa& agreeing = ring[static_cast<std::size_t>(extra_index[other])];
+    if (!agreeing.used && !agreeing.associated) {
+      rays.push_back({models[other].centre_m, agreeing.direction, agreeing.noise});
+    } else {
+      extra_index[other] = -1;
+    }
+  }
+  Triangulation fix = best.fix;
+  if (rays.size() > 2) {
+    if (auto refined = triangulate_least_squares(rays)) fix = *refined;
+  }
+
+  // Not a new drone if an existing track already explains the point.
+  for (const Track& track : tracks) {
+    const Eigen::Vector3d difference = position_of(track.filter->mean()) - fix.position_m;
+    const Eigen::Matrix3d spread =
+        track.filter->covariance().topLeftCorner<3, 3>() + fix.covariance_m2;
+    if (difference.dot(spread.ldlt().solve(difference)) < chi_square_quantile(0.999, 3)) {
+      return false;
+    }
+  }
+
+  // The fix is where the drone was when the sound left it, about r / c ago; an unknown velocity
+  // over that delay widens the position.
+  const double delay_s =
+      (fix.position_m - models[array].centre_m).norm() / models[array].speed_of_sound_mps;
+  StateVector mean = StateVector::Zero();
+  mean.segment<3>(StateBlock::position) = fix.position_m;
+  StateCovariance covariance = StateCovariance::Zero();
+  const double velocity_var = std::pow(params.init_velocity_std_mps, 2);
+  covariance.block<3, 3>(StateBlock::position, StateBlock::position) =
+      fix.covariance_m2 + Eigen::Matrix3d::Identity() * (velocity_var * delay_s * delay_s + 0.01);
+  covariance.block<3, 3>(StateBlock::velocity, StateBlock::velocity) =
+      Eigen::Matrix3d::Identity() * velocity_var;
+  covariance.block<3, 3>(StateBlock::acceleration, StateBlock::acceleration) =
+      Eigen::Matrix3d::Identity() * std::pow(params.init_acceleration_std_mps2, 2);
+
+  Track track;
+  track.id = next_id++;
+  FilterSettings settings = filter_settings;
+  settings.random_seed = static_cast<std::uint64_t>(track.id);
+  track.filter = make_track_filter(params.filter, settings);
+  track.filter->initialise(mean, covariance);
+  track.time_s = time_s;
+  track.last_update_s = time_s;
+  track.hits = 1u;
+  track.heard_by_array_s.fill(kNeverS);
+  track.heard_by_array_s[array] = time_s;
+  track.heard_by_array_s[best.partner_array] = time_s;
+  track.confirmed = params.confirm_hits <= 1;
+  tracks.push_back(std::move(track));
+  ++counters.tracks_started;
+  if (tracks.back().confirmed) ++counters.tracks_confirmed;
+
+  seed.used = true;
+  recent[best.partner_array][best.partner_index].used = true;
+  for (int other = 0; other < array_count; ++other) {
+    if (extra_index[other] >= 0) {
+      recent[other][static_cast<std::size_t>(extra_index[other])].used = true;
+    }
+  }
+  return true;
+}
+
+void FusionEngine::Impl::life_cycle(double now_s) {
+  const std::uint32_t window_mask =
+      params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
+  for (Track& track : tracks) {
+    if (!track.confirmed && std::popcount(track.hits & window_mask) >= params.confirm_hits) {
+      track.confirmed = true;
+      ++counters.tracks_confirmed;
+    }
+  }
+  const auto dead = [&](const Track& track) {
+    const double unheard = now_s - track.last_update_s;
+    return unheard > (track.confirmed ? params.coast_timeout_s : params.tentative_timeout_s);
+  };
+  const auto before = tracks.size();
+  tracks.erase(std::remove_if(tracks.begin(), tracks.end(), dead), tracks.end());
+  counters.tracks_deleted += static_cast<std::int64_t>(before - tracks.size());
+}
+
+void FusionEngine::tracks_at(double time_s, std::vector<TrackReport>& out) const {
+  const Impl& s = *impl_;
+  out.clear();
+  for (const Track& track : s.tracks) {
+    TrackReport report;
+    report.id = track.id;
+    report.time_s = time_s;
+    StateVector mean = track.filter->mean();
+    StateCovariance covariance = track.filter->covariance();
+    s.filter_settings.motion.predict(mean, covariance, std::max(time_s - track.time_s, 0.0));
+    report.position_m = position_of(mean);
+    report.velocity_mps = velocity_of(mean);
+    report.acceleration_mps2 = acceleration_of(mean);
+    report.covariance = covariance;
+    report.last_update_s = track.last_update_s;
+    if (!track.confirmed) {
+      report.status = TrackStatus::tentative;
+    } else if (time_s - track.last_update_s > s.params.coast_after_s) {
+      report.status = TrackStatus::coasting;
+    } else {
+      report.status = TrackStatus::confirmed;
+    }
+    for (std::size_t a = 0; a < s.arrays.size(); ++a) {
+      if (time_s - track.heard_by_array_s[a] <= kContributionMemoryS) {
+        report.contributing_arrays |= std::uint64_t{1} << a;
+      }
+    }
+    out.push_back(report);
+  }
+}
+
 const FusionCounters& FusionEngine::counters() const { return impl_->counters; }
 const std::vector<doa::ArrayGeometry>& FusionEngine::arrays() const { return impl_->arrays; }
 

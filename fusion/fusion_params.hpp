@@ -8,6 +8,8 @@
 namespace dronetrack::fusion {
 
 enum class FilterKind { ukf, ukf_seed002, ekf, particle };
+// How a new track's first position is found (SPEC 4.4).
+enum class TriangulationMethod { least_squares_3d, seed_xy_projection };
 
 struct FusionParams {
   FilterKind filter = FilterKind::ukf;
@@ -18,6 +20,26 @@ struct FusionParams {
   int confirm_hits = 5;              // M of N: M
   int confirm_window = 8;            //         N
   double coast_timeout_s = 3.0;      // a track unheard this long is deleted
+
+  // Scaled unscented transform (filter = ukf). alpha = 1, kappa = 0 keeps every weight >= 0.
+  double ukf_alpha = 1.0;
+  double ukf_beta = 2.0;
+  double ukf_kappa = 0.0;
+  int particle_count = 1000;  // filter = particle
+  // Point h(x) at the emission time (sound takes r / c to arrive). Off only for comparison.
+  bool model_propagation_delay = true;
+  TriangulationMethod triangulation = TriangulationMethod::least_squares_3d;
+  // Added in quadrature to each DOA's own angular std: model error (array pose, wind, refraction).
+  double doa_noise_floor_deg = 0.5;
+  double coast_after_s = 0.5;        // a confirmed track unheard this long reports "coasting"
+  double tentative_timeout_s = 1.5;  // a tentative track unheard this long is deleted
+  // Initiation: DOAs of different arrays this close in time are paired and triangulated.
+  double init_pair_window_s = 0.3;
+  double init_max_range_m = 2000.0;  // candidate points farther from every array are rejected
+  double init_max_speed_mps = 40.0;  // bounds the motion between paired DOAs (widens their gate)
+  double init_velocity_std_mps = 10.0;
+  double init_acceleration_std_mps2 = 3.0;
+  int max_tracks = 32;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)

@@ -11,7 +11,8 @@ bool zone_contains(const Zone& zone, const Eigen::Vector3d& position_m) {
     const Eigen::Vector2d& a = polygon[i];
     const Eigen::Vector2d& b = polygon[j];
     if ((a.y() > position_m.y()) != (b.y() > position_m.y())) {
-      const double crossing_x = a.x() + (position_m.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      const double crossing_x =
+          a.x() + (position_m.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
       if (position_m.x() < crossing_x) inside = !inside;
     }
   }

@@ -1,0 +1,342 @@
+#include "fusion/track_filter.hpp"
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+namespace dronetrack::fusion {
+namespace {
+
+constexpr double kEigenFloorRelative = 1e-12;
+constexpr double kEigenFloorAbsolute = 1e-12;
+
+void symmetrise(StateCovariance& covariance) {
+  covariance = 0.5 * (covariance + covariance.transpose()).eval();
+}
+
+// S must be a finite, positive-definite 2x2 for gating and the gain.
+bool valid_innovation_covariance(const MeasurementCovariance& s) {
+  return s.allFinite() && s(0, 0) > 0.0 && s.determinant() > 0.0;
+}
+
+// Shared by the Gaussian filters: exact linear prediction, the Kalman update from (S, P_xz).
+class GaussianFilter : public TrackFilter {
+ public:
+  explicit GaussianFilter(const FilterSettings& settings) : settings_(settings) {}
+  void initialise(const StateVector& mean, const StateCovariance& covariance) override {
+    mean_ = mean;
+    covariance_ = covariance;
+    symmetrise(covariance_);
+  }
+  void predict(double dt_s) override { settings_.motion.predict(mean_, covariance_, dt_s); }
+  FilterStatus update(const Innovation& innovation, const Measurement& z) override {
+    if (!valid_innovation_covariance(innovation.covariance) || !z.allFinite()) {
+      return FilterStatus::failed;
+    }
+    const CrossCovariance gain = innovation.cross * innovation.covariance.inverse();
+    const StateVector mean = mean_ + gain * azel_residual(z, innovation.predicted);
+    StateCovariance covariance = covariance_ - gain * innovation.covariance * gain.transpose();
+    symmetrise(covariance);
+    if (!mean.allFinite() || !covariance.allFinite()) return FilterStatus::failed;
+    StateCovariance lower;
+    const FilterStatus status = robust_cholesky(covariance, lower);
+    if (status == FilterStatus::failed) return status;
+    mean_ = mean;
+    covariance_ = covariance;
+    return status;
+  }
+  const StateVector& mean() const override { return mean_; }
+  const StateCovariance& covariance() const override { return covariance_; }
+
+ protected:
+  FilterSettings settings_;
+  StateVector mean_ = StateVector::Zero();
+  StateCovariance covariance_ = StateCovariance::Identity();
+};
+
+// Scaled unscented transform (Julier/Wan-van der Merwe): lambda = alpha^2 (n + kappa) - n,
+// Wm0 = lambda / (n + lambda), Wc0 = Wm0 + 1 - alpha^2 + beta, Wi = 1 / (2 (n + lambda)).
+// The seed's variant (seed 002 eqs. 19-24) is alpha = 1, beta = 0, kappa = 3 - n.
+class UnscentedFilter final : public GaussianFilter {
+ public:
+  UnscentedFilter(const FilterSettings& settings, double alpha, double beta, double kappa)
+      : GaussianFilter(settings) {
+    constexpr double n = kStateSize;
+    const double lambda = alpha * alpha * (n + kappa) - n;
+    spread_ = std::sqrt(n + lambda);
+    weight_mean0_ = lambda / (n + lambda);
+    weight_cov0_ = weight_mean0_ + 1.0 - alpha * alpha + beta;
+    weight_i_ = 1.0 / (2.0 * (n + lambda));
+  }
+
+  FilterStatus innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                          Innovation& out) override {
+    StateCovariance lower;
+    const FilterStatus factor_status = robust_cholesky(covariance_, lower);
+    if (factor_status == FilterStatus::failed) return factor_status;
+    constexpr int kPoints = 2 * kStateSize + 1;
+    Eigen::Matrix<double, kStateSize, kPoints> points;
+    Eigen::Matrix<double, kMeasurementSize, kPoints> predicted;
+    points.col(0) = mean_;
+    for (int i = 0; i < kStateSize; ++i) {
+      points.col(1 + i) = mean_ + spread_ * lower.col(i);
+      points.col(1 + kStateSize + i) = mean_ - spread_ * lower.col(i);
+    }
+    for (int i = 0; i < kPoints; ++i) predicted.col(i) = model.predict(points.col(i));
+    // Mean of angles: average the wrapped offsets from the centre point, not the raw angles.
+    Measurement offset = Measurement::Zero();
+    for (int i = 1; i < kPoints; ++i) {
+      offset += weight_i_ * azel_residual(predicted.col(i), predicted.col(0));
+    }
+    const Measurement z_hat = azel_residual(predicted.col(0) + offset, Measurement::Zero());
+    MeasurementCovariance s = noise;
+    CrossCovariance cross = CrossCovariance::Zero();
+    for (int i = 0; i < kPoints; ++i) {
+      const double weight = i == 0 ? weight_cov0_ : weight_i_;
+      const Measurement dz = azel_residual(predicted.col(i), z_hat);
+      s += weight * dz * dz.transpose();
+      cross += weight * (points.col(i) - mean_) * dz.transpose();
+    }
+    s = 0.5 * (s + s.transpose()).eval();
+    if (!valid_innovation_covariance(s)) {
+      // The seed's negative centre weight can make S indefinite: fall back on R alone plus the
+      // non-negative part, which keeps the gate meaningful.
+      const Eigen::SelfAdjointEigenSolver<MeasurementCovariance> eigen(s);
+      if (eigen.info() != Eigen::Success) return FilterStatus::failed;
+      const Eigen::Vector2d clamped = eigen.eigenvalues().cwiseMax(noise.diagonal().minCoeff());
+      s = eigen.eigenvectors() * clamped.asDiagonal() * eigen.eigenvectors().transpose();
+      if (!valid_innovation_covariance(s)) return FilterStatus::failed;
+      out = {z_hat, s, cross, noise, &model};
+      return FilterStatus::repaired;
+    }
+    out = {z_hat, s, cross, noise, &model};
+    return factor_status;
+  }
+
+ private:
+  double spread_ = 3.0;
+  double weight_mean0_ = 0.0;
+  double weight_cov0_ = 0.0;
+  double weight_i_ = 0.0;
+};
+
+// EKF (seeds 000/004): H by central differences of the same h(x), so the propagation delay is
+// linearised too.
+class ExtendedFilter final : public GaussianFilter {
+ public:
+  using GaussianFilter::GaussianFilter;
+  FilterStatus innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                          Innovation& out) override {
+    const Measurement z_hat = model.predict(mean_);
+    Eigen::Matrix<double, kMeasurementSize, kStateSize> jacobian;
+    for (int i = 0; i < kStateSize; ++i) {
+      const double step = 1e-5 * (1.0 + std::abs(mean_(i)));
+      StateVector plus = mean_;
+      StateVector minus = mean_;
+      plus(i) += step;
+      minus(i) -= step;
+      jacobian.col(i) = azel_residual(model.predict(plus), model.predict(minus)) / (2.0 * step);
+    }
+    const CrossCovariance cross = covariance_ * jacobian.transpose();
+    MeasurementCovariance s = jacobian * cross + noise;
+    s = 0.5 * (s + s.transpose()).eval();
+    if (!valid_innovation_covariance(s) || !z_hat.allFinite()) return FilterStatus::failed;
+    out = {z_hat, s, cross, noise, &model};
+    return FilterStatus::ok;
+  }
+};
+
+// Bootstrap particle filter with a robust likelihood: a Gaussian plus a small constant floor,
+// so one wild DOA (reflection, other drone) cannot wipe out the particle cloud (seed 001).
+// Resampling is systematic when the effective sample size drops under half, followed by a small
+// Gaussian jitter from the cloud's own covariance (regularised PF) against sample impoverishment.
+class ParticleFilter final : public TrackFilter {
+ public:
+  explicit ParticleFilter(const FilterSettings& settings)
+      : settings_(settings),
+        particles_(kStateSize, settings.particle_count),
+        resampled_(kStateSize, settings.particle_count),
+        weights_(settings.particle_count),
+        predicted_(kMeasurementSize, settings.particle_count),
+        random_(settings.random_seed) {}
+
+  void initialise(const StateVector& mean, const StateCovariance& covariance) override {
+    StateCovariance lower;
+    StateCovariance repaired = covariance;
+    robust_cholesky(repaired, lower);
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      particles_.col(i) = mean + lower * standard_normal_state();
+    }
+    weights_.setConstant(1.0 / static_cast<double>(weights_.size()));
+    refresh_moments();
+  }
+
+  void predict(double dt_s) override {
+    if (dt_s == 0.0) return;
+    const StateCovariance f = settings_.motion.transition(dt_s);
+    const Eigen::Matrix<double, kStateSize, 3> gain = settings_.motion.noise_gain(dt_s);
+    const double jerk_std = std::sqrt(settings_.motion.jerk_variance_m2ps6);
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      const Eigen::Vector3d jerk(normal_(random_), normal_(random_), normal_(random_));
+      particles_.col(i) = f * particles_.col(i) + gain * (jerk_std * jerk);
+    }
+    refresh_moments();
+  }
+
+  FilterStatus innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                          Innovation& out) override {
+    const Measurement centre = model.predict(mean_);
+    Measurement offset = Measurement::Zero();
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      predicted_.col(i) = model.predict(particles_.col(i));
+      offset += weights_(i) * azel_residual(predicted_.col(i), centre);
+    }
+    const Measurement z_hat = azel_residual(centre + offset, Measurement::Zero());
+    MeasurementCovariance s = noise;
+    CrossCovariance cross = CrossCovariance::Zero();
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      const Measurement dz = azel_residual(predicted_.col(i), z_hat);
+      s += weights_(i) * dz * dz.transpose();
+      cross += weights_(i) * (particles_.col(i) - mean_) * dz.transpose();
+    }
+    if (!valid_innovation_covariance(s)) return FilterStatus::failed;
+    out = {z_hat, s, cross, noise, &model};
+    return FilterStatus::ok;
+  }
+
+  FilterStatus update(const Innovation& innovation, const Measurement& z) override {
+    if (!z.allFinite()) return FilterStatus::failed;
+    const MeasurementCovariance information = innovation.noise.inverse();
+    // Mixture (1 - e) N(z; h(x), R) + e / (4 pi) (a DOA from anywhere on the sphere), scaled by
+    // 2 pi sqrt(det R) so the Gaussian part is the plain exponential.
+    const double floor = kOutlierProbability * std::sqrt(innovation.noise.determinant()) / 2.0;
+    double total = 0.0;
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      const Measurement dz = azel_residual(z, predicted_.col(i));
+      const double likelihood = std::exp(-0.5 * dz.dot(information * dz)) + floor;
+      weights_(i) *= likelihood;
+      total += weights_(i);
+    }
+    if (!(total > 0.0) || !std::isfinite(total)) {
+      weights_.setConstant(1.0 / static_cast<double>(weights_.size()));
+      return FilterStatus::failed;
+    }
+    weights_ /= total;
+    const double effective = 1.0 / weights_.squaredNorm();
+    if (effective < 0.5 * static_cast<double>(weights_.size())) resample();
+    refresh_moments();
+    return FilterStatus::ok;
+  }
+
+  const StateVector& mean() const override { return mean_; }
+  const StateCovariance& covariance() const override { return covariance_; }
+
+ private:
+  static constexpr double kOutlierProbability = 0.05;
+
+  StateVector standard_normal_state() {
+    StateVector draw;
+    for (int k = 0; k < kStateSize; ++k) draw(k) = normal_(random_);
+    return draw;
+  }
+
+  void resample() {
+    const auto count = particles_.cols();
+    const double step = 1.0 / static_cast<double>(count);
+    double position = std::uniform_real_distribution<double>(0.0, step)(random_);
+    double cumulative = weights_(0);
+    Eigen::Index source = 0;
+    for (Eigen::Index i = 0; i < count; ++i) {
+      while (position > cumulative && source + 1 < count) cumulative += weights_(++source);
+      resampled_.col(i) = particles_.col(source);
+      position += step;
+    }
+    // Jitter: half the bandwidth of the optimal Gaussian kernel for n = 9 (the full one inflates
+    // the cloud by a third at every resampling, too much at 20 DOAs per second).
+    const double bandwidth = 0.5 * std::pow(4.0 / ((kStateSize + 2.0) * static_cast<double>(count)),
+                                            1.0 / (kStateSize + 4.0));
+    StateCovariance spread = covariance_;
+    StateCovariance lower;
+    if (robust_cholesky(spread, lower) == FilterStatus::failed) lower.setZero();
+    for (Eigen::Index i = 0; i < count; ++i) {
+      particles_.col(i) = resampled_.col(i) + bandwidth * (lower * standard_normal_state());
+    }
+    weights_.setConstant(step);
+  }
+
+  void refresh_moments() {
+    mean_ = particles_ * weights_;
+    covariance_.setZero();
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      const StateVector d = particles_.col(i) - mean_;
+      covariance_.noalias() += weights_(i) * d * d.transpose();
+    }
+    symmetrise(covariance_);
+  }
+
+  FilterSettings settings_;
+  Eigen::Matrix<double, kStateSize, Eigen::Dynamic> particles_;
+  Eigen::Matrix<double, kStateSize, Eigen::Dynamic> resampled_;
+  Eigen::VectorXd weights_;
+  Eigen::Matrix<double, kMeasurementSize, Eigen::Dynamic> predicted_;
+  StateVector mean_ = StateVector::Zero();
+  StateCovariance covariance_ = StateCovariance::Identity();
+  std::mt19937_64 random_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+};
+
+}  // namespace
+
+double Innovation::mahalanobis2(const Measurement& z) const {
+  const Measurement residual = azel_residual(z, predicted);
+  return residual.dot(covariance.ldlt().solve(residual));
+}
+
+bool is_positive_definite(const StateCovariance& covariance) {
+  if (!covariance.allFinite()) return false;
+  if (!covariance.isApprox(covariance.transpose(), 1e-9)) return false;
+  const Eigen::LLT<StateCovariance> llt(covariance);
+  return llt.info() == Eigen::Success;
+}
+
+FilterStatus robust_cholesky(StateCovariance& covariance, StateCovariance& lower) {
+  if (!covariance.allFinite()) return FilterStatus::failed;
+  {
+    const Eigen::LLT<StateCovariance> llt(covariance);
+    if (llt.info() == Eigen::Success) {
+      lower = llt.matrixL();
+      return FilterStatus::ok;
+    }
+  }
+  symmetrise(covariance);
+  const Eigen::SelfAdjointEigenSolver<StateCovariance> eigen(covariance);
+  if (eigen.info() != Eigen::Success) return FilterStatus::failed;
+  const double largest = eigen.eigenvalues().cwiseAbs().maxCoeff();
+  const double floor = std::max(largest * kEigenFloorRelative, kEigenFloorAbsolute);
+  const StateVector clamped = eigen.eigenvalues().cwiseMax(floor);
+  covariance = eigen.eigenvectors() * clamped.asDiagonal() * eigen.eigenvectors().transpose();
+  symmetrise(covariance);
+  const Eigen::LLT<StateCovariance> llt(covariance);
+  if (llt.info() != Eigen::Success || !covariance.allFinite()) return FilterStatus::failed;
+  lower = llt.matrixL();
+  return FilterStatus::repaired;
+}
+
+std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
+  switch (kind) {
+    case FilterKind::ukf:
+      return std::make_unique<UnscentedFilter>(settings, settings.ukf_alpha, settings.ukf_beta,
+                                               settings.ukf_kappa);
+    case FilterKind::ukf_seed002:
+      return std::make_unique<UnscentedFilter>(settings, 1.0, 0.0, 3.0 - kStateSize);
+    case FilterKind::ekf:
+      return std::make_unique<ExtendedFilter>(settings);
+    case FilterKind::particle:
+      return std::make_unique<ParticleFilter>(settings);
+  }
+  return nullptr;
+}
+
+}  // namespace dronetrack::fusion

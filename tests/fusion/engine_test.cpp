@@ -1,0 +1,350 @@
+#include "fusion/fusion_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "scene.hpp"
+
+namespace dronetrack::fusion {
+namespace {
+
+using testing::DoaNoise;
+using testing::Trajectory;
+constexpr double kSpeed = 343.0;
+
+std::vector<doa::ArrayGeometry> square_site(double half_side_m) {
+  return {testing::tetrahedron("N1", {-half_side_m, -half_side_m, 2}),
+          testing::tetrahedron("N2", {half_side_m, -half_side_m, 2}),
+          testing::tetrahedron("N3", {half_side_m, half_side_m, 2}),
+          testing::tetrahedron("N4", {-half_side_m, half_side_m, 2})};
+}
+
+struct RunResult {
+  std::vector<std::vector<TrackReport>> reports;  // per output tick
+  std::vector<double> times;
+  FusionCounters counters;
+};
+
+// Drives the engine as the replay does: every array reports each drone every hop_s (the DOA
+// order within a frame shuffled), add -> advance_to -> tracks_at at 10 Hz.
+RunResult run(const FusionParams& params, const std::vector<doa::ArrayGeometry>& arrays,
+              const std::vector<Trajectory>& drones, double duration_s, DoaNoise noise,
+              std::uint64_t seed = 1) {
+  FusionEngine engine(params, arrays, kSpeed);
+  std::mt19937_64 random(seed);
+  RunResult result;
+  const double hop = 0.05;
+  double next_output = 0.0;
+  for (int step = 0; step * hop <= duration_s; ++step) {
+    const double t = step * hop;
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      std::vector<int> order(drones.size());
+      for (std::size_t d = 0; d < drones.size(); ++d) order[d] = static_cast<int>(d);
+      std::shuffle(order.begin(), order.end(), random);
+      for (std::size_t k = 0; k < order.size(); ++k) {
+        auto m = testing::ideal_doa(drones[order[k]], arrays[a], static_cast<int>(a), t, kSpeed,
+                                    noise, random);
+        m.source_index = static_cast<int>(k);
+        EXPECT_EQ(engine.add(m), DoaVerdict::accepted);
+      }
+    }
+    engine.advance_to(t);
+    while (next_output <= t - params.reorder_window_s + 1e-9) {
+      std::vector<TrackReport> tracks;
+      engine.tracks_at(next_output, tracks);
+      result.reports.push_back(tracks);
+      result.times.push_back(next_output);
+      next_output += 0.1;
+    }
+  }
+  result.counters = engine.counters();
+  return result;
+}
+
+Trajectory circle(Eigen::Vector3d centre, double radius_m, double speed_mps, double phase = 0) {
+  return [=](double t) {
+    const double angle = phase + speed_mps / radius_m * t;
+    return Eigen::Vector3d(centre.x() + radius_m * std::cos(angle),
+                           centre.y() + radius_m * std::sin(angle), centre.z());
+  };
+}
+
+Trajectory line(Eigen::Vector3d start, Eigen::Vector3d velocity) {
+  return [=](double t) {
+    Eigen::Vector3d p = start + velocity * t;
+    return p;
+  };
+}
+
+TEST(FusionEngine, TracksOneDroneAccurately) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = circle({0, 0, 40}, 60.0, 10.0);
+  const RunResult result = run(FusionParams{}, arrays, {drone}, 20.0, {0.5, true});
+  double error2 = 0.0;
+  int count = 0;
+  std::set<int> confirmed_ids;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    if (result.times[i] < 3.0) continue;
+    ASSERT_EQ(result.reports[i].size(), 1u) << "t=" << result.times[i];
+    const TrackReport& track = result.reports[i][0];
+    EXPECT_EQ(track.status, TrackStatus::confirmed);
+    confirmed_ids.insert(track.id);
+    error2 += (track.position_m - drone(result.times[i])).squaredNorm();
+    ++count;
+    EXPECT_TRUE(track.position_std_m().allFinite());
+    EXPECT_EQ(track.contributing_arrays, 0b1111u);
+  }
+  EXPECT_EQ(confirmed_ids.size(), 1u);
+  EXPECT_LT(std::sqrt(error2 / count), 1.0);
+  EXPECT_EQ(result.counters.tracks_started, 1);
+}
+
+TEST(FusionEngine, EveryFilterKindTracks) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = line({-60, -30, 35}, {8, 3, 0.5});
+  for (FilterKind kind : {FilterKind::ukf_seed002, FilterKind::ekf, FilterKind::particle}) {
+    FusionParams params;
+    params.filter = kind;
+    const RunResult result = run(params, arrays, {drone}, 10.0, {0.5, true});
+    double error2 = 0.0;
+    int count = 0;
+    for (std::size_t i = 0; i < result.reports.size(); ++i) {
+      if (result.times[i] < 3.0) continue;
+      ASSERT_EQ(result.reports[i].size(), 1u);
+      error2 += (result.reports[i][0].position_m - drone(result.times[i])).squaredNorm();
+      ++count;
+    }
+    // The particle filter spreads 1000 particles over 9 dimensions: coarser, but it tracks.
+    EXPECT_LT(std::sqrt(error2 / count), kind == FilterKind::particle ? 4.0 : 1.5)
+        << static_cast<int>(kind);
+  }
+}
+
+// Sound from 300 m takes ~0.9 s; a drone at 15 m/s has moved ~13 m by then.
+TEST(FusionEngine, PropagationDelayModelRemovesTheLagBias) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A", {0, 0, 2}),
+                                               testing::tetrahedron("B", {150, 0, 2}),
+                                               testing::tetrahedron("C", {75, 60, 2})};
+  const Trajectory drone = line({-80, 300, 60}, {15, 0, 0});
+  auto mean_error = [&](bool model_delay) {
+    FusionParams params;
+    params.model_propagation_delay = model_delay;
+    const RunResult result = run(params, arrays, {drone}, 16.0, {0.2, true});
+    double error = 0.0;
+    int count = 0;
+    for (std::size_t i = 0; i < result.reports.size(); ++i) {
+      if (result.times[i] < 6.0 || result.reports[i].empty()) continue;
+      error += (result.reports[i][0].position_m - drone(result.times[i])).norm();
+      ++count;
+    }
+    EXPECT_GT(count, 50);
+    return error / std::max(count, 1);
+  };
+  const double ignoring = mean_error(false);
+  const double modelling = mean_error(true);
+  EXPECT_GT(ignoring, 5.0);
+  EXPECT_LT(modelling, 2.0);
+}
+
+TEST(FusionEngine, TwoCrossingDronesKeepTheirIds) {
+  const auto arrays = square_site(100.0);
+  // Paths cross over the centre at t = 6 s, 5 m apart in height.
+  const std::vector<Trajectory> drones{line({-60, -60, 30}, {10, 10, 0}),
+                                       line({60, -60, 35}, {-10, 10, 0})};
+  const RunResult result = run(FusionParams{}, arrays, drones, 14.0, {0.5, true}, 5);
+  std::map<int, int> drone_of_track;  // first nearest drone of each confirmed track
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    if (result.times[i] < 2.0) continue;
+    int confirmed = 0;
+    for (const TrackReport& track : result.reports[i]) {
+      if (track.status == TrackStatus::tentative) continue;
+      ++confirmed;
+      const double d0 = (track.position_m - drones[0](result.times[i])).norm();
+      const double d1 = (track.position_m - drones[1](result.times[i])).norm();
+      const int nearest = d0 < d1 ? 0 : 1;
+      EXPECT_LT(std::min(d0, d1), 3.0) << "t=" << result.times[i] << " id " << track.id;
+      auto [entry, inserted] = drone_of_track.emplace(track.id, nearest);
+      EXPECT_EQ(entry->second, nearest) << "id switch at t=" << result.times[i];
+    }
+    EXPECT_EQ(confirmed, 2) << "t=" << result.times[i];
+  }
+  EXPECT_EQ(drone_of_track.size(), 2u);
+  EXPECT_LE(result.counters.tracks_started, 3);
+}
+
+TEST(FusionEngine, MalformedDoasAreRejectedAndCountedWithoutHarm) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = circle({0, 0, 40}, 50.0, 8.0);
+  FusionParams params;
+  FusionEngine engine(params, arrays, kSpeed);
+  std::mt19937_64 random(2);
+  int expected_non_finite = 0, expected_unknown = 0, expected_late = 0, expected_duplicate = 0,
+      expected_bad = 0;
+  std::set<int> ids;
+  double worst_error = 0.0;
+  for (int step = 0; step < 300; ++step) {
+    const double t = step * 0.05;
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      const auto good =
+          testing::ideal_doa(drone, arrays[a], static_cast<int>(a), t, kSpeed, {0.5, true}, random);
+      ASSERT_EQ(engine.add(good), DoaVerdict::accepted);
+      ASSERT_EQ(engine.add(good), DoaVerdict::duplicate);
+      ++expected_duplicate;
+    }
+    auto bad = testing::ideal_doa(drone, arrays[0], 0, t, kSpeed, {0.5, true}, random);
+    bad.source_index = 1;
+    switch (step % 6) {
+      case 0:
+        bad.direction.x() = std::nan("");
+        EXPECT_EQ(engine.add(bad), DoaVerdict::non_finite);
+        ++expected_non_finite;
+        break;
+      case 1:
+        bad.time_s = std::numeric_limits<double>::infinity();
+        EXPECT_EQ(engine.add(bad), DoaVerdict::non_finite);
+        ++expected_non_finite;
+        break;
+      case 2:
+        bad.array_id = "X9";
+        bad.array_index = 7;
+        EXPECT_EQ(engine.add(bad), DoaVerdict::unknown_array);
+        ++expected_unknown;
+        break;
+      case 3:
+        if (step < 20) break;  // nothing processed yet: an old DOA would still be in time
+        bad.time_s = t - 5.0;  // long behind what the tracker has already processed
+        EXPECT_EQ(engine.add(bad), DoaVerdict::too_late);
+        ++expected_late;
+        break;
+      case 4:
+        bad.direction *= 2.0;
+        EXPECT_EQ(engine.add(bad), DoaVerdict::bad_direction);
+        ++expected_bad;
+        break;
+      case 5:
+        bad.azel_covariance_rad2(0, 0) = -1.0;
+        EXPECT_EQ(engine.add(bad), DoaVerdict::bad_direction);
+        ++expected_bad;
+        break;
+    }
+    engine.advance_to(t);
+    std::vector<TrackReport> tracks;
+    engine.tracks_at(t - params.reorder_window_s, tracks);
+    for (const auto& track : tracks) {
+      ASSERT_TRUE(track.position_m.allFinite());
+      if (track.status == TrackStatus::tentative) continue;
+      ids.insert(track.id);
+      if (t < 3.0) continue;  // converging
+      worst_error =
+          std::max(worst_error, (track.position_m - drone(t - params.reorder_window_s)).norm());
+    }
+  }
+  const FusionCounters& counters = engine.counters();
+  EXPECT_EQ(counters.rejected_non_finite, expected_non_finite);
+  EXPECT_EQ(counters.rejected_unknown_array, expected_unknown);
+  EXPECT_EQ(counters.rejected_too_late, expected_late);
+  EXPECT_EQ(counters.rejected_duplicate, expected_duplicate);
+  EXPECT_EQ(counters.rejected_bad_direction, expected_bad);
+  EXPECT_EQ(ids.size(), 1u);
+  EXPECT_LT(worst_error, 3.0);
+}
+
+TEST(FusionEngine, OutOfOrderWithinTheWindowIsReordered) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = circle({10, 0, 40}, 40.0, 8.0);
+  std::mt19937_64 random(4);
+  std::vector<doa::DoaMeasurement> all;
+  for (int step = 0; step < 200; ++step) {
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      all.push_back(testing::ideal_doa(drone, arrays[a], static_cast<int>(a), step * 0.05, kSpeed,
+                                       {0.5, true}, random));
+    }
+  }
+  auto final_tracks = [&](bool shuffle_blocks) {
+    std::vector<doa::DoaMeasurement> order = all;
+    if (shuffle_blocks) {  // shuffle within blocks of 0.2 s (< reorder window 0.3 s)
+      for (std::size_t i = 0; i < order.size(); i += 16) {
+        std::shuffle(order.begin() + i, order.begin() + std::min(order.size(), i + 16), random);
+      }
+    }
+    FusionEngine engine(FusionParams{}, arrays, kSpeed);
+    double latest = 0.0;
+    for (const auto& m : order) {
+      EXPECT_EQ(engine.add(m), DoaVerdict::accepted);
+      latest = std::max(latest, m.time_s);
+      engine.advance_to(latest);
+    }
+    engine.advance_to(latest + 1.0);
+    std::vector<TrackReport> tracks;
+    engine.tracks_at(latest, tracks);
+    return tracks;
+  };
+  const auto sorted = final_tracks(false);
+  const auto shuffled = final_tracks(true);
+  ASSERT_EQ(sorted.size(), 1u);
+  ASSERT_EQ(shuffled.size(), 1u);
+  EXPECT_LT((sorted[0].position_m - shuffled[0].position_m).norm(), 1e-9);
+}
+
+TEST(FusionEngine, CoastsThenDeletesAndNeverReusesAnId) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = line({-30, 0, 40}, {5, 0, 0});
+  FusionParams params;
+  FusionEngine engine(params, arrays, kSpeed);
+  std::mt19937_64 random(9);
+  for (int step = 0; step <= 60; ++step) {  // 3 s of DOAs
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      engine.add(testing::ideal_doa(drone, arrays[a], static_cast<int>(a), step * 0.05, kSpeed,
+                                    {0.5, true}, random));
+    }
+    engine.advance_to(step * 0.05);
+  }
+  engine.advance_to(3.0 + params.reorder_window_s);
+  std::vector<TrackReport> tracks;
+  engine.tracks_at(3.0, tracks);
+  ASSERT_EQ(tracks.size(), 1u);
+  EXPECT_EQ(tracks[0].status, TrackStatus::confirmed);
+  const int first_id = tracks[0].id;
+  engine.advance_to(3.0 + params.coast_after_s + 0.5);
+  engine.tracks_at(3.0 + params.coast_after_s + 0.2, tracks);
+  ASSERT_EQ(tracks.size(), 1u);
+  EXPECT_EQ(tracks[0].status, TrackStatus::coasting);
+  engine.advance_to(3.0 + params.coast_timeout_s + params.reorder_window_s + 0.1);
+  engine.tracks_at(3.0 + params.coast_timeout_s + 0.1, tracks);
+  EXPECT_TRUE(tracks.empty());
+  EXPECT_EQ(engine.counters().tracks_deleted, 1);
+  // The drone comes back: a new track, a new id.
+  for (int step = 0; step <= 40; ++step) {
+    const double t = 10.0 + step * 0.05;
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      engine.add(testing::ideal_doa(drone, arrays[a], static_cast<int>(a), t, kSpeed, {0.5, true},
+                                    random));
+    }
+    engine.advance_to(t);
+  }
+  engine.tracks_at(12.0, tracks);
+  ASSERT_EQ(tracks.size(), 1u);
+  EXPECT_GT(tracks[0].id, first_id);
+}
+
+TEST(FusionEngine, ConstructorNamesTheBadParameter) {
+  const auto arrays = square_site(100.0);
+  FusionParams params;
+  params.confirm_hits = 9;
+  try {
+    FusionEngine engine(params, arrays, kSpeed);
+    FAIL() << "accepted confirm_hits > confirm_window";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("confirm_hits"), std::string::npos);
+  }
+  EXPECT_THROW(FusionEngine(FusionParams{}, {arrays[0]}, kSpeed), std::invalid_argument);
+  EXPECT_THROW(FusionEngine(FusionParams{}, arrays, 0.0), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace dronetrack::fusion

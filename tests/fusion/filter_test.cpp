@@ -1,0 +1,194 @@
+#include "fusion/track_filter.hpp"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Cholesky>
+
+#include "fusion/measurement_model.hpp"
+#include "fusion/motion_model.hpp"
+
+namespace dronetrack::fusion {
+namespace {
+
+constexpr double kSpeedOfSound = 343.0;
+
+TEST(MeasurementModel, ResidualWrapsAtPlusMinus180) {
+  const double near_pi = M_PI - 0.01;
+  // z just past -180, prediction just before +180: 0.02 rad apart, not 2 pi - 0.02.
+  EXPECT_NEAR(azel_residual({-near_pi, 0.1}, {near_pi, 0.1})(0), 0.02, 1e-12);
+  EXPECT_NEAR(azel_residual({near_pi, 0.1}, {-near_pi, 0.1})(0), -0.02, 1e-12);
+  EXPECT_NEAR(azel_residual({M_PI, 0.0}, {-M_PI, 0.0})(0), 0.0, 1e-12);
+  EXPECT_NEAR(azel_residual({0.3, 0.2}, {0.1, -0.1})(1), 0.3, 1e-12);
+}
+
+TEST(MeasurementModel, EmissionPositionSatisfiesTheDelayEquation) {
+  DoaMeasurementModel model{{0, 0, 1.5}, kSpeedOfSound, 3};
+  StateVector x = StateVector::Zero();
+  x.segment<3>(StateBlock::position) << 300, 40, 60;
+  x.segment<3>(StateBlock::velocity) << -15, 5, 1;
+  x.segment<3>(StateBlock::acceleration) << 0.5, -0.2, 0;
+  double delay = 0.0;
+  const Eigen::Vector3d emitted = model.emission_position_m(x, &delay);
+  // t_e = t - delay; the constant-acceleration path back to t_e, and the travel time from there.
+  const Eigen::Vector3d expected = position_of(ConstantJerkModel::propagate(x, -delay));
+  EXPECT_LT((emitted - expected).norm(), 1e-9);
+  EXPECT_NEAR((emitted - model.centre_m).norm() / kSpeedOfSound, delay, 1e-4);
+  EXPECT_GT((emitted - position_of(x)).norm(), 10.0);  // ~0.9 s at 16 m/s
+  DoaMeasurementModel no_delay = model;
+  no_delay.delay_iterations = 0;
+  EXPECT_LT((no_delay.emission_position_m(x) - position_of(x)).norm(), 1e-12);
+}
+
+TEST(MotionModel, BlockFormMatchesKinematics) {
+  ConstantJerkModel model{4.0};
+  StateVector x = StateVector::Zero();
+  x << 1, 2, 3, 4, 5, 6, 0.5, -1, 2;
+  const double t = 0.7;
+  const StateVector y = model.transition(t) * x;
+  EXPECT_NEAR(y(0), 1 + 4 * t + 0.5 * 0.5 * t * t, 1e-12);
+  EXPECT_NEAR(y(4), 5 - 1 * t, 1e-12);
+  EXPECT_NEAR(y(8), 2, 1e-12);
+  const StateCovariance q = model.process_noise(t);
+  EXPECT_NEAR(q(0, 0), 4.0 * std::pow(t, 6) / 36.0, 1e-12);
+  EXPECT_NEAR(q(0, 6), 4.0 * std::pow(t, 4) / 6.0, 1e-12);
+  EXPECT_NEAR(q(6, 6), 4.0 * t * t, 1e-12);
+  EXPECT_NEAR(q(0, 1), 0.0, 1e-15);  // axes independent
+}
+
+struct Arrays {
+  std::vector<DoaMeasurementModel> models{{{0, 0, 1.5}, kSpeedOfSound, 3},
+                                          {{100, 0, 1.5}, kSpeedOfSound, 3},
+                                          {{50, 90, 1.5}, kSpeedOfSound, 3}};
+};
+
+// Monte Carlo on trajectories that follow the model exactly (piecewise-constant jerk over the
+// measurement interval), one DOA per step from arrays in turn, measured through h(x) itself.
+struct Consistency {
+  double mean_nees = 0.0;
+  double mean_nis = 0.0;
+  double rmse_m = 0.0;
+};
+
+Consistency run_monte_carlo(FilterKind kind, int runs, int steps) {
+  const Arrays arrays;
+  const double dt = 0.05;
+  const double jerk_std = 2.0;
+  const double angle_std = 0.5 * M_PI / 180.0;
+  FilterSettings settings;
+  settings.motion.jerk_variance_m2ps6 = jerk_std * jerk_std;
+  settings.particle_count = 2000;
+  std::mt19937_64 random(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const MeasurementCovariance noise = MeasurementCovariance::Identity() * angle_std * angle_std;
+  StateCovariance initial = StateCovariance::Zero();
+  initial.diagonal() << 4, 4, 4, 4, 4, 4, 1, 1, 1;
+  const StateCovariance initial_lower = initial.llt().matrixL();
+  double nees_sum = 0.0, nis_sum = 0.0, error2_sum = 0.0;
+  int nees_count = 0, nis_count = 0;
+  for (int run = 0; run < runs; ++run) {
+    StateVector truth = StateVector::Zero();
+    truth.segment<3>(StateBlock::position) << 50, 60, 30;
+    truth.segment<3>(StateBlock::velocity) << 8, -3, 1;
+    StateVector draw;
+    for (int k = 0; k < kStateSize; ++k) draw(k) = normal(random);
+    const StateVector start = truth + initial_lower * draw;
+    settings.random_seed = static_cast<std::uint64_t>(run + 1);
+    auto filter = make_track_filter(kind, settings);
+    filter->initialise(start, initial);
+    for (int step = 0; step < steps; ++step) {
+      const Eigen::Vector3d jerk(normal(random), normal(random), normal(random));
+      truth = settings.motion.transition(dt) * truth +
+              settings.motion.noise_gain(dt) * (jerk_std * jerk);
+      filter->predict(dt);
+      const DoaMeasurementModel& model = arrays.models[step % arrays.models.size()];
+      const Measurement z = model.predict(truth) +
+                            Measurement(angle_std * normal(random), angle_std * normal(random));
+      Innovation innovation;
+      EXPECT_NE(filter->innovation(model, noise, innovation), FilterStatus::failed);
+      if (step >= steps / 2) {
+        nis_sum += innovation.mahalanobis2(z);
+        ++nis_count;
+      }
+      EXPECT_NE(filter->update(innovation, z), FilterStatus::failed);
+      if (step >= steps / 2) {
+        const StateVector error = filter->mean() - truth;
+        nees_sum += error.dot(filter->covariance().ldlt().solve(error));
+        error2_sum += (position_of(filter->mean()) - position_of(truth)).squaredNorm();
+        ++nees_count;
+      }
+    }
+  }
+  return {nees_sum / nees_count, nis_sum / nis_count, std::sqrt(error2_sum / nees_count)};
+}
+
+TEST(TrackFilter, ScaledUkfIsConsistent) {
+  const Consistency result = run_monte_carlo(FilterKind::ukf, 40, 200);
+  // Averages over 40 runs x 100 correlated steps; the bounds are loose on purpose but an
+  // overconfident (NEES 2x) or pessimistic (NEES 0.5x) filter fails them.
+  EXPECT_GT(result.mean_nees, 9.0 * 0.75);
+  EXPECT_LT(result.mean_nees, 9.0 * 1.3);
+  EXPECT_GT(result.mean_nis, 2.0 * 0.85);
+  EXPECT_LT(result.mean_nis, 2.0 * 1.15);
+  EXPECT_LT(result.rmse_m, 1.0);
+}
+
+TEST(TrackFilter, EkfIsConsistent) {
+  const Consistency result = run_monte_carlo(FilterKind::ekf, 40, 200);
+  EXPECT_GT(result.mean_nees, 9.0 * 0.75);
+  EXPECT_LT(result.mean_nees, 9.0 * 1.3);
+  EXPECT_NEAR(result.mean_nis, 2.0, 0.3);
+}
+
+TEST(TrackFilter, SeedUkfAndParticleFilterTrack) {
+  const Consistency seed = run_monte_carlo(FilterKind::ukf_seed002, 10, 200);
+  EXPECT_LT(seed.rmse_m, 1.5);
+  const Consistency particle = run_monte_carlo(FilterKind::particle, 3, 200);
+  EXPECT_LT(particle.rmse_m, 3.0);
+}
+
+TEST(TrackFilter, StaysFiniteAndPositiveDefiniteThroughGapsAndOutliers) {
+  const Arrays arrays;
+  for (FilterKind kind :
+       {FilterKind::ukf, FilterKind::ukf_seed002, FilterKind::ekf, FilterKind::particle}) {
+    FilterSettings settings;
+    settings.particle_count = 500;
+    auto filter = make_track_filter(kind, settings);
+    StateVector start = StateVector::Zero();
+    start.segment<3>(StateBlock::position) << 40, 50, 20;
+    StateCovariance initial = StateCovariance::Identity();
+    filter->initialise(start, initial);
+    std::mt19937_64 random(3);
+    std::uniform_real_distribution<double> wild(-M_PI, M_PI);
+    const MeasurementCovariance noise = MeasurementCovariance::Identity() * 1e-6;
+    for (int cycle = 0; cycle < 5; ++cycle) {
+      filter->predict(30.0);  // a long gap: covariance grows by orders of magnitude
+      ASSERT_TRUE(is_positive_definite(filter->covariance())) << static_cast<int>(kind);
+      for (int burst = 0; burst < 50; ++burst) {  // garbage DOAs, forced in without a gate
+        filter->predict(0.01);
+        Innovation innovation;
+        if (filter->innovation(arrays.models[burst % 3], noise, innovation) ==
+            FilterStatus::failed) {
+          continue;
+        }
+        filter->update(innovation, Measurement(wild(random), 0.5 * wild(random)));
+        ASSERT_TRUE(filter->mean().allFinite()) << static_cast<int>(kind);
+        ASSERT_TRUE(is_positive_definite(filter->covariance())) << static_cast<int>(kind);
+      }
+    }
+  }
+}
+
+TEST(TrackFilter, RobustCholeskyRepairsAnIndefiniteMatrix) {
+  StateCovariance covariance = StateCovariance::Identity();
+  covariance(0, 0) = -1e-3;
+  StateCovariance lower;
+  EXPECT_EQ(robust_cholesky(covariance, lower), FilterStatus::repaired);
+  EXPECT_TRUE(is_positive_definite(covariance));
+  covariance(1, 1) = std::nan("");
+  EXPECT_EQ(robust_cholesky(covariance, lower), FilterStatus::failed);
+}
+
+}  // namespace
+}  // namespace dronetrack::fusion
