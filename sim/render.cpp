@@ -1,0 +1,321 @@
+#include "sim/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <optional>
+#include <stdexcept>
+
+#include <sndfile.h>
+
+#include "common/log.hpp"
+#include "sim/noise.hpp"
+#include "sim/propagation.hpp"
+#include "sim/source_signal.hpp"
+
+namespace dronetrack::sim {
+namespace {
+
+constexpr double kClipLimit = 1.0;
+constexpr double kTargetPeak = 0.9;
+
+std::size_t frames_of(const Scenario& scenario, std::size_t array_index) {
+  double end_s = scenario.duration_s;
+  if (array_index < scenario.recording_end_s.size() &&
+      scenario.recording_end_s[array_index] > 0.0) {
+    end_s = std::min(end_s, scenario.recording_end_s[array_index]);
+  }
+  return static_cast<std::size_t>(std::llround(end_s * scenario.sample_rate_hz));
+}
+
+std::size_t channel_count(const config::ArrayConfig& array) {
+  int highest = -1;
+  for (int channel : array.channel_map) highest = std::max(highest, channel);
+  return std::max<std::size_t>(static_cast<std::size_t>(highest + 1), array.geometry.mic_count());
+}
+
+std::size_t channel_of(const config::ArrayConfig& array, std::size_t mic) {
+  return mic < array.channel_map.size() ? static_cast<std::size_t>(array.channel_map[mic]) : mic;
+}
+
+// Renders scenes: synthesises each source once, over the emission times the chosen arrays need.
+class Renderer {
+ public:
+  Renderer(const Scenario& scenario, const std::vector<std::size_t>& arrays)
+      : scenario_(scenario), sources_(scenario.sources.size()) {
+    const double c = scenario.site.speed_of_sound_mps;
+    for (std::size_t s = 0; s < scenario.sources.size(); ++s) {
+      // t_e(t) increases with t, so the earliest emission any mic needs is at t = 0.
+      double earliest = 0.0;
+      for (std::size_t a : arrays) {
+        const auto& geometry = scenario.site.arrays[a].geometry;
+        for (std::size_t mic = 0; mic < geometry.mic_count(); ++mic) {
+          for (bool image : paths()) {
+            earliest =
+                std::min(earliest, solve_emission_time(scenario.sources[s].trajectory,
+                                                       geometry.mic_site_m(mic), 0.0, c, image)
+                                       .emission_time_s);
+          }
+        }
+      }
+      sources_[s] = synthesise_source(scenario, s, earliest - 0.01,
+                                      scenario.duration_s + 2.0 * EmissionGrid::kDefaultStep_s);
+    }
+  }
+
+  std::vector<bool> paths() const {
+    if (scenario_.ground_reflection > 0.0) return {false, true};
+    return {false};
+  }
+
+  // Adds the sound of the drones (drones = true) or of the interferers to `out`.
+  void add_sources(std::size_t array_index, bool drones, RenderedArray& out) const {
+    const auto& array = scenario_.site.arrays[array_index];
+    const double c = scenario_.site.speed_of_sound_mps;
+    const std::size_t frames = out.frames();
+    const double end_s = static_cast<double>(frames) / scenario_.sample_rate_hz;
+    for (std::size_t s = 0; s < scenario_.sources.size(); ++s) {
+      if ((scenario_.sources[s].kind == SourceKind::drone) != drones) continue;
+      for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
+        for (bool image : paths()) {
+          const EmissionGrid grid(scenario_.sources[s].trajectory, array.geometry.mic_site_m(mic),
+                                  image, c, 0.0, end_s + EmissionGrid::kDefaultStep_s);
+          grid.accumulate(sources_[s], image ? scenario_.ground_reflection : 1.0,
+                          scenario_.sample_rate_hz, frames,
+                          out.samples.data() + channel_of(array, mic), out.channels);
+        }
+      }
+    }
+  }
+
+  RenderedArray blank(std::size_t array_index) const {
+    RenderedArray out;
+    const auto& array = scenario_.site.arrays[array_index];
+    out.id = array.geometry.id;
+    out.sample_rate_hz = scenario_.sample_rate_hz;
+    out.channels = channel_count(array);
+    out.samples.assign(frames_of(scenario_, array_index) * out.channels, 0.0f);
+    return out;
+  }
+
+  double drone_inband_power(const RenderedArray& drones) const {
+    return measure_inband_power(drones.samples.data(), drones.channels, drones.frames(),
+                                scenario_.sample_rate_hz, scenario_.site.doa.bands_hz);
+  }
+
+  RenderedArray render(std::size_t array_index) const {
+    RenderedArray out = blank(array_index);
+    add_sources(array_index, true, out);
+    const NoiseSpec& noise = scenario_.noise;
+    const bool needs_snr = noise.sensor.snr_db || noise.wind.snr_db || noise.ambient.snr_db;
+    double signal_power = 0.0;
+    if (needs_snr) {
+      std::size_t reference = array_index;
+      if (!noise.snr_reference_array.empty()) {
+        reference = static_cast<std::size_t>(scenario_.site.array_index(noise.snr_reference_array));
+      }
+      if (reference == array_index) {
+        signal_power = drone_inband_power(out);
+      } else {
+        RenderedArray reference_drones = blank(reference);
+        add_sources(reference, true, reference_drones);
+        signal_power = drone_inband_power(reference_drones);
+      }
+    }
+    add_sources(array_index, false, out);
+    const auto& geometry = scenario_.site.arrays[array_index].geometry;
+    double largest_spacing_m = 0.0;
+    for (std::size_t i = 0; i < geometry.mic_count(); ++i) {
+      for (std::size_t j = i + 1; j < geometry.mic_count(); ++j) {
+        largest_spacing_m =
+            std::max(largest_spacing_m, (geometry.mics_m[i] - geometry.mics_m[j]).norm());
+      }
+    }
+    auto add = [&](const NoiseLevel& level, NoiseKind kind) {
+      if (!level.enabled) return;
+      NoiseShape shape;
+      shape.kind = kind;
+      shape.sample_rate_hz = scenario_.sample_rate_hz;
+      shape.wind_corner_hz = noise.wind_corner_hz;
+      shape.wind_gust_depth = noise.wind_gust_depth;
+      shape.ambient_coherent_below_hz =
+          noise.ambient_coherent_below_hz > 0.0
+              ? noise.ambient_coherent_below_hz
+              : scenario_.site.speed_of_sound_mps / (2.0 * std::max(largest_spacing_m, 0.01));
+      double rms = 0.0;
+      if (level.level_db_spl) {
+        rms = full_scale_rms(*level.level_db_spl, scenario_.full_scale_db_spl);
+      } else {
+        const double inband_noise = signal_power / std::pow(10.0, *level.snr_db / 10.0);
+        rms = std::sqrt(inband_noise / shape.inband_fraction(scenario_.site.doa.bands_hz));
+      }
+      add_noise(shape, rms, scenario_.seed, array_index, out.channels, out.frames(),
+                out.samples.data());
+    };
+    add(noise.sensor, NoiseKind::sensor);
+    add(noise.wind, NoiseKind::wind);
+    add(noise.ambient, NoiseKind::ambient);
+    return out;
+  }
+
+ private:
+  const Scenario& scenario_;
+  std::vector<SourceBuffer> sources_;
+};
+
+nlohmann::json vector_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+void write_wav(const std::filesystem::path& path, const RenderedArray& array) {
+  SF_INFO info{};
+  info.samplerate = static_cast<int>(std::lround(array.sample_rate_hz));
+  info.channels = static_cast<int>(array.channels);
+  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+  SNDFILE* file = sf_open(path.string().c_str(), SFM_WRITE, &info);
+  if (!file)
+    throw std::runtime_error(path.string() + ": cannot write (" + sf_strerror(nullptr) + ")");
+  const auto frames = static_cast<sf_count_t>(array.frames());
+  const sf_count_t written = sf_writef_float(file, array.samples.data(), frames);
+  const std::string error = sf_strerror(file);
+  sf_close(file);
+  if (written != frames) throw std::runtime_error(path.string() + ": write failed (" + error + ")");
+}
+
+void write_json(const std::filesystem::path& path, const nlohmann::json& document, int indent) {
+  std::ofstream stream(path);
+  if (!stream) throw std::runtime_error(path.string() + ": cannot write");
+  stream << document.dump(indent) << "\n";
+  if (!stream) throw std::runtime_error(path.string() + ": write failed");
+}
+
+}  // namespace
+
+RenderedArray render_array(const Scenario& scenario, std::size_t array_index) {
+  if (array_index >= scenario.site.arrays.size()) {
+    throw std::out_of_range("render_array: no array " + std::to_string(array_index));
+  }
+  return Renderer(scenario, {array_index}).render(array_index);
+}
+
+RenderedScene render_scene(const Scenario& scenario) {
+  std::vector<std::size_t> all(scenario.site.arrays.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  const Renderer renderer(scenario, all);
+  RenderedScene scene;
+  for (std::size_t i : all) {
+    scene.arrays.push_back(renderer.render(i));
+    for (float value : scene.arrays.back().samples) {
+      scene.peak_before_scaling =
+          std::max(scene.peak_before_scaling, static_cast<double>(std::abs(value)));
+    }
+  }
+  if (scene.peak_before_scaling >= kClipLimit) {
+    scene.scale = kTargetPeak / scene.peak_before_scaling;
+    log::warn("sim: the scene would clip (peak ", scene.peak_before_scaling,
+              " of full scale); all arrays scaled by ", scene.scale, " (",
+              20.0 * std::log10(scene.scale), " dB) to a peak of ", kTargetPeak);
+    const auto factor = static_cast<float>(scene.scale);
+    for (auto& array : scene.arrays) {
+      for (float& value : array.samples) value *= factor;
+    }
+  }
+  return scene;
+}
+
+Truth compute_truth(const Scenario& scenario, double rate_hz) {
+  Truth truth;
+  truth.rate_hz = rate_hz;
+  for (const auto& array : scenario.site.arrays) truth.array_ids.push_back(array.geometry.id);
+  const auto count = static_cast<std::size_t>(std::floor(scenario.duration_s * rate_hz + 1e-9)) + 1;
+  const double c = scenario.site.speed_of_sound_mps;
+  for (const auto& source : scenario.sources) {
+    SourceTruth out;
+    out.id = source.id;
+    out.is_drone = source.kind == SourceKind::drone;
+    out.direction.resize(scenario.site.arrays.size());
+    for (std::size_t i = 0; i < count; ++i) {
+      const double t_s = static_cast<double>(i) / rate_hz;
+      const TrajectoryState state = source.trajectory.at(t_s);
+      out.t_s.push_back(t_s);
+      out.position_m.push_back(state.position_m);
+      out.velocity_mps.push_back(state.velocity_mps);
+      for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+        const Eigen::Vector3d centre = scenario.site.arrays[a].geometry.centre_site_m();
+        const EmissionSolution emission = solve_emission_time(source.trajectory, centre, t_s, c);
+        out.direction[a].push_back(
+            (source.trajectory.position(emission.emission_time_s) - centre).normalized());
+      }
+    }
+    truth.sources.push_back(std::move(out));
+  }
+  return truth;
+}
+
+nlohmann::json Truth::to_json(const Scenario& scenario) const {
+  nlohmann::json document;
+  document["sources"] = nlohmann::json::array();
+  document["interferers"] = nlohmann::json::array();
+  for (const auto& source : sources) {
+    nlohmann::json entry;
+    entry["id"] = source.id;
+    entry["kind"] = source.is_drone ? "drone" : "interferer";
+    entry["t"] = source.t_s;
+    auto& positions = entry["position_m"] = nlohmann::json::array();
+    auto& velocities = entry["velocity_mps"] = nlohmann::json::array();
+    for (std::size_t i = 0; i < source.t_s.size(); ++i) {
+      positions.push_back(vector_json(source.position_m[i]));
+      velocities.push_back(vector_json(source.velocity_mps[i]));
+    }
+    auto& doa = entry["doa"] = nlohmann::json::object();
+    for (std::size_t a = 0; a < array_ids.size(); ++a) {
+      auto& directions = doa[array_ids[a]]["direction"] = nlohmann::json::array();
+      for (const auto& direction : source.direction[a])
+        directions.push_back(vector_json(direction));
+    }
+    document[source.is_drone ? "sources" : "interferers"].push_back(std::move(entry));
+  }
+  document["rate_hz"] = rate_hz;
+  document["duration_s"] = scenario.duration_s;
+  document["speed_of_sound_mps"] = scenario.site.speed_of_sound_mps;
+  auto& arrays = document["arrays"] = nlohmann::json::object();
+  for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+    const auto& geometry = scenario.site.arrays[a].geometry;
+    arrays[geometry.id]["centre_m"] = vector_json(geometry.centre_site_m());
+    const double end_s = a < scenario.recording_end_s.size() && scenario.recording_end_s[a] > 0.0
+                             ? scenario.recording_end_s[a]
+                             : scenario.duration_s;
+    arrays[geometry.id]["recording_end_s"] = end_s;
+  }
+  return document;
+}
+
+nlohmann::json scene_site_json(const Scenario& scenario) {
+  nlohmann::json site = scenario.site_json;
+  if (!site.contains("description") && !scenario.description.empty()) {
+    site["description"] = "Simulated: " + scenario.description;
+  }
+  for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+    site["arrays"][a]["recording"] = scenario.site.arrays[a].geometry.id + ".wav";
+  }
+  return site;
+}
+
+WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir) {
+  std::error_code error;
+  std::filesystem::create_directories(out_dir, error);
+  if (error)
+    throw std::runtime_error(out_dir.string() + ": cannot create (" + error.message() + ")");
+  WrittenScene written;
+  const RenderedScene scene = render_scene(scenario);
+  written.scale = scene.scale;
+  for (const auto& array : scene.arrays) {
+    written.recordings.push_back(out_dir / (array.id + ".wav"));
+    write_wav(written.recordings.back(), array);
+  }
+  written.site = out_dir / "site.json";
+  write_json(written.site, scene_site_json(scenario), 2);
+  written.truth = out_dir / "truth.json";
+  write_json(written.truth, compute_truth(scenario).to_json(scenario), -1);
+  return written;
+}
+
+}  // namespace dronetrack::sim

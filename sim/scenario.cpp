@@ -1,0 +1,414 @@
+#include "sim/scenario.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+#include <sndfile.h>
+
+#include "config/config_reader.hpp"
+
+namespace dronetrack::sim {
+namespace {
+
+using config::Diagnostics;
+using config::ObjectReader;
+using nlohmann::json;
+
+constexpr double kMaxSpeed_mps = 200.0;
+
+std::optional<std::vector<Eigen::Vector3d>> read_points(ObjectReader& reader,
+                                                        const std::string& key,
+                                                        std::size_t min_count) {
+  std::vector<Eigen::Vector3d> points;
+  bool all_good = true;
+  const bool listed =
+      reader.for_each(key, true, [&](const json& node, const std::string& element_path) {
+        auto point = config::read_vector3(node, element_path, reader.diagnostics());
+        if (point) {
+          points.push_back(*point);
+        } else {
+          all_good = false;
+        }
+      });
+  if (!listed || !all_good) return std::nullopt;
+  if (points.size() < min_count) {
+    reader.diagnostics().error(reader.path_of(key), "needs at least " + std::to_string(min_count) +
+                                                        " points, got " +
+                                                        std::to_string(points.size()));
+    return std::nullopt;
+  }
+  return points;
+}
+
+// Checks the legs of a polyline: no zero-length leg, no reversal (a turn of ~180 degrees cannot
+// be rounded). Returns false after reporting.
+bool check_legs(const std::vector<Eigen::Vector3d>& points, bool closed, const std::string& path,
+                Diagnostics& diagnostics) {
+  const std::size_t count = points.size();
+  const std::size_t legs = closed ? count : count - 1;
+  bool good = true;
+  for (std::size_t leg = 0; leg < legs; ++leg) {
+    if ((points[(leg + 1) % count] - points[leg]).norm() < 1e-3) {
+      diagnostics.error(path + "[" + std::to_string((leg + 1) % count) + "]",
+                        "repeats the previous point (legs must be longer than 1 mm)");
+      good = false;
+    }
+  }
+  if (!good) return false;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (!closed && (i == 0 || i == count - 1)) continue;
+    const Eigen::Vector3d before = (points[i] - points[(i + count - 1) % count]).normalized();
+    const Eigen::Vector3d after = (points[(i + 1) % count] - points[i]).normalized();
+    if (before.dot(after) < -0.9998) {
+      diagnostics.error(path + "[" + std::to_string(i) + "]",
+                        "the path reverses here; add a point to turn around");
+      good = false;
+    }
+  }
+  return good;
+}
+
+std::optional<Trajectory> parse_trajectory(ObjectReader& reader) {
+  Diagnostics& diagnostics = reader.diagnostics();
+  const std::string type = reader.choice(
+      "type", "hover", {"hover", "static", "straight", "circle", "rectangle", "waypoints"});
+  const std::size_t errors_before = diagnostics.errors.size();
+  auto ok = [&] { return diagnostics.errors.size() == errors_before; };
+  if (type == "hover" || type == "static") {
+    auto position = reader.vector3("position_m", true);
+    if (!position || !ok()) return std::nullopt;
+    return Trajectory::fixed(*position);
+  }
+  if (type == "straight") {
+    auto start = reader.vector3("start_m", true);
+    const bool has_velocity = reader.has("velocity_mps");
+    const bool has_end = reader.has("end_m");
+    if (has_velocity == has_end) {
+      diagnostics.error(reader.path(),
+                        "a straight pass needs either velocity_mps or end_m with speed_mps");
+      return std::nullopt;
+    }
+    Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+    if (has_velocity) {
+      if (auto given = reader.vector3("velocity_mps", true)) velocity = *given;
+      if (velocity.norm() > kMaxSpeed_mps) {
+        diagnostics.error(reader.path_of("velocity_mps"), "faster than 200 m/s");
+      }
+    } else {
+      auto end = reader.vector3("end_m", true);
+      auto speed = reader.required_number("speed_mps", 0.0, kMaxSpeed_mps);
+      if (end && start && speed) {
+        if ((*end - *start).norm() < 1e-3) {
+          diagnostics.error(reader.path_of("end_m"), "equals start_m");
+        } else {
+          velocity = (*end - *start).normalized() * *speed;
+        }
+      }
+    }
+    if (!start || !ok()) return std::nullopt;
+    return Trajectory::straight(*start, velocity);
+  }
+  if (type == "circle") {
+    auto centre = reader.vector3("centre_m", true);
+    auto radius = reader.required_number("radius_m", 0.1, 1e5);
+    auto speed = reader.required_number("speed_mps", 0.01, kMaxSpeed_mps);
+    const double start_angle = reader.number("start_angle_deg", 0.0, -360.0, 360.0);
+    const bool clockwise = reader.boolean("clockwise", false);
+    if (!centre || !radius || !speed || !ok()) return std::nullopt;
+    return Trajectory::circle(*centre, *radius, *speed, start_angle, clockwise);
+  }
+  if (type == "rectangle") {
+    auto centre = reader.vector3("centre_m", true);
+    auto size = reader.numbers("size_m", 2, true);
+    auto speed = reader.required_number("speed_mps", 0.01, kMaxSpeed_mps);
+    const double corner_radius = reader.number("corner_radius_m", 5.0, 0.0, 1e4);
+    const double yaw = reader.number("yaw_deg", 0.0, -360.0, 360.0) * std::numbers::pi / 180.0;
+    const bool clockwise = reader.boolean("clockwise", false);
+    if (size && ((*size)[0] < 0.1 || (*size)[1] < 0.1)) {
+      diagnostics.error(reader.path_of("size_m"), "both sides must be at least 0.1 m");
+    }
+    if (!centre || !size || !speed || !ok()) return std::nullopt;
+    const double half_x = (*size)[0] / 2.0;
+    const double half_y = (*size)[1] / 2.0;
+    std::vector<Eigen::Vector2d> local{
+        {-half_x, -half_y}, {half_x, -half_y}, {half_x, half_y}, {-half_x, half_y}};
+    if (clockwise) std::swap(local[1], local[3]);
+    std::vector<Eigen::Vector3d> corners;
+    for (const auto& corner : local) {
+      corners.emplace_back((*centre)[0] + std::cos(yaw) * corner[0] - std::sin(yaw) * corner[1],
+                           (*centre)[1] + std::sin(yaw) * corner[0] + std::cos(yaw) * corner[1],
+                           (*centre)[2]);
+    }
+    return Trajectory::through_points(corners, *speed, corner_radius, true);
+  }
+  // waypoints
+  auto points = read_points(reader, "points_m", 2);
+  auto speed = reader.required_number("speed_mps", 0.01, kMaxSpeed_mps);
+  const double turn_radius = reader.number("turn_radius_m", 5.0, 0.0, 1e4);
+  const bool loop = reader.boolean("loop", false);
+  if (!points || !speed || !ok()) return std::nullopt;
+  if (loop && points->size() < 3) {
+    diagnostics.error(reader.path_of("points_m"), "a loop needs at least 3 points");
+    return std::nullopt;
+  }
+  if (!check_legs(*points, loop, reader.path_of("points_m"), diagnostics)) return std::nullopt;
+  return Trajectory::through_points(*points, *speed, turn_radius, loop);
+}
+
+void parse_signal(ObjectReader& reader, SourceSpec& source, double sample_rate_hz,
+                  const std::filesystem::path& base_dir) {
+  Diagnostics& diagnostics = reader.diagnostics();
+  const double max_hz = 0.4 * sample_rate_hz;
+  const std::string fallback = source.kind == SourceKind::drone ? "rotor" : "noise";
+  const std::string type =
+      reader.choice("type", fallback, {"rotor", "recording", "noise", "tones"});
+  if (type == "rotor") {
+    source.signal_type = SignalType::rotor;
+    RotorSignal& rotor = source.rotor;
+    rotor.blade_pass_hz = reader.number("blade_pass_hz", rotor.blade_pass_hz, 20.0, 1000.0);
+    rotor.rpm_wander = reader.number("rpm_wander", rotor.rpm_wander, 0.0, 0.3);
+    rotor.wander_period_s = reader.number("wander_period_s", rotor.wander_period_s, 0.5, 600.0);
+    rotor.harmonics = reader.integer("harmonics", rotor.harmonics, 1, 200);
+    rotor.slope_db_per_octave =
+        reader.number("slope_db_per_octave", rotor.slope_db_per_octave, -24.0, 6.0);
+    rotor.broadband_db = reader.number("broadband_db", rotor.broadband_db, -80.0, 20.0);
+  } else if (type == "recording") {
+    source.signal_type = SignalType::recording;
+    RecordingSignal& recording = source.recording;
+    const auto file = reader.required_string("file");
+    recording.start_s = reader.number("start_s", 0.0, 0.0, 1e6);
+    if (reader.has("end_s")) recording.end_s = reader.required_number("end_s", 0.0, 1e6);
+    if (!file) return;
+    const std::filesystem::path path(*file);
+    recording.file = path.is_absolute() ? path : base_dir / path;
+    SF_INFO info{};
+    SNDFILE* handle = sf_open(recording.file.string().c_str(), SFM_READ, &info);
+    if (!handle) {
+      diagnostics.error(reader.path_of("file"),
+                        recording.file.string() + ": cannot read (" + sf_strerror(nullptr) + ")");
+      return;
+    }
+    sf_close(handle);
+    const double length_s = static_cast<double>(info.frames) / info.samplerate;
+    const double end_s = recording.end_s.value_or(length_s);
+    if (end_s > length_s + 1e-9) {
+      diagnostics.error(reader.path_of("end_s"), "beyond the end of " + recording.file.string() +
+                                                     " (" + std::to_string(length_s) + " s)");
+    } else if (end_s - recording.start_s < 0.5) {
+      diagnostics.error(reader.path(), "the looped part [start_s, end_s) must be at least 0.5 s");
+    }
+  } else if (type == "noise") {
+    source.signal_type = SignalType::noise;
+    source.noise.low_hz = reader.number("low_hz", source.noise.low_hz, 0.0, max_hz);
+    source.noise.high_hz =
+        reader.number("high_hz", std::min(source.noise.high_hz, max_hz), 1.0, max_hz);
+    if (source.noise.low_hz >= source.noise.high_hz) {
+      diagnostics.error(reader.path_of("high_hz"), "must be above low_hz");
+    }
+  } else {
+    source.signal_type = SignalType::tones;
+    if (auto frequencies = reader.numbers("frequencies_hz", 0, true)) {
+      for (std::size_t i = 0; i < frequencies->size(); ++i) {
+        const double frequency = (*frequencies)[i];
+        if (frequency <= 0.0 || frequency > max_hz) {
+          std::ostringstream what;
+          what << "must be in (0, " << max_hz << "] (0.4 x sample rate), got " << frequency;
+          diagnostics.error(reader.path_of("frequencies_hz") + "[" + std::to_string(i) + "]",
+                            what.str());
+        }
+      }
+      source.tones.frequencies_hz = *frequencies;
+    }
+    if (auto levels = reader.numbers("relative_db", 0, false)) {
+      if (levels->size() != source.tones.frequencies_hz.size()) {
+        diagnostics.error(reader.path_of("relative_db"), "needs one level per frequency");
+      }
+      source.tones.relative_db = *levels;
+    }
+    source.tones.relative_db.resize(source.tones.frequencies_hz.size(), 0.0);
+  }
+}
+
+void parse_noise_level(ObjectReader& parent, const std::string& key, NoiseLevel& level) {
+  if (!parent.has(key)) {
+    parent.accept(key);
+    return;
+  }
+  ObjectReader reader = parent.object(key);
+  const bool has_snr = reader.has("snr_db");
+  const bool has_level = reader.has("level_db");
+  if (has_snr == has_level) {
+    reader.diagnostics().error(reader.path(), "give exactly one of snr_db or level_db");
+  }
+  if (has_snr) level.snr_db = reader.required_number("snr_db", -60.0, 100.0);
+  if (has_level) level.level_db_spl = reader.required_number("level_db", -20.0, 160.0);
+  level.enabled = level.snr_db.has_value() || level.level_db_spl.has_value();
+}
+
+void parse_noise(ObjectReader& reader, Scenario& scenario) {
+  NoiseSpec& noise = scenario.noise;
+  parse_noise_level(reader, "sensor", noise.sensor);
+  parse_noise_level(reader, "wind", noise.wind);
+  parse_noise_level(reader, "ambient", noise.ambient);
+  noise.wind_corner_hz = reader.number("wind_corner_hz", noise.wind_corner_hz, 1.0, 1000.0);
+  noise.wind_gust_depth = reader.number("wind_gust_depth", noise.wind_gust_depth, 0.0, 1.0);
+  noise.ambient_coherent_below_hz =
+      reader.number("ambient_coherent_below_hz", 0.0, 0.0, 0.4 * scenario.sample_rate_hz);
+  noise.snr_reference_array = reader.string("snr_reference_array", "");
+  if (!noise.snr_reference_array.empty() &&
+      scenario.site.array_index(noise.snr_reference_array) < 0 && !scenario.site.arrays.empty()) {
+    reader.diagnostics().error(reader.path_of("snr_reference_array"),
+                               "no array with id \"" + noise.snr_reference_array + "\"");
+  }
+}
+
+// The site section: validated by the site-config parser itself (so the simulator accepts exactly
+// what replay will), with the simulator's own per-array key taken out first.
+void parse_site(const json& node, const std::filesystem::path& base_dir, Scenario& scenario,
+                Diagnostics& diagnostics) {
+  if (!node.is_object()) {
+    diagnostics.error("site", "expected an object (a site config, SPEC 3.1), got " +
+                                  config::describe_json_type(node));
+    return;
+  }
+  json site = node;
+  if (site.contains("arrays") && site["arrays"].is_array()) {
+    for (std::size_t i = 0; i < site["arrays"].size(); ++i) {
+      json& array = site["arrays"][i];
+      const std::string path = "site.arrays[" + std::to_string(i) + "]";
+      double end_s = 0.0;
+      if (array.is_object() && array.contains("recording_end_s")) {
+        const json& value = array["recording_end_s"];
+        if (!value.is_number() || !(value.get<double>() > 0.0)) {
+          diagnostics.error(path + ".recording_end_s", "expected a number of seconds > 0");
+        } else {
+          end_s = value.get<double>();
+        }
+        array.erase("recording_end_s");
+      }
+      if (array.is_object() && array.contains("recording")) {
+        diagnostics.warn(path + ".recording", "ignored: the simulator writes <id>.wav");
+        array.erase("recording");
+      }
+      scenario.recording_end_s.push_back(end_s);
+    }
+  }
+  scenario.site_json = site;
+  std::vector<std::string> site_warnings;
+  config::LoadOptions options;
+  options.check_recordings = false;
+  try {
+    scenario.site = config::parse_site_config(site.dump(), base_dir, site_warnings, options);
+  } catch (const config::ConfigError& failure) {
+    for (const auto& problem : failure.problems()) diagnostics.errors.push_back("site." + problem);
+  }
+  for (const auto& warning : site_warnings) diagnostics.warnings.push_back("site." + warning);
+}
+
+}  // namespace
+
+Scenario parse_scenario(const json& document, const std::filesystem::path& base_dir,
+                        std::vector<std::string>& warnings) {
+  Diagnostics diagnostics;
+  Scenario scenario;
+  {
+    ObjectReader root(document, "", diagnostics);
+    scenario.description = root.string("description", "");
+    scenario.seed = static_cast<std::uint64_t>(root.integer("seed", 0, 0, 2147483647));
+    scenario.sample_rate_hz = root.number("sample_rate_hz", 48000.0, 8000.0, 192000.0);
+    scenario.duration_s = root.required_number("duration_s", 0.01, 3600.0).value_or(1.0);
+    scenario.full_scale_db_spl = root.number("full_scale_db_spl", 120.0, 60.0, 200.0);
+    {
+      ObjectReader ground = root.object("ground");
+      scenario.ground_reflection = ground.number("reflection_coefficient", 0.0, 0.0, 1.0);
+    }
+    root.accept("site");
+    if (!root.has("site")) {
+      diagnostics.error("site", "required site (arrays as in SPEC 3.1) is missing");
+    } else {
+      parse_site(document.at("site"), base_dir, scenario, diagnostics);
+      for (std::size_t i = 0; i < scenario.recording_end_s.size(); ++i) {
+        if (scenario.recording_end_s[i] > scenario.duration_s) {
+          diagnostics.error("site.arrays[" + std::to_string(i) + "].recording_end_s",
+                            "beyond duration_s");
+        }
+      }
+    }
+    std::set<std::string> ids;
+    root.for_each("sources", true, [&](const json& node, const std::string& path) {
+      ObjectReader reader(node, path, diagnostics);
+      SourceSpec source;
+      source.id = reader.required_string("id").value_or("");
+      if (reader.has("id") && node["id"].is_string() && source.id.empty()) {
+        diagnostics.error(reader.path_of("id"), "must not be empty");
+      } else if (!source.id.empty() && !ids.insert(source.id).second) {
+        diagnostics.error(reader.path_of("id"), "duplicate source id \"" + source.id + "\"");
+      }
+      const std::string kind = reader.choice("kind", "drone", {"drone", "interferer"});
+      source.kind = kind == "drone" ? SourceKind::drone : SourceKind::interferer;
+      source.level_db_spl = reader.number("level_db", source.level_db_spl, 0.0, 160.0);
+      {
+        ObjectReader signal = reader.object("signal");
+        parse_signal(signal, source, scenario.sample_rate_hz, base_dir);
+      }
+      if (!reader.has("trajectory")) {
+        diagnostics.error(reader.path_of("trajectory"), "required trajectory is missing");
+        reader.accept("trajectory");
+      } else {
+        ObjectReader trajectory = reader.object("trajectory");
+        if (auto parsed = parse_trajectory(trajectory)) source.trajectory = *parsed;
+      }
+      scenario.sources.push_back(std::move(source));
+    });
+    if (root.has("sources") && document["sources"].is_array() && document["sources"].empty()) {
+      diagnostics.error("sources", "at least one source is required");
+    }
+    {
+      ObjectReader noise = root.object("noise");
+      parse_noise(noise, scenario);
+    }
+    const bool needs_drone =
+        scenario.noise.sensor.snr_db || scenario.noise.wind.snr_db || scenario.noise.ambient.snr_db;
+    bool has_drone = false;
+    for (const auto& source : scenario.sources) has_drone |= source.kind == SourceKind::drone;
+    if (needs_drone && !has_drone && !scenario.sources.empty()) {
+      diagnostics.error("noise", "snr_db is relative to the drones' sound, but there is no drone");
+    }
+  }
+  warnings.insert(warnings.end(), diagnostics.warnings.begin(), diagnostics.warnings.end());
+  if (!diagnostics.errors.empty()) throw config::ConfigError(std::move(diagnostics.errors));
+  return scenario;
+}
+
+Scenario parse_scenario(const json& document, const std::filesystem::path& base_dir) {
+  std::vector<std::string> warnings;
+  return parse_scenario(document, base_dir, warnings);
+}
+
+Scenario load_scenario(const std::filesystem::path& file, std::vector<std::string>& warnings) {
+  std::ifstream stream(file);
+  if (!stream) throw config::ConfigError({file.string() + ": cannot open scenario file"});
+  json document;
+  try {
+    document = json::parse(stream);
+  } catch (const json::exception& failure) {
+    throw config::ConfigError({file.string() + ": invalid JSON: " + failure.what()});
+  }
+  std::vector<std::string> local_warnings;
+  try {
+    Scenario scenario = parse_scenario(document, file.parent_path(), local_warnings);
+    scenario.file = file;
+    for (const auto& warning : local_warnings) warnings.push_back(file.string() + ": " + warning);
+    return scenario;
+  } catch (const config::ConfigError& failure) {
+    std::vector<std::string> problems;
+    for (const auto& problem : failure.problems())
+      problems.push_back(file.string() + ": " + problem);
+    throw config::ConfigError(std::move(problems));
+  }
+}
+
+}  // namespace dronetrack::sim
