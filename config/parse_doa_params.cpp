@@ -4,6 +4,7 @@
 
 namespace dronetrack::config {
 
+// Keys, units and defaults: docs/doa.md ("Configuration").
 void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   Diagnostics& diagnostics = section.diagnostics();
   if (section.has("bands_hz")) {
@@ -38,6 +39,29 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.max_sources = section.integer("max_sources", params.max_sources, 1, 8);
   params.detection_snr_db =
       section.number("detection_snr_db", params.detection_snr_db, -20.0, 60.0);
+
+  params.min_gcc_peak = section.number("min_gcc_peak", params.min_gcc_peak, 0.0, 1.0);
+  params.noise_floor_rise_db_per_s =
+      section.number("noise_floor_rise_db_per_s", params.noise_floor_rise_db_per_s, 0.01, 100.0);
+  params.max_clipped_fraction =
+      section.number("max_clipped_fraction", params.max_clipped_fraction, 0.0, 1.0);
+  const std::string interpolation =
+      section.choice("lag_interpolation", "band_limited", {"band_limited", "parabolic"});
+  params.lag_interpolation = interpolation == "parabolic" ? doa::LagInterpolation::parabolic
+                                                          : doa::LagInterpolation::band_limited;
+  params.correlation_oversample =
+      section.integer("correlation_oversample", params.correlation_oversample, 1, 16);
+  params.max_angular_rate_dps =
+      section.number("max_angular_rate_dps", params.max_angular_rate_dps, 1.0, 3600.0);
+  params.regression_window_frames =
+      section.integer("regression_window_frames", params.regression_window_frames, 5, 64);
+  params.max_norm_error = section.number("max_norm_error", params.max_norm_error, 0.001, 1.0);
+  params.max_chi2_per_dof = section.number("max_chi2_per_dof", params.max_chi2_per_dof, 1.0, 1e6);
+  params.srp_grid_deg = section.number("srp_grid_deg", params.srp_grid_deg, 0.5, 30.0);
+  params.srp_min_separation_deg =
+      section.number("srp_min_separation_deg", params.srp_min_separation_deg, 1.0, 90.0);
+  params.srp_min_relative_power =
+      section.number("srp_min_relative_power", params.srp_min_relative_power, 0.0, 1.0);
 }
 
 }  // namespace dronetrack::config

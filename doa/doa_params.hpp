@@ -1,6 +1,7 @@
 #pragma once
 // Processing parameters of an array node. Parsed and validated in config/ (parse_doa_params.cpp);
 // every field has its unit in the name and a default that works on the bundled scenes.
+// docs/doa.md documents every key.
 #include <string>
 #include <vector>
 
@@ -13,13 +14,31 @@ struct FrequencyBand {
 
 enum class TdoaTracker { per_frame, bayesian_grid, multi_peak, robust_regression };
 
+// How the GCC peak is refined below the lag grid: maximising the continuous band-limited
+// correlation (exact, the default) or a parabola through three full-rate samples.
+enum class LagInterpolation { parabolic, band_limited };
+
 struct DoaParams {
   std::vector<FrequencyBand> bands_hz{FrequencyBand{}};  // seed 002: 1.5-3.5 kHz
-  double frame_s = 0.17;  // analysis frame length (rounded to a power of two samples? see doa/)
+  double frame_s = 0.17;  // analysis frame length; FFT size = next FFTW-friendly size >= frame
   double hop_s = 0.05;    // about 20 DOAs per second
   TdoaTracker tdoa_tracker = TdoaTracker::bayesian_grid;
   int max_sources = 2;            // DOAs per frame (SRP-PHAT peaks)
   double detection_snr_db = 6.0;  // in-band level over the adaptive noise floor to publish
+
+  // Added with the DSP (issue 4); all optional keys of the "doa" config section.
+  double min_gcc_peak = 0.2;  // mean normalised GCC-PHAT peak over pairs needed to publish
+  double noise_floor_rise_db_per_s = 3.0;  // adaptive floor: how fast it follows louder noise
+  double max_clipped_fraction = 0.01;      // frames with more clipped samples give no DOA
+  LagInterpolation lag_interpolation = LagInterpolation::band_limited;
+  int correlation_oversample = 2;        // lag grid: 2x the band's Nyquist rate, times this
+  double max_angular_rate_dps = 90.0;    // trackers: largest plausible DOA rate of a source
+  int regression_window_frames = 9;      // robust_regression: frames in the sliding window
+  double max_norm_error = 0.1;           // LS: reject when ||A^-1 b| - 1| exceeds this
+  double max_chi2_per_dof = 30.0;        // LS: reject when the TDOA fit residual exceeds this
+  double srp_grid_deg = 4.0;             // SRP-PHAT direction grid spacing
+  double srp_min_separation_deg = 10.0;  // two sources closer than this are one
+  double srp_min_relative_power = 0.5;   // a 2nd..Kth source needs this share of the 1st's power
 };
 
 }  // namespace dronetrack::doa

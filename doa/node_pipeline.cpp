@@ -1,27 +1,305 @@
-// PLACEHOLDER until the DSP lands (issue 4): keeps the build linking.
+// NodePipeline: the composition of the node's stages, one frame at a time:
+//   Framer -> MultichannelFft -> GccPhat -> DetectionGate -> TdoaEstimator -> LsDoaSolver
+//                                        \-> SrpPhat (further sources) -> LsDoaSolver
+// Everything is sized in the constructor; process() only appends to the caller's vector.
 #include "doa/node_pipeline.hpp"
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
 #include <stdexcept>
+#include <string>
+
+#include "doa/detection_gate.hpp"
+#include "doa/gcc_phat.hpp"
+#include "doa/ls_doa_solver.hpp"
+#include "doa/spectral_frame.hpp"
+#include "doa/srp_phat.hpp"
+#include "doa/tdoa_tracker.hpp"
 
 namespace dronetrack::doa {
 
+namespace {
+
+constexpr int kMaxSources = 8;
+
+void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
+              double speed_of_sound_mps) {
+  auto fail = [&](const std::string& what) {
+    throw std::invalid_argument("array " + geometry.id + ": " + what);
+  };
+  if (!(sample_rate_hz >= 1000.0 && sample_rate_hz <= 1e6))
+    fail("sample_rate_hz must be in [1000, 1e6], got " + std::to_string(sample_rate_hz));
+  if (!(speed_of_sound_mps > 0.0)) fail("speed_of_sound_mps must be > 0");
+  if (geometry.mic_count() < 2) fail("needs at least 2 mics");
+  if (geometry.mic_count() > 8) fail("at most 8 mics are supported");
+  if (!(params.frame_s > 0.0) || !(params.hop_s > 0.0) || params.hop_s > params.frame_s)
+    fail("need 0 < hop_s <= frame_s");
+  if (params.bands_hz.empty()) fail("bands_hz needs at least one band");
+  if (params.max_sources < 1 || params.max_sources > kMaxSources)
+    fail("max_sources must be in [1, 8]");
+  if (params.correlation_oversample < 1 || params.correlation_oversample > 16)
+    fail("correlation_oversample must be in [1, 16]");
+  if (params.regression_window_frames < 5 || params.regression_window_frames > 64)
+    fail("regression_window_frames must be in [5, 64]");
+}
+
+std::vector<MicPairSpec> pair_specs(const LsDoaSolver& solver) {
+  std::vector<MicPairSpec> pairs;
+  for (int p = 0; p < solver.pair_count(); ++p)
+    pairs.push_back({solver.pair_mic_i(p), solver.pair_mic_j(p), solver.max_lag_s(p)});
+  return pairs;
+}
+
+LsDoaSettings solver_settings(const DoaParams& params, double speed_of_sound_mps) {
+  LsDoaSettings settings;
+  settings.speed_of_sound_mps = speed_of_sound_mps;
+  settings.max_norm_error = params.max_norm_error;
+  settings.max_chi2_per_dof = params.max_chi2_per_dof;
+  return settings;
+}
+
+}  // namespace
+
 struct NodePipeline::Impl {
+  Impl(ArrayGeometry geometry_in, int array_index_in, const DoaParams& params_in,
+       double sample_rate_hz_in, double speed_of_sound_mps)
+      : geometry(std::move(geometry_in)),
+        array_index(array_index_in),
+        params(params_in),
+        sample_rate_hz(sample_rate_hz_in),
+        frame_length(static_cast<int>(std::lround(params.frame_s * sample_rate_hz))),
+        hop(std::max(1, static_cast<int>(std::lround(params.hop_s * sample_rate_hz)))),
+        solver(geometry, solver_settings(params, speed_of_sound_mps)),
+        framer(static_cast<int>(geometry.mic_count()), frame_length, hop),
+        fft(static_cast<int>(geometry.mic_count()), frame_length, fftw_friendly_size(frame_length)),
+        gcc(fft.fft_size(), frame_length, sample_rate_hz, params.bands_hz, pair_specs(solver),
+            params.lag_interpolation, params.correlation_oversample),
+        gate(DetectionSettings{params.detection_snr_db, params.min_gcc_peak,
+                               params.noise_floor_rise_db_per_s, 0.5, -130.0},
+             params.hop_s),
+        band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())) {
+    TdoaTrackerSettings tracker_settings;
+    tracker_settings.hop_s = static_cast<double>(hop) / sample_rate_hz;
+    tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
+    tracker_settings.regression_window_frames = params.regression_window_frames;
+    tracker = make_tdoa_estimator(params.tdoa_tracker, gcc, tracker_settings);
+    tdoas.resize(static_cast<std::size_t>(solver.pair_count()));
+    if (params.max_sources > 1 && solver.rank() >= 2) {
+      srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
+      // One more peak than sources: the strongest SRP peak is usually the tracked source.
+      srp_peaks.resize(static_cast<std::size_t>(params.max_sources + 1));
+    }
+  }
+
+  struct Candidate {
+    DoaSolution solution;
+    std::array<PairTdoa, kMaxPairs> tdoas{};
+    double coherence = 0.0;
+  };
+
+  void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
+  void find_candidates();
+  double mean_coherence(std::span<const PairTdoa> used) const;
+  bool is_ghost(const Eigen::Vector3d& direction_site) const;
+  double inband_power() const;
+  bool publish(const DoaSolution& solution, double time_s, std::span<const PairTdoa> used,
+               int source_index, std::vector<DoaMeasurement>& out);
+
   ArrayGeometry geometry;
+  int array_index;
+  DoaParams params;
+  double sample_rate_hz;
+  int frame_length;
+  int hop;
+  LsDoaSolver solver;
+  Framer framer;
+  MultichannelFft fft;
+  GccPhat gcc;
+  DetectionGate gate;
+  std::vector<BandRun> band;
+  std::unique_ptr<TdoaEstimator> tracker;
+  std::unique_ptr<SrpPhat> srp;
+  std::vector<SrpPeak> srp_peaks;
+  std::vector<PairTdoa> tdoas;
+  std::array<Candidate, kMaxSources> candidates{};
+  int candidate_count = 0;
   NodeDiagnostics diagnostics;
 };
 
-NodePipeline::NodePipeline(ArrayGeometry geometry, int, const DoaParams&, double, double)
-    : impl_(std::make_unique<Impl>()) {
-  impl_->geometry = std::move(geometry);
-  throw std::logic_error("NodePipeline not implemented yet");
+double NodePipeline::Impl::inband_power() const {
+  double total = 0.0;
+  for (int c = 0; c < fft.channels(); ++c) {
+    const std::complex<double>* spectrum = fft.spectrum(c);
+    for (const BandRun& run : band)
+      for (int k = run.first_bin; k <= run.last_bin; ++k) total += std::norm(spectrum[k]);
+  }
+  // Parseval: one-sided bins count twice; per windowed sample, mean over channels.
+  return 2.0 * total / (static_cast<double>(fft.fft_size()) * fft.window_energy() * fft.channels());
+}
+
+bool NodePipeline::Impl::publish(const DoaSolution& solution, double time_s,
+                                 std::span<const PairTdoa> used, int source_index,
+                                 std::vector<DoaMeasurement>& out) {
+  DoaMeasurement measurement;
+  measurement.array_id = geometry.id;
+  measurement.array_index = array_index;
+  measurement.time_s = time_s;
+  measurement.direction = solution.direction_site;
+  measurement.azel_covariance_rad2 = solution.azel_covariance_rad2;
+  measurement.quality = solution.quality;
+  measurement.snr_db = gate.snr_db();
+  measurement.source_index = source_index;
+  measurement.ambiguity = solution.ambiguity;
+  measurement.pair_count = solver.pair_count();
+  for (int p = 0; p < solver.pair_count(); ++p)
+    measurement.tdoa_s[static_cast<std::size_t>(p)] = used[static_cast<std::size_t>(p)].tdoa_s;
+  out.push_back(std::move(measurement));
+  ++diagnostics.doas_published;
+  return true;
+}
+
+double NodePipeline::Impl::mean_coherence(std::span<const PairTdoa> used) const {
+  double sum = 0.0;
+  int count = 0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& tdoa = used[static_cast<std::size_t>(p)];
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    sum += gcc.coherence_at(p, tdoa.tdoa_s);
+    ++count;
+  }
+  return count > 0 ? sum / count : 0.0;
+}
+
+bool NodePipeline::Impl::is_ghost(const Eigen::Vector3d& direction_site) const {
+  // A combination of one source's lags on some pairs and its neighbouring correlation lobes
+  // (one carrier period away) on others can form a plausible plane wave: an SRP ghost. A real
+  // second source differs from the first in the lags of most pairs.
+  const Eigen::Vector3d direction = solver.array_to_site().transpose() * direction_site;
+  for (int s = 0; s < candidate_count; ++s) {
+    const Eigen::Vector3d other = solver.array_to_site().transpose() *
+                                  candidates[static_cast<std::size_t>(s)].solution.direction_site;
+    int shared = 0;
+    for (int p = 0; p < solver.pair_count(); ++p) {
+      shared += std::abs(solver.tdoa_for_direction(p, direction) -
+                         solver.tdoa_for_direction(p, other)) < 2.0 * gcc.lag_step_s()
+                    ? 1
+                    : 0;
+    }
+    if (2 * shared >= solver.pair_count()) return true;
+  }
+  return false;
+}
+
+void NodePipeline::Impl::find_candidates() {
+  candidate_count = 0;
+  Candidate& primary = candidates[0];
+  primary.solution = solver.solve(tdoas);
+  if (primary.solution.accepted) {
+    std::copy(tdoas.begin(), tdoas.end(), primary.tdoas.begin());
+    primary.coherence = mean_coherence(tdoas);
+    ++candidate_count;
+  }
+  if (!srp) return;
+  const int peaks = srp->find_peaks(gcc, params.srp_min_separation_deg, srp_peaks);
+  const double separation_cosine =
+      std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
+  for (int k = 0; k < peaks && candidate_count < params.max_sources; ++k) {
+    const SrpPeak& peak = srp_peaks[static_cast<std::size_t>(k)];
+    if (peak.power < params.srp_min_relative_power * srp_peaks[0].power ||
+        peak.power < params.min_gcc_peak)
+      break;
+    Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+    const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+    srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
+    candidate.solution = solver.solve(candidate_tdoas);
+    if (!candidate.solution.accepted) continue;
+    bool duplicate = false;
+    for (int s = 0; s < candidate_count; ++s)
+      duplicate =
+          duplicate ||
+          candidate.solution.direction_site.dot(
+              candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
+    if (duplicate || is_ghost(candidate.solution.direction_site)) continue;
+    candidate.coherence = mean_coherence(candidate_tdoas);
+    ++candidate_count;
+  }
+}
+
+void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurement>& out) {
+  ++diagnostics.frames_processed;
+  const double time_s =
+      (static_cast<double>(frame.first_sample) + 0.5 * (frame.length - 1)) / sample_rate_hz;
+  double sum_squares = 0.0;
+  for (int c = 0; c < frame.channels; ++c) {
+    const double* samples = frame.channel(c);
+    for (int n = 0; n < frame.length; ++n) sum_squares += samples[n] * samples[n];
+  }
+  diagnostics.level_dbfs =
+      10.0 * std::log10(std::max(sum_squares / (frame.length * frame.channels), 1e-20));
+
+  fft.process(frame);
+  gcc.process(fft);
+  double coherence_sum = 0.0;
+  double peak_sum = 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    coherence_sum += gcc.pair(p).coherence;
+    peak_sum += gcc.pair(p).peak.value;
+  }
+  DetectionInput detection;
+  detection.inband_power = inband_power();
+  detection.mean_peak_value = peak_sum / gcc.pair_count();
+  detection.frame_clean =
+      frame.non_finite_samples == 0 &&
+      frame.clipped_samples <= static_cast<int>(params.max_clipped_fraction * frame.length);
+  // Sharp correlations on a clean frame: worth tracking and solving. Whether to publish also
+  // needs the level over the noise floor, whose update needs the coherent power of every
+  // source found, so the gate comes after the candidates.
+  const bool sharp = detection.frame_clean && detection.mean_peak_value >= params.min_gcc_peak &&
+                     detection.inband_power > 0.0;
+  tracker->update(time_s, gcc, sharp, tdoas);
+  candidate_count = 0;
+  if (sharp) find_candidates();
+  double coherent_share = 0.0;
+  for (int s = 0; s < candidate_count; ++s)
+    coherent_share += candidates[static_cast<std::size_t>(s)].coherence;
+  if (candidate_count == 0) coherent_share = coherence_sum / gcc.pair_count();
+  detection.mean_coherence = std::min(coherent_share, 0.999);
+  const bool detecting = gate.update(detection);
+  diagnostics.noise_floor_dbfs = gate.noise_floor_dbfs();
+  diagnostics.snr_db = gate.snr_db();
+  diagnostics.detecting = detecting;
+  if (!detecting) return;
+  for (int s = 0; s < candidate_count; ++s) {
+    const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
+    publish(candidate.solution, time_s, candidate.tdoas, s, out);
+  }
+}
+
+NodePipeline::NodePipeline(ArrayGeometry geometry, int array_index, const DoaParams& params,
+                           double sample_rate_hz, double speed_of_sound_mps) {
+  validate(geometry, params, sample_rate_hz, speed_of_sound_mps);
+  impl_ = std::make_unique<Impl>(std::move(geometry), array_index, params, sample_rate_hz,
+                                 speed_of_sound_mps);
 }
 NodePipeline::~NodePipeline() = default;
 NodePipeline::NodePipeline(NodePipeline&&) noexcept = default;
 NodePipeline& NodePipeline::operator=(NodePipeline&&) noexcept = default;
-void NodePipeline::process(const AudioBlockView&, std::vector<DoaMeasurement>&) {}
+
+void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasurement>& out) {
+  Impl& impl = *impl_;
+  impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
+  const FramerCounters& counters = impl.framer.counters();
+  impl.diagnostics.non_finite_samples = counters.non_finite_samples;
+  impl.diagnostics.clipped_samples = counters.clipped_samples;
+  impl.diagnostics.stream_gaps = counters.stream_gaps;
+  impl.diagnostics.rejected_blocks = counters.rejected_blocks;
+}
+
 const NodeDiagnostics& NodePipeline::diagnostics() const { return impl_->diagnostics; }
 const ArrayGeometry& NodePipeline::geometry() const { return impl_->geometry; }
-int NodePipeline::frame_length_samples() const { return 0; }
-int NodePipeline::hop_samples() const { return 0; }
+int NodePipeline::frame_length_samples() const { return impl_->frame_length; }
+int NodePipeline::hop_samples() const { return impl_->hop; }
 
 }  // namespace dronetrack::doa

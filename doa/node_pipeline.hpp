@@ -21,6 +21,8 @@ struct NodeDiagnostics {
   double noise_floor_dbfs = -120.0;     // adaptive in-band noise floor
   double snr_db = 0.0;                  // in-band SNR of the last frame
   bool detecting = false;
+  std::int64_t stream_gaps = 0;      // blocks whose first_sample did not follow on (reframed)
+  std::int64_t rejected_blocks = 0;  // blocks with the wrong channel count or no data
 };
 
 class NodePipeline {

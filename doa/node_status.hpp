@@ -7,8 +7,8 @@ namespace dronetrack::doa {
 
 struct NodeStatus {
   std::string array_id;
-  double time_s = 0.0;          // recording/stream time of the report
-  bool alive = true;            // false: the node said goodbye or the fusion lost its liveliness
+  double time_s = 0.0;  // recording/stream time of the report
+  bool alive = true;    // false: the node said goodbye or the fusion lost its liveliness
   double sample_rate_hz = 0.0;
   std::int64_t overruns = 0;
   std::int64_t clipped_samples = 0;

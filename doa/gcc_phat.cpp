@@ -1,0 +1,342 @@
+#include "doa/gcc_phat.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "doa/fftw_lock.hpp"
+
+namespace dronetrack::doa {
+
+namespace {
+// Below this |X_i X_j*| a bin carries no phase (digital silence): it gets zero weight.
+constexpr double kSilentBin = 1e-30;
+constexpr double kMaxPeakRatio = 100.0;
+}  // namespace
+
+std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
+                               int fft_size) {
+  const int last_usable = fft_size / 2 - 1;
+  std::vector<bool> inside(static_cast<std::size_t>(fft_size / 2 + 1), false);
+  for (const FrequencyBand& band : bands) {
+    const int first =
+        std::max(1, static_cast<int>(std::ceil(band.low_hz * fft_size / sample_rate_hz)));
+    const int last = std::min(
+        last_usable, static_cast<int>(std::floor(band.high_hz * fft_size / sample_rate_hz)));
+    for (int k = first; k <= last; ++k) inside[static_cast<std::size_t>(k)] = true;
+  }
+  std::vector<BandRun> runs;
+  for (int k = 1; k <= last_usable; ++k) {
+    if (!inside[static_cast<std::size_t>(k)]) continue;
+    if (!runs.empty() && runs.back().last_bin == k - 1) {
+      runs.back().last_bin = k;
+    } else {
+      runs.push_back({k, k});
+    }
+  }
+  if (runs.empty())
+    throw std::invalid_argument("bands_hz: no FFT bin inside the bands below Nyquist (" +
+                                std::to_string(sample_rate_hz / 2.0) + " Hz)");
+  return runs;
+}
+
+struct GccPhat::Inverse {
+  fftw_complex* spectrum = nullptr;  // correlation_size/2 + 1
+  double* correlation = nullptr;     // correlation_size
+  fftw_plan plan = nullptr;
+};
+
+GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
+                 const std::vector<FrequencyBand>& bands, std::vector<MicPairSpec> pairs,
+                 LagInterpolation interpolation, int oversample)
+    : sample_rate_hz_(sample_rate_hz),
+      fft_size_(fft_size),
+      bin_omega_(2.0 * std::numbers::pi * sample_rate_hz / fft_size),
+      runs_(band_runs(bands, sample_rate_hz, fft_size)),
+      interpolation_(interpolation),
+      pairs_(std::move(pairs)),
+      inverse_(std::make_unique<Inverse>()) {
+  if (pairs_.empty()) throw std::invalid_argument("GccPhat: needs at least one mic pair");
+  if (oversample < 1 || oversample > 64)
+    throw std::invalid_argument("GccPhat: oversample must be in [1, 64]");
+  for (const BandRun& run : runs_) {
+    band_bins_ += run.last_bin - run.first_bin + 1;
+    for (int k = run.first_bin; k <= run.last_bin; ++k)
+      sum_omega2_ += (k * bin_omega_) * (k * bin_omega_);
+  }
+  // Hann window: neighbouring bins share phase noise (equivalent noise bandwidth 1.5 bins);
+  // zero padding beyond the frame interpolates bins further.
+  bin_correlation_ = 1.5 * static_cast<double>(fft_size) / frame_length;
+
+  const int top_bin = runs_.back().last_bin;
+  correlation_size_ = 2;
+  while (correlation_size_ / 2 <= top_bin) correlation_size_ *= 2;
+  correlation_size_ *= oversample;
+  lag_step_s_ = static_cast<double>(fft_size) / correlation_size_ / sample_rate_hz;
+
+  int max_half_span = 0;
+  for (const MicPairSpec& pair : pairs_) {
+    if (!(pair.max_lag_s > 0.0))
+      throw std::invalid_argument("GccPhat: mic pair " + std::to_string(pair.mic_i) + "-" +
+                                  std::to_string(pair.mic_j) + " has zero spacing");
+    // One extra grid step so a peak at the physical limit is still a local maximum.
+    int half_span = static_cast<int>(std::ceil(pair.max_lag_s / lag_step_s_)) + 1;
+    half_span = std::min(half_span, correlation_size_ / 2 - 1);
+    half_spans_.push_back(half_span);
+    max_half_span = std::max(max_half_span, half_span);
+  }
+  grid_stride_ = 2 * max_half_span + 1;
+  grids_.assign(static_cast<std::size_t>(grid_stride_) * pairs_.size(), 0.0);
+  results_.assign(pairs_.size(), PairCorrelation{});
+  phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
+  magnitudes_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0);
+  magnitude_sums_.assign(pairs_.size(), 0.0);
+
+  const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+  inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
+  inverse_->correlation = fftw_alloc_real(static_cast<std::size_t>(correlation_size_));
+  if (inverse_->spectrum == nullptr || inverse_->correlation == nullptr) throw std::bad_alloc();
+  std::fill_n(reinterpret_cast<double*>(inverse_->spectrum), correlation_size_ + 2, 0.0);
+  inverse_->plan = fftw_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
+                                        inverse_->correlation, FFTW_ESTIMATE);
+  if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
+}
+
+GccPhat::~GccPhat() {
+  if (!inverse_) return;
+  const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+  if (inverse_->plan != nullptr) fftw_destroy_plan(inverse_->plan);
+  fftw_free(inverse_->spectrum);
+  fftw_free(inverse_->correlation);
+}
+
+std::span<const double> GccPhat::grid(int pair) const {
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  return {grids_.data() + static_cast<std::ptrdiff_t>(pair) * grid_stride_,
+          static_cast<std::size_t>(2 * half + 1)};
+}
+
+void GccPhat::process(const MultichannelFft& spectra) {
+  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
+  const double normalisation = 1.0 / (2.0 * band_bins_);
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
+    const std::complex<double>* x_i = spectra.spectrum(pairs_[p].mic_i);
+    const std::complex<double>* x_j = spectra.spectrum(pairs_[p].mic_j);
+    std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
+    double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
+    double magnitude_sum = 0.0;
+    int index = 0;
+    // c2r transforms destroy their input: clear it for every pair.
+    std::fill_n(inverse_bins, correlation_size_ / 2 + 1, std::complex<double>{0.0, 0.0});
+    for (const BandRun& run : runs_) {
+      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+        const std::complex<double> cross = x_i[k] * std::conj(x_j[k]);
+        const double size = std::abs(cross);
+        const std::complex<double> weighted =
+            size > kSilentBin ? cross / size : std::complex<double>{0.0, 0.0};
+        phasor[index] = weighted;
+        magnitude[index] = size > kSilentBin ? size : 0.0;
+        magnitude_sum += magnitude[index];
+        inverse_bins[k] = weighted;
+      }
+    }
+    magnitude_sums_[p] = magnitude_sum;
+    fftw_execute(inverse_->plan);
+    const int half = half_spans_[p];
+    double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    for (int m = -half; m <= half; ++m) {
+      const int index_circular = m >= 0 ? m : correlation_size_ + m;
+      grid_values[m + half] = inverse_->correlation[index_circular] * normalisation;
+    }
+
+    // Highest and second-highest local maxima on the grid.
+    int best = -1;
+    double best_value = -2.0;
+    double second_value = -2.0;
+    for (int m = 0; m < 2 * half + 1; ++m) {
+      const double value = grid_values[m];
+      const bool left_ok = m == 0 || value >= grid_values[m - 1];
+      const bool right_ok = m == 2 * half || value > grid_values[m + 1];
+      if (!(left_ok && right_ok)) continue;
+      if (value > best_value) {
+        second_value = best_value;
+        best_value = value;
+        best = m;
+      } else if (value > second_value) {
+        second_value = value;
+      }
+    }
+    PairCorrelation& result = results_[p];
+    result = PairCorrelation{};
+    if (best < 0 || !(best_value > 0.0)) continue;
+    const double start_lag = (best - half) * lag_step_s_;
+    if (!refine(static_cast<int>(p), start_lag, result.peak)) {
+      result.peak = {start_lag, best_value};
+    }
+    const double limit = pairs_[p].max_lag_s + 1.0 / sample_rate_hz_;
+    result.peak.lag_s = std::clamp(result.peak.lag_s, -limit, limit);
+    result.second_value = std::max(second_value, 0.0);
+    result.peak_ratio = result.second_value > result.peak.value / kMaxPeakRatio
+                            ? result.peak.value / result.second_value
+                            : kMaxPeakRatio;
+    result.coherence = coherence_at(static_cast<int>(p), result.peak.lag_s);
+    result.tdoa_variance_s2 = tdoa_variance_for_peak(result.peak.value);
+  }
+}
+
+double GccPhat::tdoa_variance_for_peak(double peak_value) const {
+  // A peak value rho = mean_k cos(phase error_k) ~ exp(-sigma_phi^2 / 2): the mean phase-noise
+  // variance per bin. A least-squares phase slope through the origin over the band then has
+  // variance sigma_phi^2 / sum w_k^2, times the number of bins sharing one independent phase.
+  const double rho = std::clamp(peak_value, 0.02, 0.999);
+  const double phase_variance = -2.0 * std::log(rho);
+  return bin_correlation_ * phase_variance / sum_omega2_;
+}
+
+double GccPhat::value_at(int pair, double lag_s) const {
+  const std::complex<double>* phasor =
+      phasors_.data() + static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  double sum = 0.0;
+  int index = 0;
+  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
+  for (const BandRun& run : runs_) {
+    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      sum += (phasor[index] * rotation).real();
+      rotation *= step;
+    }
+  }
+  return sum / band_bins_;
+}
+
+double GccPhat::coherence_at(int pair, double lag_s) const {
+  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
+  if (!(total > 0.0)) return 0.0;
+  double sum = 0.0;
+  int index = 0;
+  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
+  for (const BandRun& run : runs_) {
+    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      sum += magnitudes_[offset + static_cast<std::size_t>(index)] *
+             (phasors_[offset + static_cast<std::size_t>(index)] * rotation).real();
+      rotation *= step;
+    }
+  }
+  return std::clamp(sum / total, 0.0, 1.0);
+}
+
+bool GccPhat::refine(int pair, double start_lag_s, GccPeak& out) const {
+  const int m = climb(pair, start_lag_s);
+  return interpolation_ == LagInterpolation::band_limited ? refine_band_limited(pair, m, out)
+                                                          : refine_parabolic(pair, m, out);
+}
+
+int GccPhat::climb(int pair, double start_lag_s) const {
+  const std::span<const double> values = grid(pair);
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  int m = static_cast<int>(std::lround(start_lag_s / lag_step_s_)) + half;
+  m = std::clamp(m, 0, 2 * half);
+  for (int guard = 0; guard < 2 * half + 1; ++guard) {
+    if (m > 0 && values[static_cast<std::size_t>(m - 1)] > values[static_cast<std::size_t>(m)]) {
+      --m;
+    } else if (m < 2 * half &&
+               values[static_cast<std::size_t>(m + 1)] > values[static_cast<std::size_t>(m)]) {
+      ++m;
+    } else {
+      break;
+    }
+  }
+  return m;
+}
+
+bool GccPhat::refine_parabolic(int pair, int m, GccPeak& out) const {
+  const std::span<const double> values = grid(pair);
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  double offset = 0.0;
+  double value = values[static_cast<std::size_t>(m)];
+  if (m > 0 && m < 2 * half) {
+    const double left = values[static_cast<std::size_t>(m - 1)];
+    const double right = values[static_cast<std::size_t>(m + 1)];
+    const double curvature = left - 2.0 * value + right;
+    if (curvature < 0.0) {
+      offset = 0.5 * (left - right) / curvature;
+      value -= 0.25 * (left - right) * offset;
+    }
+  }
+  out = {(m - half + offset) * lag_step_s_, value};
+  return true;
+}
+
+bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
+  const double start_lag_s = (m - half_spans_[static_cast<std::size_t>(pair)]) * lag_step_s_;
+  const std::complex<double>* phasor =
+      phasors_.data() + static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  double lag = start_lag_s;
+  // Newton on R(tau) = sum Re(W_k e^{j w_k tau}): R' = -sum w_k Im(.), R'' = -sum w_k^2 Re(.).
+  // Started within half a grid step of a grid maximum, where R is concave, it converges in a
+  // few steps; each step is capped so it cannot jump to a neighbouring lobe.
+  for (int iteration = 0; iteration < 6; ++iteration) {
+    double sum1 = 0.0;
+    double sum2 = 0.0;
+    int index = 0;
+    const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
+    for (const BandRun& run : runs_) {
+      std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag);
+      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+        const std::complex<double> term = phasor[index] * rotation;
+        const double omega = k * bin_omega_;
+        sum1 -= omega * term.imag();
+        sum2 -= omega * omega * term.real();
+        rotation *= step;
+      }
+    }
+    if (!(sum2 < 0.0)) return refine_parabolic(pair, m, out);
+    const double delta = std::clamp(-sum1 / sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
+    lag += delta;
+    if (std::abs(delta) < 1e-10) break;
+  }
+  if (std::abs(lag - start_lag_s) > 1.5 * lag_step_s_) return false;
+  out = {lag, value_at(pair, lag)};
+  return true;
+}
+
+double GccPhat::grid_value(int pair, double lag_s) const {
+  const std::span<const double> values = grid(pair);
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  const double position = lag_s / lag_step_s_ + half;
+  if (!(position >= 0.0) || position > 2.0 * half) return 0.0;
+  const int below = std::min(static_cast<int>(position), 2 * half - 1);
+  const double fraction = position - below;
+  return values[static_cast<std::size_t>(below)] * (1.0 - fraction) +
+         values[static_cast<std::size_t>(below + 1)] * fraction;
+}
+
+int GccPhat::top_peaks(int pair, std::span<GccPeak> out) const {
+  const std::span<const double> values = grid(pair);
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  int count = 0;
+  for (int m = 0; m < 2 * half + 1; ++m) {
+    const double value = values[static_cast<std::size_t>(m)];
+    const bool left_ok = m == 0 || value >= values[static_cast<std::size_t>(m - 1)];
+    const bool right_ok = m == 2 * half || value > values[static_cast<std::size_t>(m + 1)];
+    if (!(left_ok && right_ok) || !(value > 0.0)) continue;
+    // Insertion into the descending list of at most out.size().
+    int position = count;
+    while (position > 0 && out[static_cast<std::size_t>(position - 1)].value < value) --position;
+    if (position >= static_cast<int>(out.size())) continue;
+    const int last = std::min(count, static_cast<int>(out.size()) - 1);
+    for (int moved = last; moved > position; --moved)
+      out[static_cast<std::size_t>(moved)] = out[static_cast<std::size_t>(moved - 1)];
+    out[static_cast<std::size_t>(position)] = {(m - half) * lag_step_s_, value};
+    count = std::min(count + 1, static_cast<int>(out.size()));
+  }
+  return count;
+}
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,118 @@
+#pragma once
+// GCC-PHAT for every mic pair (SPEC 4.1): cross-spectrum X_i X_j*, PHAT weight inside the band
+// mask, zero outside, inverse FFT on a lag grid limited to the physical lag |tau| <= |p_i-p_j|/c,
+// sub-sample refinement and peak quality.
+//
+// The inverse FFT is short: the band-limited correlation is fully described by samples at
+// a rate a little above twice the band's top frequency, so the c2r size is the smallest power of
+// two above 2 * top bin (times `oversample`), not the analysis FFT size. Sub-sample refinement
+// then maximises the continuous band-limited correlation R(tau) = sum_k Re(W_k e^{j w_k tau})
+// directly (Newton steps on the band bins): no interpolation bias at all. Parabolic
+// interpolation on the grid is kept for comparison (tests/doa/gcc_phat_test.cpp measures both).
+//
+// Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
+// of X_i X_j* peaks there.
+#include <complex>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "doa/doa_params.hpp"
+#include "doa/spectral_frame.hpp"
+
+namespace dronetrack::doa {
+
+struct BandRun {
+  int first_bin = 0;  // inclusive
+  int last_bin = 0;   // inclusive
+};
+// The union of `bands` as runs of FFT bins within [1, fft_size/2 - 1], sorted and merged.
+// Throws std::invalid_argument when no bin falls inside any band.
+std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
+                               int fft_size);
+
+struct MicPairSpec {
+  int mic_i = 0;
+  int mic_j = 1;
+  double max_lag_s = 0.0;  // |p_i - p_j| / c
+};
+
+struct GccPeak {
+  double lag_s = 0.0;
+  double value = 0.0;  // normalised correlation: 1 = every band bin in phase
+};
+
+// Per pair, per frame.
+struct PairCorrelation {
+  GccPeak peak;                 // refined highest peak within the physical lag
+  double second_value = 0.0;    // highest other local maximum on the grid
+  double peak_ratio = 0.0;      // peak / second (capped at 100)
+  double coherence = 0.0;       // |G|-weighted correlation at the peak: coherent power share
+  double tdoa_variance_s2 = 0;  // from the phase noise implied by the peak value
+};
+
+class GccPhat {
+ public:
+  GccPhat(int fft_size, int frame_length, double sample_rate_hz,
+          const std::vector<FrequencyBand>& bands, std::vector<MicPairSpec> pairs,
+          LagInterpolation interpolation = LagInterpolation::band_limited, int oversample = 2);
+  ~GccPhat();
+  GccPhat(const GccPhat&) = delete;
+  GccPhat& operator=(const GccPhat&) = delete;
+
+  // Cross-spectra and correlations of every pair from the channel spectra of one frame.
+  void process(const MultichannelFft& spectra);
+
+  int pair_count() const { return static_cast<int>(pairs_.size()); }
+  const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
+  const PairCorrelation& pair(int pair) const { return results_[static_cast<std::size_t>(pair)]; }
+
+  // The lag grid of the correlation: lags m * lag_step_s() for m in [-half_span, half_span].
+  double lag_step_s() const { return lag_step_s_; }
+  int half_span(int pair) const { return half_spans_[static_cast<std::size_t>(pair)]; }
+  // Grid values of one pair, 2 * half_span + 1 of them, index 0 = lag -half_span.
+  std::span<const double> grid(int pair) const;
+  // Linear interpolation on the grid (for SRP look-ups); 0 outside the grid.
+  double grid_value(int pair, double lag_s) const;
+
+  // Continuous band-limited correlation at any lag.
+  double value_at(int pair, double lag_s) const;
+  // Climbs the grid from `start_lag_s` to a local maximum and refines it (Newton on the
+  // continuous correlation, or parabolic on the grid, per the interpolation chosen).
+  bool refine(int pair, double start_lag_s, GccPeak& out) const;
+  // Local maxima on the grid, highest first, at most out.size(); returns how many.
+  int top_peaks(int pair, std::span<GccPeak> out) const;
+  // |G|-weighted correlation at a lag: the share of the in-band power coherent at that lag.
+  double coherence_at(int pair, double lag_s) const;
+  // Phase-noise TDOA variance for a given normalised peak value (exposed for the trackers).
+  double tdoa_variance_for_peak(double peak_value) const;
+
+ private:
+  struct Inverse;
+  int climb(int pair, double start_lag_s) const;  // grid index of the local max uphill
+  bool refine_band_limited(int pair, int grid_index, GccPeak& out) const;
+  bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
+
+  double sample_rate_hz_;
+  int fft_size_;
+  double bin_omega_;  // rad/s per bin
+  std::vector<BandRun> runs_;
+  int band_bins_ = 0;
+  double sum_omega2_ = 0.0;       // sum of w_k^2 over band bins
+  double bin_correlation_ = 1.0;  // how many bins share one independent phase (window, padding)
+  LagInterpolation interpolation_;
+  std::vector<MicPairSpec> pairs_;
+  std::vector<int> half_spans_;
+  std::vector<PairCorrelation> results_;
+  int correlation_size_ = 0;
+  double lag_step_s_ = 0.0;
+  // Per pair: PHAT phasors W_k and |G_k| over the band bins (concatenated runs).
+  std::vector<std::complex<double>> phasors_;
+  std::vector<double> magnitudes_;
+  std::vector<double> magnitude_sums_;
+  std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
+  int grid_stride_ = 0;
+  std::unique_ptr<Inverse> inverse_;
+};
+
+}  // namespace dronetrack::doa

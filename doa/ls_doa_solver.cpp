@@ -1,0 +1,201 @@
+#include "doa/ls_doa_solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
+namespace dronetrack::doa {
+
+namespace {
+// Geometry axes weaker than this fraction of the strongest carry no direction information.
+constexpr double kRankTolerance = 1e-4;
+// Near the array plane (planar arrays) or the cone's axis the angle Jacobian blows up; this
+// floor keeps the propagated covariance finite and conservative.
+constexpr double kMinLever = 0.05;
+// Variance given to a direction the geometry cannot resolve (the cone's free angle): (90 deg)^2.
+constexpr double kUnresolvedVariance = (std::numbers::pi / 2.0) * (std::numbers::pi / 2.0);
+}  // namespace
+
+Eigen::Matrix2d azel_covariance_from_direction(const Eigen::Vector3d& u,
+                                               const Eigen::Matrix3d& covariance) {
+  const double horizontal2 = std::max(u.x() * u.x() + u.y() * u.y(), 1e-12);
+  const double horizontal = std::sqrt(horizontal2);
+  Eigen::Matrix<double, 2, 3> jacobian;
+  // az = atan2(u_y, u_x); el = atan2(u_z, |u_xy|) (equal to asin(u_z) on the unit sphere).
+  jacobian << -u.y() / horizontal2, u.x() / horizontal2, 0.0,  //
+      -u.x() * u.z() / horizontal, -u.y() * u.z() / horizontal, horizontal;
+  return jacobian * covariance * jacobian.transpose();
+}
+
+LsDoaSolver::LsDoaSolver(const ArrayGeometry& geometry, const LsDoaSettings& settings)
+    : settings_(settings), array_to_site_(geometry.array_to_site()) {
+  if (!(settings.speed_of_sound_mps > 0.0))
+    throw std::invalid_argument("speed_of_sound_mps must be > 0");
+  const int mics = static_cast<int>(geometry.mic_count());
+  if (mics < 2) throw std::invalid_argument("array " + geometry.id + ": needs at least 2 mics");
+  if (mics * (mics - 1) / 2 > kMaxPairs)
+    throw std::invalid_argument("array " + geometry.id + ": at most 8 mics are supported");
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < mics; ++i) {
+    for (int j = i + 1; j < mics; ++j) {
+      const Eigen::Vector3d delta = (geometry.mics_m[static_cast<std::size_t>(i)] -
+                                     geometry.mics_m[static_cast<std::size_t>(j)]) /
+                                    settings.speed_of_sound_mps;
+      if (!(delta.norm() > 0.0))
+        throw std::invalid_argument("array " + geometry.id + ": mics " + std::to_string(i) +
+                                    " and " + std::to_string(j) + " are at the same position");
+      pair_vectors_.push_back(delta);
+      pair_mics_.emplace_back(i, j);
+      max_lags_s_.push_back(delta.norm());
+      scatter += delta * delta.transpose();
+    }
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+  const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
+  rank_ = 0;
+  for (int axis = 0; axis < 3; ++axis) rank_ += values(axis) > kRankTolerance * values(2) ? 1 : 0;
+  for (int axis = 0; axis < 3; ++axis) subspace_.col(axis) = eigen.eigenvectors().col(2 - axis);
+  const double position_std_s = geometry.mic_position_std_m / settings.speed_of_sound_mps;
+  position_variance_s2_ = 2.0 * position_std_s * position_std_s;
+}
+
+DoaAmbiguity LsDoaSolver::ambiguity() const {
+  if (rank_ >= 3) return DoaAmbiguity::none;
+  return rank_ == 2 ? DoaAmbiguity::mirror_up_down : DoaAmbiguity::cone;
+}
+
+double LsDoaSolver::tdoa_for_direction(int pair, const Eigen::Vector3d& direction_array) const {
+  return -pair_vectors_[static_cast<std::size_t>(pair)].dot(direction_array);
+}
+
+double LsDoaSolver::pair_variance(const PairTdoa& tdoa) const {
+  if (!(tdoa.variance_s2 > 0.0) || !std::isfinite(tdoa.variance_s2) || !std::isfinite(tdoa.tdoa_s))
+    return 0.0;
+  return tdoa.variance_s2 + position_variance_s2_ +
+         settings_.timing_floor_s * settings_.timing_floor_s;
+}
+
+DoaSolution LsDoaSolver::solve(std::span<const PairTdoa> tdoas) const {
+  DoaSolution best = solve_once(tdoas, -1);
+  if (best.accepted) return best;
+  int usable = 0;
+  for (std::size_t p = 0; p < pair_vectors_.size() && p < tdoas.size(); ++p)
+    usable += pair_variance(tdoas[p]) > 0.0 ? 1 : 0;
+  if (usable < rank_ + 2) return best;  // leaving one out must still over-determine the fit
+  for (int skip = 0; skip < pair_count(); ++skip) {
+    if (pair_variance(tdoas[static_cast<std::size_t>(skip)]) <= 0.0) continue;
+    DoaSolution candidate = solve_once(tdoas, skip);
+    if (candidate.accepted && (!best.accepted || candidate.chi2_per_dof < best.chi2_per_dof))
+      best = candidate;
+  }
+  return best;
+}
+
+DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pair) const {
+  DoaSolution solution;
+  solution.ambiguity = ambiguity();
+  solution.dropped_pair = skip_pair;
+  const int dimensions = rank_;
+  const Eigen::Matrix3d& basis = subspace_;
+  // Normal equations in the geometry's own subspace (coordinates q = basis^T dp).
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  double peak_sum = 0.0;
+  int used = 0;
+  const std::size_t count = std::min(pair_vectors_.size(), tdoas.size());
+  for (std::size_t p = 0; p < count; ++p) {
+    if (static_cast<int>(p) == skip_pair) continue;
+    const double variance = pair_variance(tdoas[p]);
+    if (variance <= 0.0) continue;
+    const double weight = 1.0 / variance;
+    Eigen::Vector3d q = basis.transpose() * pair_vectors_[p];
+    for (int axis = dimensions; axis < 3; ++axis) q(axis) = 0.0;
+    normal += weight * q * q.transpose();
+    rhs += weight * tdoas[p].tdoa_s * q;
+    peak_sum += std::clamp(tdoas[p].peak_value, 0.0, 1.0);
+    ++used;
+  }
+  solution.pairs_used = used;
+  if (used < dimensions) return solution;
+  const auto block = normal.topLeftCorner(dimensions, dimensions);
+  Eigen::Matrix3d inverse = Eigen::Matrix3d::Zero();
+  {
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(block);
+    if (lu.rank() < dimensions) return solution;
+    inverse.topLeftCorner(dimensions, dimensions) = lu.inverse();
+  }
+  const Eigen::Vector3d v = -inverse * rhs;  // subspace coordinates
+  const double norm = v.norm();
+  solution.norm = norm;
+  if (!std::isfinite(norm) || norm <= 0.0) return solution;
+
+  Eigen::Vector3d direction_array;
+  Eigen::Matrix3d direction_covariance;  // array frame, before the chi^2 inflation
+  if (dimensions == 3) {
+    if (std::abs(norm - 1.0) > settings_.max_norm_error) return solution;
+    const Eigen::Vector3d u = v / norm;
+    direction_array = basis * u;
+    const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - u * u.transpose();
+    direction_covariance =
+        basis * (tangent * inverse * tangent) * basis.transpose() / (norm * norm);
+  } else if (dimensions == 2) {
+    if (norm > 1.0 + settings_.max_norm_error) return solution;
+    const Eigen::Vector2d in_plane = v.head<2>() / std::max(norm, 1.0);
+    const double height = std::sqrt(std::max(0.0, 1.0 - in_plane.squaredNorm()));
+    Eigen::Vector3d normal_axis = basis.col(2);
+    // Report the mirror image above the array plane (as seen in the site frame).
+    if ((array_to_site_ * normal_axis).z() < 0.0) normal_axis = -normal_axis;
+    direction_array = basis.leftCols<2>() * in_plane + normal_axis * height;
+    Eigen::Matrix<double, 3, 2> jacobian =
+        basis.leftCols<2>() - normal_axis * in_plane.transpose() / std::max(height, kMinLever);
+    direction_covariance = jacobian * inverse.topLeftCorner<2, 2>() * jacobian.transpose();
+  } else {
+    if (norm > 1.0 + settings_.max_norm_error) return solution;
+    const double cosine = std::clamp(v(0), -1.0, 1.0);
+    const double sine = std::sqrt(std::max(0.0, 1.0 - cosine * cosine));
+    const Eigen::Vector3d axis_site = array_to_site_ * basis.col(0);
+    Eigen::Vector3d across_site = Eigen::Vector3d::UnitZ().cross(axis_site);
+    if (across_site.norm() < 1e-9) across_site = Eigen::Vector3d::UnitX();
+    across_site.normalize();
+    const Eigen::Vector3d across = array_to_site_.transpose() * across_site;
+    direction_array = basis.col(0) * cosine + across * sine;
+    const Eigen::Vector3d along_cone = -basis.col(0) * sine + across * cosine;
+    const Eigen::Vector3d around_axis = direction_array.cross(along_cone).normalized();
+    const double angle_variance = inverse(0, 0) / std::max(sine * sine, kMinLever * kMinLever);
+    direction_covariance = along_cone * along_cone.transpose() * angle_variance +
+                           around_axis * around_axis.transpose() * kUnresolvedVariance;
+  }
+  direction_array.normalize();
+
+  double chi2 = 0.0;
+  for (std::size_t p = 0; p < count; ++p) {
+    if (static_cast<int>(p) == skip_pair) continue;
+    const double variance = pair_variance(tdoas[p]);
+    if (variance <= 0.0) continue;
+    const double residual = tdoas[p].tdoa_s + pair_vectors_[p].dot(direction_array);
+    chi2 += residual * residual / variance;
+  }
+  const int dof = std::max(1, used - dimensions);
+  solution.chi2_per_dof = chi2 / dof;
+  if (!(solution.chi2_per_dof <= settings_.max_chi2_per_dof)) return solution;
+  // An honest covariance: when the residual says the TDOA noise was larger than modelled, the
+  // direction is that much less certain.
+  const double inflation = std::max(1.0, solution.chi2_per_dof);
+  solution.direction_site = array_to_site_ * direction_array;
+  const Eigen::Matrix3d covariance_site =
+      array_to_site_ * direction_covariance * array_to_site_.transpose() * inflation;
+  solution.azel_covariance_rad2 =
+      azel_covariance_from_direction(solution.direction_site, covariance_site);
+  const double peak_mean = used > 0 ? peak_sum / used : 0.0;
+  solution.quality = std::clamp(peak_mean * std::exp(-std::max(0.0, solution.chi2_per_dof - 1.0) /
+                                                     settings_.max_chi2_per_dof),
+                                0.0, 1.0);
+  solution.accepted = true;
+  return solution;
+}
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,177 @@
+#include "doa/spectral_frame.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "doa/fftw_lock.hpp"
+
+namespace dronetrack::doa {
+
+std::mutex& fftw_planner_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+namespace {
+constexpr float kClipLevel = 0.999F;
+constexpr std::uint8_t kFlagNonFinite = 1;
+constexpr std::uint8_t kFlagClipped = 2;
+}  // namespace
+
+Framer::Framer(int channels, int frame_length, int hop)
+    : channels_(channels), length_(frame_length), hop_(hop) {
+  if (channels < 1) throw std::invalid_argument("Framer: channels must be >= 1");
+  if (frame_length < 2) throw std::invalid_argument("Framer: frame_length must be >= 2");
+  if (hop < 1 || hop > frame_length)
+    throw std::invalid_argument("Framer: hop must be in [1, frame_length]");
+  samples_.assign(static_cast<std::size_t>(channels) * static_cast<std::size_t>(length_), 0.0);
+  flags_.assign(static_cast<std::size_t>(length_), 0);
+}
+
+void Framer::reset() {
+  filled_ = 0;
+  expected_next_sample_ = -1;
+}
+
+bool Framer::accept_block(const AudioBlockView& block) {
+  if (block.channels != channels_ || (block.frames > 0 && block.interleaved == nullptr)) {
+    ++counters_.rejected_blocks;
+    return false;
+  }
+  if (block.frames == 0) return true;
+  if (expected_next_sample_ >= 0 && block.first_sample != expected_next_sample_) {
+    // A gap or a rewind: samples on both sides do not belong to one frame. Start over.
+    ++counters_.stream_gaps;
+    filled_ = 0;
+  }
+  if (filled_ == 0) buffer_first_sample_ = block.first_sample;
+  expected_next_sample_ = block.first_sample + static_cast<std::int64_t>(block.frames);
+  return true;
+}
+
+void Framer::append_sample(const AudioBlockView& block, std::size_t frame) {
+  std::uint8_t flag = 0;
+  for (int c = 0; c < channels_; ++c) {
+    float value = block.sample(frame, c);
+    if (!std::isfinite(value)) {
+      value = 0.0F;
+      flag |= kFlagNonFinite;
+      ++counters_.non_finite_samples;
+    } else if (std::fabs(value) >= kClipLevel) {
+      flag |= kFlagClipped;
+      ++counters_.clipped_samples;
+    }
+    samples_[static_cast<std::size_t>(c) * static_cast<std::size_t>(length_) +
+             static_cast<std::size_t>(filled_)] = value;
+  }
+  flags_[static_cast<std::size_t>(filled_)] = flag;
+  ++filled_;
+}
+
+FrameView Framer::emit_and_shift_view() {
+  FrameView view;
+  view.first_sample = buffer_first_sample_;
+  view.channels = channels_;
+  view.length = length_;
+  view.samples = samples_.data();
+  for (const std::uint8_t flag : flags_) {
+    view.non_finite_samples += (flag & kFlagNonFinite) != 0 ? 1 : 0;
+    view.clipped_samples += (flag & kFlagClipped) != 0 ? 1 : 0;
+  }
+  return view;
+}
+
+void Framer::shift() {
+  const int keep = length_ - hop_;
+  for (int c = 0; c < channels_; ++c) {
+    double* run = samples_.data() + static_cast<std::ptrdiff_t>(c) * length_;
+    std::memmove(run, run + hop_, static_cast<std::size_t>(keep) * sizeof(double));
+  }
+  std::memmove(flags_.data(), flags_.data() + hop_, static_cast<std::size_t>(keep));
+  filled_ = keep;
+  buffer_first_sample_ += hop_;
+}
+
+int fftw_friendly_size(int n) {
+  int power_of_two = 1;
+  while (power_of_two < n) power_of_two *= 2;
+  int best = power_of_two;
+  for (int candidate = n; candidate < power_of_two; ++candidate) {
+    int rest = candidate;
+    for (const int factor : {2, 3, 5}) {
+      while (rest % factor == 0) rest /= factor;
+    }
+    if (rest == 1) {
+      best = candidate;
+      break;
+    }
+  }
+  return (static_cast<double>(power_of_two) <= 1.125 * best) ? power_of_two : best;
+}
+
+struct MultichannelFft::Plan {
+  double* input = nullptr;         // fft_size, windowed frame then zeros
+  fftw_complex* output = nullptr;  // channels x bins
+  fftw_plan plan = nullptr;
+};
+
+MultichannelFft::MultichannelFft(int channels, int frame_length, int fft_size)
+    : channels_(channels),
+      frame_length_(frame_length),
+      fft_size_(fft_size),
+      // Every channel's spectrum starts 64-byte aligned, as FFTW's SIMD plan was made for.
+      stride_((fft_size / 2 + 1 + 3) / 4 * 4),
+      plan_(std::make_unique<Plan>()) {
+  if (fft_size < frame_length || fft_size % 2 != 0)
+    throw std::invalid_argument("MultichannelFft: fft_size must be even and >= frame_length (" +
+                                std::to_string(fft_size) + " < " + std::to_string(frame_length) +
+                                ")");
+  window_.resize(static_cast<std::size_t>(frame_length));
+  for (int n = 0; n < frame_length; ++n) {
+    // Periodic-free symmetric Hann: zero at both ends, so frame edges do not leak.
+    const double phase = 2.0 * std::numbers::pi * n / (frame_length - 1);
+    window_[static_cast<std::size_t>(n)] = 0.5 - 0.5 * std::cos(phase);
+    window_energy_ += window_[static_cast<std::size_t>(n)] * window_[static_cast<std::size_t>(n)];
+  }
+  const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+  plan_->input = fftw_alloc_real(static_cast<std::size_t>(fft_size));
+  plan_->output =
+      fftw_alloc_complex(static_cast<std::size_t>(channels) * static_cast<std::size_t>(stride_));
+  if (plan_->input == nullptr || plan_->output == nullptr) throw std::bad_alloc();
+  std::fill_n(plan_->input, fft_size, 0.0);
+  plan_->plan = fftw_plan_dft_r2c_1d(fft_size, plan_->input, plan_->output, FFTW_ESTIMATE);
+  if (plan_->plan == nullptr) throw std::runtime_error("MultichannelFft: FFTW plan failed");
+}
+
+MultichannelFft::~MultichannelFft() {
+  if (!plan_) return;
+  const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+  if (plan_->plan != nullptr) fftw_destroy_plan(plan_->plan);
+  fftw_free(plan_->input);
+  fftw_free(plan_->output);
+}
+
+void MultichannelFft::process(const FrameView& frame) {
+  for (int c = 0; c < channels_; ++c) {
+    const double* samples = frame.channel(c);
+    for (int n = 0; n < frame_length_; ++n)
+      plan_->input[n] = samples[n] * window_[static_cast<std::size_t>(n)];
+    // The tail beyond frame_length stays zero from construction.
+    fftw_execute_dft_r2c(plan_->plan, plan_->input,
+                         plan_->output + static_cast<std::ptrdiff_t>(c) * stride_);
+  }
+}
+
+const std::complex<double>* MultichannelFft::spectrum(int channel) const {
+  // fftw_complex is layout-compatible with std::complex<double> (FFTW manual 4.1.1).
+  return reinterpret_cast<const std::complex<double>*>(
+      plan_->output + static_cast<std::ptrdiff_t>(channel) * stride_);
+}
+
+}  // namespace dronetrack::doa

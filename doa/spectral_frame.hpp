@@ -1,0 +1,104 @@
+#pragma once
+// Framing and the multichannel FFT stage of an array node.
+//   Framer:          interleaved blocks in -> overlapping per-channel frames out (frame/hop),
+//                    NaN/Inf replaced by 0 and counted, clipping counted, stream gaps detected.
+//   MultichannelFft: one Hann-windowed real FFT per channel per frame (FFTW plan made once).
+// Both preallocate everything in their constructors; the per-frame path allocates nothing.
+#include <complex>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "doa/audio_block.hpp"
+
+namespace dronetrack::doa {
+
+// One analysis frame: `channels` runs of `length` samples, channel-major.
+struct FrameView {
+  std::int64_t first_sample = 0;
+  int channels = 0;
+  int length = 0;
+  const double* samples = nullptr;  // channel c at samples + c * length
+  int non_finite_samples = 0;       // in this frame, all channels (already replaced by 0)
+  int clipped_samples = 0;          // in this frame, all channels
+  const double* channel(int c) const { return samples + static_cast<std::ptrdiff_t>(c) * length; }
+};
+
+struct FramerCounters {
+  std::int64_t non_finite_samples = 0;
+  std::int64_t clipped_samples = 0;
+  std::int64_t stream_gaps = 0;      // blocks whose first_sample did not follow the previous one
+  std::int64_t rejected_blocks = 0;  // wrong channel count or null data
+};
+
+class Framer {
+ public:
+  Framer(int channels, int frame_length, int hop);
+  // Calls on_frame(const FrameView&) for every frame completed by this block.
+  template <class OnFrame>
+  void push(const AudioBlockView& block, OnFrame&& on_frame);
+  const FramerCounters& counters() const { return counters_; }
+  void reset();
+
+ private:
+  bool accept_block(const AudioBlockView& block);
+  void append_sample(const AudioBlockView& block, std::size_t frame);
+  FrameView emit_and_shift_view();
+  void shift();
+
+  int channels_;
+  int length_;
+  int hop_;
+  int filled_ = 0;
+  std::int64_t buffer_first_sample_ = 0;
+  std::int64_t expected_next_sample_ = -1;
+  std::vector<double> samples_;      // channels_ x length_
+  std::vector<std::uint8_t> flags_;  // per time index: bit0 non-finite, bit1 clipped
+  FramerCounters counters_;
+};
+
+template <class OnFrame>
+void Framer::push(const AudioBlockView& block, OnFrame&& on_frame) {
+  if (!accept_block(block)) return;
+  for (std::size_t frame = 0; frame < block.frames; ++frame) {
+    append_sample(block, frame);
+    if (filled_ == length_) {
+      on_frame(emit_and_shift_view());
+      shift();
+    }
+  }
+}
+
+// Hann window + r2c FFT of every channel; spectra are N/2+1 bins per channel.
+class MultichannelFft {
+ public:
+  MultichannelFft(int channels, int frame_length, int fft_size);
+  ~MultichannelFft();
+  MultichannelFft(const MultichannelFft&) = delete;
+  MultichannelFft& operator=(const MultichannelFft&) = delete;
+
+  void process(const FrameView& frame);
+  const std::complex<double>* spectrum(int channel) const;
+  int fft_size() const { return fft_size_; }
+  int bin_count() const { return fft_size_ / 2 + 1; }
+  int channels() const { return channels_; }
+  int frame_length() const { return frame_length_; }
+  // Sum of squared window samples: turns |X|^2 into power per sample.
+  double window_energy() const { return window_energy_; }
+
+ private:
+  struct Plan;
+  int channels_;
+  int frame_length_;
+  int fft_size_;
+  int stride_;
+  double window_energy_ = 0.0;
+  std::vector<double> window_;
+  std::unique_ptr<Plan> plan_;
+};
+
+// The smallest FFT size >= n of the form 2^a 3^b 5^c (FFTW is fast on those), preferring a
+// power of two when it is within 12.5 % (power-of-two codelets are the fastest).
+int fftw_friendly_size(int n);
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,103 @@
+#include "doa/srp_phat.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+
+namespace dronetrack::doa {
+
+SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
+    : solver_(&solver), pairs_(gcc.pair_count()) {
+  if (!(grid_deg >= 0.5 && grid_deg <= 30.0))
+    throw std::invalid_argument("srp_grid_deg must be in [0.5, 30]");
+  const double spacing_rad = grid_deg * std::numbers::pi / 180.0;
+  const int count =
+      static_cast<int>(std::ceil(4.0 * std::numbers::pi / (spacing_rad * spacing_rad)));
+  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  const bool hemisphere = solver.rank() == 2;
+  // For planar arrays, "up" is the array plane's normal (the third principal axis).
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  if (hemisphere) {
+    // The solver's basis is not exposed; the plane normal is orthogonal to every pair vector.
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (int p = 0; p < pairs_; ++p) {
+      Eigen::Vector3d tdoas;
+      for (int axis = 0; axis < 3; ++axis)
+        tdoas(axis) = solver.tdoa_for_direction(p, Eigen::Vector3d::Unit(axis));
+      scatter += tdoas * tdoas.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+    normal = eigen.eigenvectors().col(0);
+  }
+  directions_.reserve(static_cast<std::size_t>(count));
+  for (int n = 0; n < count; ++n) {
+    const double z = 1.0 - 2.0 * (n + 0.5) / count;
+    const double radius = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const Eigen::Vector3d direction(radius * std::cos(golden_angle * n),
+                                    radius * std::sin(golden_angle * n), z);
+    if (hemisphere && direction.dot(normal) < 0.0) continue;
+    directions_.push_back(direction);
+  }
+  const double step = gcc.lag_step_s();
+  lag_index_.resize(directions_.size() * static_cast<std::size_t>(pairs_));
+  lag_fraction_.resize(lag_index_.size());
+  for (std::size_t d = 0; d < directions_.size(); ++d) {
+    for (int p = 0; p < pairs_; ++p) {
+      const int half = gcc.half_span(p);
+      const double position = solver.tdoa_for_direction(p, directions_[d]) / step + half;
+      const int below = std::clamp(static_cast<int>(std::floor(position)), 0, 2 * half - 1);
+      lag_index_[d * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p)] = below;
+      lag_fraction_[d * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p)] =
+          static_cast<float>(std::clamp(position - below, 0.0, 1.0));
+    }
+  }
+  power_.resize(directions_.size());
+  suppressed_.resize(directions_.size());
+}
+
+int SrpPhat::find_peaks(const GccPhat& gcc, double min_separation_deg, std::span<SrpPeak> out) {
+  for (std::size_t d = 0; d < directions_.size(); ++d) {
+    double sum = 0.0;
+    for (int p = 0; p < pairs_; ++p) {
+      const std::size_t at = d * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
+      const std::span<const double> grid = gcc.grid(p);
+      const double fraction = lag_fraction_[at];
+      const auto below = static_cast<std::size_t>(lag_index_[at]);
+      sum += grid[below] * (1.0 - fraction) + grid[below + 1] * fraction;
+    }
+    power_[d] = sum / pairs_;
+    suppressed_[d] = 0;
+  }
+  const double separation_cosine = std::cos(min_separation_deg * std::numbers::pi / 180.0);
+  int found = 0;
+  while (found < static_cast<int>(out.size())) {
+    std::size_t best = directions_.size();
+    for (std::size_t d = 0; d < directions_.size(); ++d) {
+      if (suppressed_[d] != 0) continue;
+      if (best == directions_.size() || power_[d] > power_[best]) best = d;
+    }
+    if (best == directions_.size() || !(power_[best] > 0.0)) break;
+    out[static_cast<std::size_t>(found++)] = {directions_[best], power_[best]};
+    for (std::size_t d = 0; d < directions_.size(); ++d) {
+      if (directions_[d].dot(directions_[best]) >= separation_cosine) suppressed_[d] = 1;
+    }
+  }
+  return found;
+}
+
+void SrpPhat::tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_array,
+                         std::span<PairTdoa> out) const {
+  for (int p = 0; p < pairs_; ++p) {
+    const double lag = solver_->tdoa_for_direction(p, direction_array);
+    GccPeak peak;
+    out[static_cast<std::size_t>(p)] =
+        gcc.refine(p, lag, peak) && peak.value > 0.0
+            ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value}
+            : PairTdoa{};
+  }
+}
+
+}  // namespace dronetrack::doa

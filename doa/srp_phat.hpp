@@ -1,0 +1,46 @@
+#pragma once
+// Steered-response power (SRP-PHAT) over a direction grid, from the same GCC-PHAT correlations:
+// P(d) = mean over pairs of R_p(tau_p(d)). The lag of every pair for every grid direction is
+// looked up once at construction (index + fraction into the correlation grid). Several sources
+// show as several maxima; each is then refined by the LS solver on the TDOAs of the correlation
+// maxima nearest its lags, so a second drone gets the same precision as the first.
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "doa/gcc_phat.hpp"
+#include "doa/ls_doa_solver.hpp"
+
+namespace dronetrack::doa {
+
+struct SrpPeak {
+  Eigen::Vector3d direction_array = Eigen::Vector3d::UnitX();
+  double power = 0.0;  // mean normalised GCC value over pairs
+};
+
+class SrpPhat {
+ public:
+  // grid_deg: spacing of a Fibonacci grid on the sphere (the upper hemisphere of the array
+  // frame's principal plane for planar arrays, whose mirror is ambiguous anyway).
+  SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg);
+
+  // Up to out.size() maxima, strongest first, at least min_separation_deg apart.
+  int find_peaks(const GccPhat& gcc, double min_separation_deg, std::span<SrpPeak> out);
+  // TDOAs of the correlation maxima nearest a direction's lags: input for LsDoaSolver.
+  void tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_array,
+                  std::span<PairTdoa> out) const;
+  int direction_count() const { return static_cast<int>(directions_.size()); }
+
+ private:
+  const LsDoaSolver* solver_;
+  int pairs_;
+  std::vector<Eigen::Vector3d> directions_;
+  std::vector<std::int32_t> lag_index_;  // directions x pairs: grid index below the lag
+  std::vector<float> lag_fraction_;      // directions x pairs
+  std::vector<double> power_;
+  std::vector<std::uint8_t> suppressed_;
+};
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,320 @@
+#include "doa/tdoa_tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/LU>
+
+namespace dronetrack::doa {
+
+namespace {
+
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+PairTdoa from_peak(const GccPhat& gcc, const GccPeak& peak) {
+  return {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value};
+}
+
+class PerFrameEstimator final : public TdoaEstimator {
+ public:
+  void update(double, const GccPhat& gcc, bool signal_present, std::span<PairTdoa> out) override {
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const PairCorrelation& pair = gcc.pair(p);
+      out[static_cast<std::size_t>(p)] =
+          signal_present && pair.peak.value > 0.0
+              ? PairTdoa{pair.peak.lag_s, pair.tdoa_variance_s2, pair.peak.value}
+              : PairTdoa{};
+    }
+  }
+};
+
+// Bayesian filter over each pair's lag grid; the likelihood decides between the seed-000 form
+// (whole correlation) and the seed-004 form (top K peaks).
+class GridEstimator final : public TdoaEstimator {
+ public:
+  GridEstimator(const GccPhat& gcc, const TdoaTrackerSettings& settings, bool multi_peak)
+      : settings_(settings), multi_peak_(multi_peak) {
+    const double step = gcc.lag_step_s();
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const int size = 2 * gcc.half_span(p) + 1;
+      posteriors_.emplace_back(static_cast<std::size_t>(size), 1.0 / size);
+      scratch_.emplace_back(static_cast<std::size_t>(size), 0.0);
+      // TDOA rate bound: |d tau / dt| <= (|p_i - p_j| / c) * angular rate.
+      const double sigma_steps =
+          std::max(0.5, gcc.pair_spec(p).max_lag_s * settings.max_angular_rate_dps * kDegToRad *
+                            settings.hop_s / step);
+      const int reach = static_cast<int>(std::ceil(3.0 * sigma_steps));
+      std::vector<double> kernel(static_cast<std::size_t>(2 * reach + 1));
+      double total = 0.0;
+      for (int d = -reach; d <= reach; ++d) {
+        const double value = std::exp(-0.5 * d * d / (sigma_steps * sigma_steps));
+        kernel[static_cast<std::size_t>(d + reach)] = value;
+        total += value;
+      }
+      for (double& value : kernel) value /= total;
+      kernels_.push_back(std::move(kernel));
+    }
+    peaks_.resize(static_cast<std::size_t>(std::max(1, settings.multi_peak_count)));
+  }
+
+  void update(double, const GccPhat& gcc, bool signal_present, std::span<PairTdoa> out) override {
+    const double step = gcc.lag_step_s();
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      std::vector<double>& posterior = posteriors_[static_cast<std::size_t>(p)];
+      std::vector<double>& predicted = scratch_[static_cast<std::size_t>(p)];
+      predict(kernels_[static_cast<std::size_t>(p)], posterior, predicted);
+      const int size = static_cast<int>(posterior.size());
+      const int half = (size - 1) / 2;
+      out[static_cast<std::size_t>(p)] = PairTdoa{};
+      if (!signal_present) {
+        posterior.swap(predicted);
+        continue;
+      }
+      const std::span<const double> grid = gcc.grid(p);
+      int peak_count = 0;
+      if (multi_peak_) peak_count = gcc.top_peaks(p, peaks_);
+      double total = 0.0;
+      for (int m = 0; m < size; ++m) {
+        double likelihood = settings_.likelihood_floor;
+        if (multi_peak_) {
+          for (int k = 0; k < peak_count; ++k) {
+            const double distance = (m - half) - peaks_[static_cast<std::size_t>(k)].lag_s / step;
+            likelihood += std::pow(peaks_[static_cast<std::size_t>(k)].value,
+                                   settings_.likelihood_sharpness) *
+                          std::exp(-0.5 * distance * distance);
+          }
+        } else {
+          likelihood += std::pow(std::max(grid[static_cast<std::size_t>(m)], 0.0),
+                                 settings_.likelihood_sharpness);
+        }
+        posterior[static_cast<std::size_t>(m)] =
+            predicted[static_cast<std::size_t>(m)] * likelihood;
+        total += posterior[static_cast<std::size_t>(m)];
+      }
+      if (!(total > 0.0) || !std::isfinite(total)) {
+        std::fill(posterior.begin(), posterior.end(), 1.0 / size);
+        continue;
+      }
+      int map_index = 0;
+      for (int m = 0; m < size; ++m) {
+        posterior[static_cast<std::size_t>(m)] /= total;
+        if (posterior[static_cast<std::size_t>(m)] > posterior[static_cast<std::size_t>(map_index)])
+          map_index = m;
+      }
+      GccPeak refined;
+      const double map_lag = (map_index - half) * step;
+      if (gcc.refine(p, map_lag, refined) && refined.value > 0.0) {
+        // The MAP lobe must hold a correlation maximum in this frame (not just the prior).
+        const double limit = gcc.pair_spec(p).max_lag_s + step;
+        if (std::abs(refined.lag_s) <= limit && std::abs(refined.lag_s - map_lag) <= 2.0 * step)
+          out[static_cast<std::size_t>(p)] = from_peak(gcc, refined);
+      }
+    }
+  }
+
+ private:
+  void predict(const std::vector<double>& kernel, const std::vector<double>& prior,
+               std::vector<double>& predicted) const {
+    const int size = static_cast<int>(prior.size());
+    const int reach = (static_cast<int>(kernel.size()) - 1) / 2;
+    // A little uniform mass lets the filter re-acquire a source that jumped (a new drone).
+    constexpr double kMixing = 1e-3;
+    for (int m = 0; m < size; ++m) {
+      double sum = 0.0;
+      double weight = 0.0;
+      for (int d = -reach; d <= reach; ++d) {
+        const int source = m - d;
+        if (source < 0 || source >= size) continue;
+        sum +=
+            kernel[static_cast<std::size_t>(d + reach)] * prior[static_cast<std::size_t>(source)];
+        weight += kernel[static_cast<std::size_t>(d + reach)];
+      }
+      predicted[static_cast<std::size_t>(m)] = (1.0 - kMixing) * sum / weight + kMixing / size;
+    }
+  }
+
+  TdoaTrackerSettings settings_;
+  bool multi_peak_;
+  std::vector<std::vector<double>> posteriors_;
+  std::vector<std::vector<double>> scratch_;
+  std::vector<std::vector<double>> kernels_;
+  std::vector<GccPeak> peaks_;
+};
+
+class RegressionEstimator final : public TdoaEstimator {
+ public:
+  RegressionEstimator(const GccPhat& gcc, const TdoaTrackerSettings& settings)
+      : settings_(settings),
+        window_(static_cast<std::size_t>(std::max(4, settings.regression_window_frames))) {
+    histories_.resize(static_cast<std::size_t>(gcc.pair_count()));
+    for (History& history : histories_) history.points.resize(window_);
+    residuals_.resize(window_);
+    sorted_.resize(window_);
+    weights_.resize(window_);
+  }
+
+  void update(double time_s, const GccPhat& gcc, bool signal_present,
+              std::span<PairTdoa> out) override {
+    const double max_age_s = (static_cast<double>(window_) + 0.5) * settings_.hop_s;
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      History& history = histories_[static_cast<std::size_t>(p)];
+      out[static_cast<std::size_t>(p)] = PairTdoa{};
+      const PairCorrelation& pair = gcc.pair(p);
+      if (!signal_present || !(pair.peak.value > 0.0)) continue;
+      history.points[history.next] = {time_s, pair.peak.lag_s, pair.tdoa_variance_s2,
+                                      pair.peak.value};
+      history.next = (history.next + 1) % window_;
+      history.count = std::min(history.count + 1, window_);
+      out[static_cast<std::size_t>(p)] = fit(history, time_s, max_age_s, pair);
+    }
+  }
+
+ private:
+  struct Point {
+    double time_s = 0.0;
+    double tdoa_s = 0.0;
+    double variance_s2 = 0.0;
+    double peak_value = 0.0;
+  };
+  struct History {
+    std::vector<Point> points;
+    std::size_t next = 0;
+    std::size_t count = 0;
+  };
+
+  // Weighted quadratic in (t - now); returns the fit at now and its variance.
+  bool weighted_fit(const History& history, double now, Eigen::Vector3d& coefficients,
+                    Eigen::Matrix3d& covariance) const {
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    int used = 0;
+    for (std::size_t i = 0; i < window_; ++i) {
+      if (weights_[i] <= 0.0) continue;
+      const double dt = history.points[i].time_s - now;
+      const Eigen::Vector3d row(1.0, dt, dt * dt);
+      normal += weights_[i] * row * row.transpose();
+      rhs += weights_[i] * history.points[i].tdoa_s * row;
+      ++used;
+    }
+    if (used < 4) return false;
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
+    if (lu.rank() < 3) return false;
+    covariance = lu.inverse();
+    coefficients = covariance * rhs;
+    return true;
+  }
+
+  // Zero weight for points whose residual exceeds the gate times the robust spread.
+  void gate_residuals(const History& history) {
+    int count = 0;
+    for (std::size_t i = 0; i < window_; ++i)
+      if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = std::abs(residuals_[i]);
+    if (count == 0) return;
+    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
+    const double mad = sorted_[static_cast<std::size_t>(count / 2)];
+    for (std::size_t i = 0; i < window_; ++i) {
+      if (weights_[i] <= 0.0) continue;
+      const double scale = std::max(1.4826 * mad, std::sqrt(history.points[i].variance_s2));
+      if (std::abs(residuals_[i]) > settings_.regression_mad_gate * scale) weights_[i] = 0.0;
+    }
+  }
+
+  PairTdoa fit(const History& history, double now, double max_age_s,
+               const PairCorrelation& current) {
+    int candidates = 0;
+    for (std::size_t i = 0; i < window_; ++i) {
+      const Point& point = history.points[i];
+      const bool fresh =
+          i < history.count && now - point.time_s <= max_age_s && point.variance_s2 > 0.0;
+      weights_[i] = fresh ? 1.0 / point.variance_s2 : 0.0;
+      candidates += fresh ? 1 : 0;
+    }
+    const PairTdoa per_frame{current.peak.lag_s, current.tdoa_variance_s2, current.peak.value};
+    if (candidates < 5) return per_frame;
+    // Start from the median (robust to a minority of outliers, which a least-squares quadratic
+    // is not: an outlier at the window's end pulls the curve onto itself), gate on the median
+    // absolute deviation, fit, gate again on the fit's residuals, refit.
+    int count = 0;
+    for (std::size_t i = 0; i < window_; ++i)
+      if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = history.points[i].tdoa_s;
+    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
+    const double level = sorted_[static_cast<std::size_t>(count / 2)];
+    for (std::size_t i = 0; i < window_; ++i)
+      residuals_[i] = weights_[i] > 0.0 ? history.points[i].tdoa_s - level : 0.0;
+    gate_residuals(history);
+    Eigen::Vector3d coefficients;
+    Eigen::Matrix3d covariance;
+    if (!weighted_fit(history, now, coefficients, covariance)) return per_frame;
+    for (std::size_t i = 0; i < window_; ++i) {
+      // Re-admit every fresh point, then gate on the residuals of the fit.
+      const Point& point = history.points[i];
+      const bool fresh =
+          i < history.count && now - point.time_s <= max_age_s && point.variance_s2 > 0.0;
+      weights_[i] = fresh ? 1.0 / point.variance_s2 : 0.0;
+      const double dt = point.time_s - now;
+      residuals_[i] =
+          fresh
+              ? point.tdoa_s - (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt)
+              : 0.0;
+    }
+    gate_residuals(history);
+    if (!weighted_fit(history, now, coefficients, covariance)) return per_frame;
+    double chi2 = 0.0;
+    int used = 0;
+    double peak_sum = 0.0;
+    for (std::size_t i = 0; i < window_; ++i) {
+      if (weights_[i] <= 0.0) continue;
+      const double dt = history.points[i].time_s - now;
+      const double residual = history.points[i].tdoa_s -
+                              (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt);
+      chi2 += residual * residual * weights_[i];
+      peak_sum += history.points[i].peak_value;
+      ++used;
+    }
+    const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
+    return {coefficients(0), covariance(0, 0) * inflation, peak_sum / used};
+  }
+
+  TdoaTrackerSettings settings_;
+  std::size_t window_;
+  std::vector<History> histories_;
+  std::vector<double> residuals_;
+  std::vector<double> sorted_;
+  std::vector<double> weights_;
+};
+
+}  // namespace
+
+std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPhat& gcc,
+                                                   const TdoaTrackerSettings& settings) {
+  switch (kind) {
+    case TdoaTracker::per_frame:
+      return std::make_unique<PerFrameEstimator>();
+    case TdoaTracker::bayesian_grid:
+      return std::make_unique<GridEstimator>(gcc, settings, false);
+    case TdoaTracker::multi_peak:
+      return std::make_unique<GridEstimator>(gcc, settings, true);
+    case TdoaTracker::robust_regression:
+      return std::make_unique<RegressionEstimator>(gcc, settings);
+  }
+  throw std::invalid_argument("unknown tdoa_tracker");
+}
+
+const char* tdoa_tracker_name(TdoaTracker kind) {
+  switch (kind) {
+    case TdoaTracker::per_frame:
+      return "per_frame";
+    case TdoaTracker::bayesian_grid:
+      return "bayesian_grid";
+    case TdoaTracker::multi_peak:
+      return "multi_peak";
+    case TdoaTracker::robust_regression:
+      return "robust_regression";
+  }
+  return "unknown";
+}
+
+}  // namespace dronetrack::doa
