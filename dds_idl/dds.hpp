@@ -60,7 +60,11 @@ class Entity {
 class Qos {
  public:
   Qos() : qos_(dds_create_qos()) {}
-  ~Qos() { dds_delete_qos(qos_); }
+  ~Qos() {
+    if (qos_) dds_delete_qos(qos_);
+  }
+  Qos(Qos&& other) noexcept : qos_(std::exchange(other.qos_, nullptr)) {}
+  Qos& operator=(Qos&&) = delete;
   Qos(const Qos&) = delete;
   Qos& operator=(const Qos&) = delete;
 
