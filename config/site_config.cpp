@@ -1,5 +1,6 @@
 #include "config/site_config.hpp"
 
+#include <cctype>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -52,8 +53,18 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
   if (reader.has("id") && array.geometry.id.empty()) {
     diagnostics.error(reader.path_of("id"), "must not be empty");
   }
-  if (array.geometry.id.size() > 64)
+  if (array.geometry.id.size() > 64) {
     diagnostics.error(reader.path_of("id"), "longer than 64 characters");
+  }
+  // Ids become DDS keys, JSON strings and file names: keep them plain.
+  for (char character : array.geometry.id) {
+    if (!std::isalnum(static_cast<unsigned char>(character)) && character != '_' &&
+        character != '-' && character != '.') {
+      diagnostics.error(reader.path_of("id"),
+                        "\"" + array.geometry.id + "\": use only letters, digits, '_', '-' or '.'");
+      break;
+    }
+  }
   if (auto position = reader.vector3("position_m", true)) array.geometry.position_m = *position;
   array.geometry.yaw_deg = reader.number("yaw_deg", 0.0, -360.0, 360.0);
   array.geometry.mic_position_std_m = reader.number("mic_position_std_m", 0.0, 0.0, 1.0);

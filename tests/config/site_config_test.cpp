@@ -153,6 +153,12 @@ TEST(SiteConfig, DuplicateArrayIds) {
   expect_problem(site, "arrays[1].id: duplicate array id \"A1\"");
 }
 
+TEST(SiteConfig, ArrayIdsArePlain) {
+  json site = two_array_site();
+  site["arrays"][0]["id"] = "A \"1\"";
+  expect_problem(site, "arrays[0].id: \"A \"1\"\": use only letters, digits, '_', '-' or '.'");
+}
+
 TEST(SiteConfig, FewerThanTwoMics) {
   json site = two_array_site();
   site["arrays"][0]["mics_m"] = {{0, 0, 0}};

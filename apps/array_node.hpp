@@ -1,0 +1,47 @@
+#pragma once
+// One array node as a process runs it: an audio source feeding a NodePipeline, plus the
+// once-a-second health report. Used by `replay` (all nodes in one process) and `node` (DDS).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "capture/audio_source.hpp"
+#include "config/site_config.hpp"
+#include "doa/node_pipeline.hpp"
+#include "doa/node_status.hpp"
+
+namespace dronetrack::apps {
+
+class ArrayNode {
+ public:
+  ArrayNode(const config::SiteConfig& site, int array_index,
+            std::unique_ptr<capture::AudioSource> source);
+
+  // Reads one block and appends the DOAs it completes. False at end of stream.
+  bool step(std::vector<doa::DoaMeasurement>& doas);
+  // Stream time at the end of the last block read, seconds since sample 0.
+  double time_s() const { return static_cast<double>(samples_read_) / sample_rate_hz_; }
+  // True (and fills `status`) when a status report is due: once per second of stream time.
+  bool status_due(doa::NodeStatus& status);
+  doa::NodeStatus status() const;
+  const std::string& array_id() const { return array_id_; }
+  int array_index() const { return array_index_; }
+  double sample_rate_hz() const { return sample_rate_hz_; }
+  const capture::AudioSource& source() const { return *source_; }
+
+ private:
+  std::string array_id_;
+  int array_index_;
+  std::unique_ptr<capture::AudioSource> source_;
+  doa::NodePipeline pipeline_;
+  double sample_rate_hz_;
+  std::int64_t samples_read_ = 0;
+  double next_status_s_ = 0.0;
+};
+
+// Opens the array's recording (its channel map applied) in blocks of about block_s seconds.
+std::unique_ptr<capture::AudioSource> open_recording(const config::ArrayConfig& array,
+                                                     const std::filesystem::path& recording,
+                                                     double block_s);
+
+}  // namespace dronetrack::apps

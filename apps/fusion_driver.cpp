@@ -1,0 +1,55 @@
+#include "apps/fusion_driver.hpp"
+
+#include <cmath>
+
+namespace dronetrack::apps {
+
+FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObserver*> observers)
+    : engine_(site.fusion, site.geometries(), site.speed_of_sound_mps),
+      zones_(site.zones),
+      observers_(std::move(observers)),
+      output_period_s_(1.0 / site.fusion.output_rate_hz),
+      reorder_window_s_(site.fusion.reorder_window_s) {}
+
+fusion::DoaVerdict FusionDriver::on_doa(const doa::DoaMeasurement& doa) {
+  const fusion::DoaVerdict verdict = engine_.add(doa);
+  if (verdict == fusion::DoaVerdict::accepted) {
+    for (auto* observer : observers_) observer->on_doa(doa);
+  }
+  return verdict;
+}
+
+void FusionDriver::on_node_status(const doa::NodeStatus& status) {
+  for (auto* observer : observers_) observer->on_node_status(status);
+}
+
+void FusionDriver::advance_to(double now_s) {
+  if (!std::isfinite(now_s) || now_s <= latest_time_s_) return;
+  latest_time_s_ = now_s;
+  // A tick may only be reported once no DOA older than it can still arrive (reorder window),
+  // and the engine is run exactly up to each tick so the report never predicts backwards.
+  while (next_tick_s_ <= now_s - reorder_window_s_) emit_tick(next_tick_s_);
+  engine_.advance_to(now_s);
+  for (auto* observer : observers_) observer->on_time(now_s);
+}
+
+void FusionDriver::finish() {
+  while (next_tick_s_ <= latest_time_s_) emit_tick(next_tick_s_);
+  engine_.advance_to(latest_time_s_ + reorder_window_s_);
+}
+
+void FusionDriver::emit_tick(double tick_s) {
+  engine_.advance_to(tick_s + reorder_window_s_);  // feeds the DOAs older than the tick
+  tracks_.clear();
+  engine_.tracks_at(tick_s, tracks_);
+  for (auto* observer : observers_) observer->on_tracks(tick_s, tracks_);
+  zone_events_.clear();
+  zones_.update(tick_s, tracks_, zone_events_);
+  for (const auto& event : zone_events_) {
+    for (auto* observer : observers_) observer->on_zone_event(event);
+  }
+  ++ticks_emitted_;
+  next_tick_s_ = static_cast<double>(ticks_emitted_) * output_period_s_;
+}
+
+}  // namespace dronetrack::apps

@@ -1,0 +1,45 @@
+#pragma once
+// Drives a FusionEngine from a stream of DOAs: feeds them, runs the engine up to the current
+// stream time, and emits track reports at the output rate plus zone events. Shared by
+// `replay` (in-process) and `fusion` (DDS), so both paths produce the same outputs.
+#include <cstdint>
+#include <vector>
+
+#include "apps/fusion_observer.hpp"
+#include "config/site_config.hpp"
+#include "fusion/fusion_engine.hpp"
+#include "fusion/zone_monitor.hpp"
+
+namespace dronetrack::apps {
+
+class FusionDriver {
+ public:
+  FusionDriver(const config::SiteConfig& site, std::vector<FusionObserver*> observers);
+
+  // Returns the engine's verdict; rejected DOAs are counted by the engine and not forwarded.
+  fusion::DoaVerdict on_doa(const doa::DoaMeasurement& doa);
+  void on_node_status(const doa::NodeStatus& status);
+  // The stream has reached now_s: every output tick up to now_s - reorder window is emitted.
+  void advance_to(double now_s);
+  // End of stream: emits the remaining ticks up to the last time seen.
+  void finish();
+
+  const fusion::FusionEngine& engine() const { return engine_; }
+  std::int64_t ticks_emitted() const { return ticks_emitted_; }
+
+ private:
+  void emit_tick(double tick_s);
+
+  fusion::FusionEngine engine_;
+  fusion::ZoneMonitor zones_;
+  std::vector<FusionObserver*> observers_;
+  double output_period_s_;
+  double reorder_window_s_;
+  double next_tick_s_ = 0.0;
+  double latest_time_s_ = 0.0;
+  std::int64_t ticks_emitted_ = 0;
+  std::vector<fusion::TrackReport> tracks_;     // reused every tick
+  std::vector<fusion::ZoneEvent> zone_events_;  // reused every tick
+};
+
+}  // namespace dronetrack::apps

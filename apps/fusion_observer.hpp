@@ -1,0 +1,25 @@
+#pragma once
+// Everything the fusion side produces, as callbacks. Replay and the DDS fusion process drive the
+// same FusionDriver; outputs (JSON-lines files, the HTTP live state, DDS writers) are observers.
+#include <vector>
+
+#include "doa/doa_measurement.hpp"
+#include "doa/node_status.hpp"
+#include "fusion/track_report.hpp"
+#include "fusion/zone_monitor.hpp"
+
+namespace dronetrack::apps {
+
+class FusionObserver {
+ public:
+  virtual ~FusionObserver() = default;
+  virtual void on_doa(const doa::DoaMeasurement& /*doa*/) {}
+  virtual void on_node_status(const doa::NodeStatus& /*status*/) {}
+  // All live tracks at one output tick.
+  virtual void on_tracks(double /*time_s*/, const std::vector<fusion::TrackReport>& /*tracks*/) {}
+  virtual void on_zone_event(const fusion::ZoneEvent& /*event*/) {}
+  // Stream time advanced (for staleness and pacing displays).
+  virtual void on_time(double /*time_s*/) {}
+};
+
+}  // namespace dronetrack::apps

@@ -1,0 +1,92 @@
+#include "apps/jsonl_output.hpp"
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "doa/array_geometry.hpp"
+
+namespace dronetrack::apps {
+
+OutputFile::OutputFile(const std::filesystem::path& path) : path_(path.string()) {
+  if (path_ == "-") {
+    file_ = stdout;
+    return;
+  }
+  file_ = std::fopen(path_.c_str(), "w");
+  if (!file_) throw std::runtime_error(path_ + ": cannot create (" + std::strerror(errno) + ")");
+  owned_ = true;
+}
+
+OutputFile::~OutputFile() {
+  if (owned_)
+    std::fclose(file_);
+  else
+    std::fflush(file_);
+}
+
+void OutputFile::write_line(const char* text, int length) {
+  if (length <= 0) return;
+  std::fwrite(text, 1, static_cast<std::size_t>(length), file_);
+  std::fputc('\n', file_);
+}
+
+void OutputFile::flush() { std::fflush(file_); }
+
+namespace {
+const char* ambiguity_name(doa::DoaAmbiguity ambiguity) {
+  switch (ambiguity) {
+    case doa::DoaAmbiguity::none:
+      return "none";
+    case doa::DoaAmbiguity::mirror_up_down:
+      return "mirror_up_down";
+    case doa::DoaAmbiguity::cone:
+      return "cone";
+  }
+  return "none";
+}
+}  // namespace
+
+int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size) {
+  const Eigen::Vector3d& u = doa.direction;
+  return std::snprintf(
+      buffer, size,
+      R"({"t":%.6f,"array":"%s","direction":[%.9f,%.9f,%.9f],"azimuth_deg":%.5f,)"
+      R"("elevation_deg":%.5f,"quality":%.4f,"snr_db":%.2f,"source":%d,"ambiguity":"%s",)"
+      R"("azel_std_deg":[%.5f,%.5f]})",
+      doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
+      doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
+      ambiguity_name(doa.ambiguity),
+      std::sqrt(std::max(0.0, doa.azel_covariance_rad2(0, 0))) * 180.0 / std::numbers::pi,
+      std::sqrt(std::max(0.0, doa.azel_covariance_rad2(1, 1))) * 180.0 / std::numbers::pi);
+}
+
+int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,
+                      std::size_t size) {
+  const Eigen::Vector3d& p = track.position_m;
+  const Eigen::Vector3d& v = track.velocity_mps;
+  const Eigen::Vector3d& a = track.acceleration_mps2;
+  const Eigen::Vector3d s = track.position_std_m();
+  return std::snprintf(
+      buffer, size,
+      R"({"t":%.3f,"id":%d,"position_m":[%.4f,%.4f,%.4f],"velocity_mps":[%.4f,%.4f,%.4f],)"
+      R"("acceleration_mps2":[%.4f,%.4f,%.4f],"position_std_m":[%.4f,%.4f,%.4f],"status":"%s"})",
+      time_s, track.id, p.x(), p.y(), p.z(), v.x(), v.y(), v.z(), a.x(), a.y(), a.z(), s.x(), s.y(),
+      s.z(), fusion::to_string(track.status));
+}
+
+void DoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {
+  out_.write_line(buffer_, format_doa_line(doa, buffer_, sizeof buffer_));
+}
+
+void TrackLinesWriter::on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) {
+  for (const auto& track : tracks) {
+    out_.write_line(buffer_, format_track_line(time_s, track, buffer_, sizeof buffer_));
+  }
+}
+
+}  // namespace dronetrack::apps

@@ -1,0 +1,33 @@
+#pragma once
+// `replay`: every array node and the fusion in one process over an in-process transport (the
+// same message structs the DDS path carries), as fast as the CPU allows or paced at real time.
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include "apps/fusion_observer.hpp"
+#include "config/site_config.hpp"
+
+namespace dronetrack::apps {
+
+struct ReplayOptions {
+  bool realtime = false;        // pace at real time (for serving the page)
+  double block_s = 0.05;        // audio read granularity; the nodes frame internally
+  bool progress = true;         // a progress line on stderr every few seconds
+  double max_duration_s = 0.0;  // stop after this much stream time (0: whole recordings)
+};
+
+struct ReplaySummary {
+  double stream_s = 0.0;  // longest recording time processed
+  double wall_s = 0.0;
+  std::int64_t doas = 0;  // produced by the nodes
+  std::int64_t doas_accepted = 0;
+  std::int64_t ticks = 0;
+};
+
+// Throws on unreadable recordings (one line naming file and problem).
+ReplaySummary run_replay(const config::SiteConfig& site,
+                         const std::vector<FusionObserver*>& observers,
+                         const ReplayOptions& options, const std::atomic<bool>* stop = nullptr);
+
+}  // namespace dronetrack::apps
