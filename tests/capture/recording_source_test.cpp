@@ -107,7 +107,11 @@ TEST_P(EachFormat, ReturnsTheWrittenSamplesWithTimestampsAcrossBlocks) {
   std::int64_t expected_first = 0;
   std::vector<std::size_t> block_sizes;
   double worst_error = 0.0;
+  const float* first_buffer = nullptr;
   while (source.next(block)) {
+    // Streaming reuses one buffer: a new one per block would be an allocation per block.
+    if (first_buffer == nullptr) first_buffer = block.interleaved;
+    EXPECT_EQ(block.interleaved, first_buffer);
     EXPECT_EQ(block.first_sample, expected_first);
     EXPECT_EQ(block.channels, kChannels);
     block_sizes.push_back(block.frames);
@@ -316,6 +320,11 @@ TEST_F(RecordingSourceTest, TruncatedFlacDeliversWhatIsThereThenEnds) {
 TEST_F(RecordingSourceTest, MissingFile) {
   const fs::path file = path("nowhere.wav");
   EXPECT_EQ(error_of(file, {}, 256), file.string() + ": recording not found");
+}
+
+TEST_F(RecordingSourceTest, DirectoryIsNotARecording) {
+  EXPECT_EQ(error_of(directory_, {}, 256),
+            directory_.string() + ": is a directory, not a recording");
 }
 
 TEST_F(RecordingSourceTest, NotAudio) {
