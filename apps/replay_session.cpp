@@ -1,0 +1,62 @@
+#include "apps/replay_session.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+
+#include "apps/jsonl_output.hpp"
+#include "apps/live_state_observer.hpp"
+#include "apps/replay_runner.hpp"
+#include "apps/signals.hpp"
+#include "common/log.hpp"
+#include "http_api/http_server.hpp"
+
+namespace dronetrack::apps {
+
+int run_replay_session(const config::SiteConfig& site, const ReplaySessionOptions& options) {
+  std::vector<std::unique_ptr<FusionObserver>> writers;
+  if (!options.doa_out.empty())
+    writers.push_back(std::make_unique<DoaLinesWriter>(options.doa_out));
+  if (!options.tracks_out.empty() || (options.doa_out.empty() && options.http.empty())) {
+    writers.push_back(std::make_unique<TrackLinesWriter>(
+        options.tracks_out.empty() ? std::string("-") : options.tracks_out));
+  }
+  std::vector<FusionObserver*> observers;
+  for (auto& writer : writers) observers.push_back(writer.get());
+
+  // Serving: the live state is fed like any other output; the server reads snapshots of it.
+  std::unique_ptr<http_api::LiveState> live_state;
+  std::unique_ptr<LiveStateObserver> live_observer;
+  std::unique_ptr<http_api::HttpServer> server;
+  if (!options.http.empty()) {
+    live_state = std::make_unique<http_api::LiveState>(
+        http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
+    live_observer = std::make_unique<LiveStateObserver>(*live_state);
+    observers.push_back(live_observer.get());
+    http_api::HttpOptions http_options;
+    http_options.bind = options.http;
+    http_options.web_root = default_web_root();
+    server = std::make_unique<http_api::HttpServer>(*live_state, http_options);
+    server->start();
+    // The URL goes to stdout too: it is what a person running the demo looks for.
+    std::printf("dronetrack: serving %s\n", server->url().c_str());
+    std::fflush(stdout);
+  }
+
+  ReplayOptions replay_options;
+  replay_options.realtime = options.realtime;
+  replay_options.max_duration_s = options.max_duration_s;
+  const ReplaySummary summary =
+      run_replay(site, observers, replay_options, &install_stop_handlers());
+  log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
+            summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
+            " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
+  writers.clear();  // flush and close the output files before waiting
+  if (server && options.keep_serving && !stop_requested()) {
+    log::info("recordings finished; still serving ", server->url(), " (Ctrl-C to stop)");
+    wait_for_stop();
+  }
+  return 0;
+}
+
+}  // namespace dronetrack::apps

@@ -1,0 +1,21 @@
+#pragma once
+// A whole replay as `replay` and `demo` run it: outputs opened, optionally served over HTTP,
+// nodes and fusion run, summary logged, then (when serving) kept up until Ctrl-C.
+#include <string>
+
+#include "config/site_config.hpp"
+
+namespace dronetrack::apps {
+
+struct ReplaySessionOptions {
+  std::string tracks_out;  // "" with doa_out also "": tracks to stdout
+  std::string doa_out;
+  std::string http;  // ADDR:PORT to serve on; "" for none
+  bool realtime = false;
+  double max_duration_s = 0.0;
+  bool keep_serving = true;  // after the recordings end, serve until Ctrl-C
+};
+
+int run_replay_session(const config::SiteConfig& site, const ReplaySessionOptions& options);
+
+}  // namespace dronetrack::apps

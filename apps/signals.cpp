@@ -1,0 +1,34 @@
+#include "apps/signals.hpp"
+
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+#include "apps/live_state_observer.hpp"
+
+namespace dronetrack::apps {
+namespace {
+std::atomic<bool> stop_flag{false};
+extern "C" void on_stop_signal(int) { stop_flag.store(true); }
+}  // namespace
+
+const std::atomic<bool>& install_stop_handlers() {
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+  return stop_flag;
+}
+
+bool stop_requested() { return stop_flag.load(); }
+
+void wait_for_stop() {
+  while (!stop_flag.load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+}
+
+std::filesystem::path default_web_root() {
+  if (const char* root = std::getenv("DRONETRACK_WEB_ROOT")) return root;
+  return DRONETRACK_WEB_ROOT;
+}
+
+}  // namespace dronetrack::apps
