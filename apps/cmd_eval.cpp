@@ -1,11 +1,85 @@
-// PLACEHOLDER: the `eval` subcommand; its owner replaces this file.
+// `dronetrack eval`: accuracy of tracks (and DOAs) against the simulator's truth (SPEC 4.7), as a
+// table on stdout and optionally as JSON. The arithmetic lives in eval/ (metrics.hpp).
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+
 #include "apps/commands.hpp"
+#include "eval/metrics.hpp"
+#include "eval/readers.hpp"
+#include "eval/report.hpp"
 
 namespace dronetrack::apps {
+namespace {
+
+struct EvalArguments {
+  std::string truth;
+  std::string tracks;
+  std::string doas;
+  std::string json_out;
+  eval::EvalOptions options;
+};
+
+int run_eval(const EvalArguments& arguments) {
+  eval::Truth truth;
+  std::vector<eval::TrackRecord> tracks;
+  std::vector<eval::DoaRecord> doas;
+  try {
+    truth = eval::read_truth(arguments.truth);
+    tracks = eval::read_tracks(arguments.tracks);
+    if (!arguments.doas.empty()) doas = eval::read_doas(arguments.doas);
+  } catch (const eval::InputError& error) {
+    throw UserError(error.what());
+  }
+  const eval::EvalReport report = eval::evaluate(truth, tracks, doas, arguments.options);
+  std::cout << eval::format_table(report);
+  if (!arguments.json_out.empty()) {
+    std::ofstream out(arguments.json_out);
+    if (!out) throw UserError(arguments.json_out + ": cannot open for writing");
+    out << eval::to_json(report).dump(2) << '\n';
+    if (!out) throw UserError(arguments.json_out + ": write failed");
+  }
+  return 0;
+}
+
+}  // namespace
 
 void register_eval(CLI::App& root, CommandTable& table) {
-  auto* command = root.add_subcommand("eval", "(not implemented yet)");
-  table.add(command, []() -> int { throw UserError("'eval' is not implemented yet"); });
+  auto* command = root.add_subcommand(
+      "eval", "Accuracy of tracks and DOAs against simulator truth (RMSE, PFE, coverage, ...)");
+  auto arguments = std::make_shared<EvalArguments>();
+  command->add_option("--truth", arguments->truth, "truth.json written by `dronetrack sim`")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--tracks", arguments->tracks, "Tracks as JSON lines (SPEC 3.2)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--doa", arguments->doas, "DOAs as JSON lines: adds DOA error per array")
+      ->check(CLI::ExistingFile);
+  command->add_option("--json", arguments->json_out, "Also write the report as JSON here");
+  command
+      ->add_option("--gate-m", arguments->options.association_gate_m,
+                   "Track-to-truth association gate, metres")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  command
+      ->add_option("--coverage-gate-m", arguments->options.coverage_gate_m,
+                   "A source is covered when its track is within this distance, metres")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  command
+      ->add_option("--tick-s", arguments->options.tick_s,
+                   "Evaluation step, seconds (default: the tracks' output interval)")
+      ->check(CLI::NonNegativeNumber);
+  command
+      ->add_option("--skip-s", arguments->options.skip_s,
+                   "Ignore the first seconds of the truth (e.g. sound still in flight)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  command->add_flag("--include-tentative", arguments->options.include_tentative,
+                    "Count tentative tracks as tracks");
+  table.add(command, [arguments]() -> int { return run_eval(*arguments); });
 }
 
 }  // namespace dronetrack::apps

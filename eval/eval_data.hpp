@@ -1,0 +1,106 @@
+#pragma once
+// What the evaluation reads (simulator truth, SPEC 3.2b; DOA and track JSON lines, SPEC 3.2)
+// and what it reports (SPEC 4.7). Plain structs: the metrics are computed by pure functions.
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace dronetrack::eval {
+
+struct TruthSource {
+  std::string id;
+  std::vector<double> time_s;  // increasing, common to every column
+  std::vector<Eigen::Vector3d> position_m;
+  // Per array id: unit direction (site frame) toward where the source was when the sound
+  // arriving at time_s[i] left it.
+  std::map<std::string, std::vector<Eigen::Vector3d>> direction_by_array;
+
+  bool alive_at(double t) const {
+    return !time_s.empty() && t >= time_s.front() && t <= time_s.back();
+  }
+  Eigen::Vector3d position_at(double t) const;  // linear interpolation, clamped
+  // Interpolated and normalised; nullopt if this array has no truth directions.
+  std::optional<Eigen::Vector3d> direction_at(const std::string& array, double t) const;
+};
+
+struct Truth {
+  std::vector<TruthSource> sources;  // drones only (interferers are not targets)
+  std::map<std::string, Eigen::Vector3d> array_centres_m;  // optional "arrays" key
+  std::optional<double> recording_end_s;                   // earliest recording end, if given
+};
+
+struct DoaRecord {
+  double time_s = 0.0;
+  std::string array;
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+};
+
+struct TrackRecord {
+  double time_s = 0.0;
+  int id = 0;
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
+  std::string status;  // tentative | confirmed | coasting
+};
+
+struct EvalOptions {
+  double association_gate_m = 10.0;  // a track farther than this from every truth is false
+  double coverage_gate_m = 5.0;      // covered: an associated track within this distance
+  double tick_s = 0.0;               // evaluation step; 0: the tracks' own output interval
+  double skip_s = 0.0;               // ignore the first seconds (sound still in flight)
+  bool include_tentative = false;    // tentative tracks count as tracks
+};
+
+struct PositionMetrics {
+  int samples = 0;
+  double rmse_3d_m = 0.0;
+  double median_error_m = 0.0;
+  double p90_error_m = 0.0;
+  double max_error_m = 0.0;
+  double rmse_horizontal_m = 0.0;
+  double rmse_vertical_m = 0.0;
+  // Seed 002 eq. 35, positions relative to the array centroid: the mean over samples of
+  // |truth - estimate| / |truth| (total), and of the same per axis, in percent.
+  double pfe_total_percent = 0.0;
+  Eigen::Vector3d pfe_axis_percent = Eigen::Vector3d::Zero();
+};
+
+struct SourceMetrics {
+  std::string id;
+  PositionMetrics position;
+  double truth_time_s = 0.0;
+  double covered_time_s = 0.0;
+  double coverage = 0.0;  // covered / truth time
+  int id_switches = 0;
+  std::vector<int> track_ids;  // every track id associated with it
+};
+
+struct DoaArrayMetrics {
+  std::string array;
+  int count = 0;
+  double median_error_deg = 0.0;
+  double p90_error_deg = 0.0;
+  double mean_error_deg = 0.0;
+};
+
+struct EvalReport {
+  EvalOptions options;
+  double tick_s = 0.0;
+  double start_s = 0.0;
+  double end_s = 0.0;
+  Eigen::Vector3d array_centroid_m = Eigen::Vector3d::Zero();
+  PositionMetrics position;  // all sources together
+  std::vector<SourceMetrics> sources;
+  double coverage = 0.0;  // all sources' covered time / truth time
+  int id_switches = 0;
+  int tracks_seen = 0;                // distinct ids counted as tracks
+  double track_time_s = 0.0;          // sum over counted tracks of their time
+  double false_track_time_s = 0.0;    // of which associated to no truth
+  double false_track_fraction = 0.0;  // false / track time
+  std::vector<DoaArrayMetrics> doa;   // empty without DOAs
+  int doa_unmatched = 0;              // DOAs of arrays or times without truth
+};
+
+}  // namespace dronetrack::eval

@@ -1,0 +1,237 @@
+#include "eval/readers.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "config/config_reader.hpp"
+
+namespace dronetrack::eval {
+namespace {
+
+using config::Diagnostics;
+using config::ObjectReader;
+
+std::string read_file(const std::filesystem::path& file) {
+  std::ifstream stream(file, std::ios::binary);
+  if (!stream) throw InputError(file.string() + ": cannot open for reading");
+  std::ostringstream text;
+  text << stream.rdbuf();
+  if (stream.bad()) throw InputError(file.string() + ": read error");
+  return text.str();
+}
+
+// One line: the first problem, and how many more there were.
+void throw_if_errors(const Diagnostics& diagnostics, const std::string& where) {
+  if (diagnostics.errors.empty()) return;
+  std::string message = where + ": " + diagnostics.errors.front();
+  if (diagnostics.errors.size() > 1) {
+    message += " (and " + std::to_string(diagnostics.errors.size() - 1) + " more problems)";
+  }
+  throw InputError(message);
+}
+
+nlohmann::json parse_document(const std::string& text, const std::string& where) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& error) {
+    // Turn the byte offset into a line number; the library's message names the token.
+    const std::size_t byte = std::min<std::size_t>(error.byte, text.size());
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(byte), '\n');
+    std::string what = error.what();
+    const auto colon = what.find(": ", what.find("parse error"));
+    if (colon != std::string::npos) what = what.substr(colon + 2);
+    throw InputError(where + ":" + std::to_string(line) + ": invalid JSON: " + what);
+  }
+}
+
+std::vector<Eigen::Vector3d> read_vectors(const nlohmann::json& node, const std::string& path,
+                                          Diagnostics& diagnostics) {
+  std::vector<Eigen::Vector3d> out;
+  if (!node.is_array()) {
+    diagnostics.error(path,
+                      "expected a list of [x, y, z], got " + config::describe_json_type(node));
+    return out;
+  }
+  out.reserve(node.size());
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const auto vector =
+        config::read_vector3(node[i], path + "[" + std::to_string(i) + "]", diagnostics);
+    if (!vector) return {};
+    out.push_back(*vector);
+  }
+  return out;
+}
+
+TruthSource read_source(const nlohmann::json& node, const std::string& path,
+                        Diagnostics& diagnostics) {
+  TruthSource source;
+  ObjectReader reader(node, path, diagnostics);
+  source.id = reader.required_string("id").value_or("");
+  for (const char* key : {"kind", "velocity_mps"}) reader.accept(key);
+  const std::size_t errors_before = diagnostics.errors.size();
+  source.time_s = reader.numbers("t", 0, true).value_or(std::vector<double>{});
+  for (std::size_t i = 1; i < source.time_s.size(); ++i) {
+    if (!(source.time_s[i] > source.time_s[i - 1])) {
+      diagnostics.error(reader.path_of("t") + "[" + std::to_string(i) + "]",
+                        "times must be increasing");
+      break;
+    }
+  }
+  reader.accept("position_m");
+  if (node.is_object() && node.contains("position_m")) {
+    source.position_m = read_vectors(node["position_m"], reader.path_of("position_m"), diagnostics);
+  } else {
+    diagnostics.error(reader.path_of("position_m"), "required list is missing");
+  }
+  if (diagnostics.errors.size() == errors_before &&
+      source.position_m.size() != source.time_s.size()) {
+    diagnostics.error(reader.path_of("position_m"),
+                      "has " + std::to_string(source.position_m.size()) + " rows but t has " +
+                          std::to_string(source.time_s.size()));
+  }
+  reader.accept("doa");
+  if (node.is_object() && node.contains("doa")) {
+    const auto& doa = node["doa"];
+    const std::string doa_path = reader.path_of("doa");
+    if (!doa.is_object()) {
+      diagnostics.error(doa_path, "expected an object keyed by array id");
+    } else {
+      for (const auto& [array, entry] : doa.items()) {
+        ObjectReader array_reader(entry, doa_path + "." + array, diagnostics);
+        array_reader.accept("direction");
+        if (!entry.is_object() || !entry.contains("direction")) {
+          diagnostics.error(array_reader.path_of("direction"), "required list is missing");
+          continue;
+        }
+        auto directions =
+            read_vectors(entry["direction"], array_reader.path_of("direction"), diagnostics);
+        if (directions.size() != source.time_s.size()) {
+          diagnostics.error(array_reader.path_of("direction"),
+                            "has " + std::to_string(directions.size()) + " rows but t has " +
+                                std::to_string(source.time_s.size()));
+          continue;
+        }
+        source.direction_by_array[array] = std::move(directions);
+      }
+    }
+  }
+  return source;
+}
+
+// Reads every non-blank line as one JSON object; `each` fills a record from its reader.
+template <typename Record, typename Fill>
+std::vector<Record> parse_lines(const std::string& text, const std::string& file, Fill fill) {
+  std::vector<Record> out;
+  std::istringstream stream(text);
+  std::string line;
+  int number = 0;
+  while (std::getline(stream, line)) {
+    ++number;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::string where = file + ":" + std::to_string(number);
+    nlohmann::json node;
+    try {
+      node = nlohmann::json::parse(line);
+    } catch (const nlohmann::json::parse_error& error) {
+      std::string what = error.what();
+      const auto colon = what.find(": ", what.find("parse error"));
+      if (colon != std::string::npos) what = what.substr(colon + 2);
+      throw InputError(where + ": invalid JSON: " + what);
+    }
+    Diagnostics diagnostics;
+    Record record;
+    {
+      ObjectReader reader(node, "", diagnostics);
+      fill(reader, node, diagnostics, record);
+    }
+    throw_if_errors(diagnostics, where);
+    out.push_back(std::move(record));
+  }
+  return out;
+}
+
+}  // namespace
+
+Truth parse_truth(const std::string& text, const std::string& file) {
+  const nlohmann::json document = parse_document(text, file);
+  Diagnostics diagnostics;
+  Truth truth;
+  {
+    ObjectReader reader(document, "", diagnostics);
+    for (const char* key : {"interferers", "rate_hz", "duration_s", "speed_of_sound_mps"}) {
+      reader.accept(key);
+    }
+    reader.for_each("sources", true, [&](const nlohmann::json& node, const std::string& path) {
+      truth.sources.push_back(read_source(node, path, diagnostics));
+    });
+    if (reader.has("arrays")) {
+      ObjectReader arrays = reader.object("arrays");
+      for (const auto& [id, entry] : document["arrays"].items()) {
+        arrays.accept(id);
+        ObjectReader array(entry, arrays.path_of(id), diagnostics);
+        if (auto centre = array.vector3("centre_m", false)) truth.array_centres_m[id] = *centre;
+        if (array.has("recording_end_s")) {
+          const double end = array.number("recording_end_s", 0.0, 0.0);
+          truth.recording_end_s =
+              truth.recording_end_s ? std::min(*truth.recording_end_s, end) : end;
+        }
+      }
+    }
+  }
+  throw_if_errors(diagnostics, file);
+  if (truth.sources.empty()) throw InputError(file + ": sources: no drone in the truth");
+  return truth;
+}
+
+std::vector<TrackRecord> parse_tracks(const std::string& text, const std::string& file) {
+  return parse_lines<TrackRecord>(
+      text, file,
+      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
+         TrackRecord& record) {
+        for (const char* key : {"velocity_mps", "acceleration_mps2", "position_std_m", "covariance",
+                                "arrays", "contributing_arrays"}) {
+          reader.accept(key);
+        }
+        (void)node;
+        (void)diagnostics;
+        record.time_s = reader.required_number("t").value_or(0.0);
+        if (reader.has("id")) {
+          record.id = reader.integer("id", 0, -2147483647, 2147483647);
+        } else {
+          reader.diagnostics().error("id", "required integer is missing");
+        }
+        record.position_m = reader.vector3("position_m", true).value_or(Eigen::Vector3d::Zero());
+        record.status =
+            reader.choice("status", "confirmed", {"tentative", "confirmed", "coasting"});
+        // Extra keys are allowed in JSON lines.
+        for (const auto& item : node.items()) reader.accept(item.key());
+      });
+}
+
+std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& file) {
+  return parse_lines<DoaRecord>(
+      text, file,
+      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
+         DoaRecord& record) {
+        record.time_s = reader.required_number("t").value_or(0.0);
+        record.array = reader.required_string("array").value_or("");
+        record.direction = reader.vector3("direction", true).value_or(Eigen::Vector3d::UnitX());
+        if (!(record.direction.norm() > 0.5)) {
+          diagnostics.error("direction", "expected a unit vector");
+        }
+        for (const auto& item : node.items()) reader.accept(item.key());
+      });
+}
+
+Truth read_truth(const std::filesystem::path& file) {
+  return parse_truth(read_file(file), file.string());
+}
+std::vector<TrackRecord> read_tracks(const std::filesystem::path& file) {
+  return parse_tracks(read_file(file), file.string());
+}
+std::vector<DoaRecord> read_doas(const std::filesystem::path& file) {
+  return parse_doas(read_file(file), file.string());
+}
+
+}  // namespace dronetrack::eval

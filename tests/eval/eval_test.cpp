@@ -1,0 +1,269 @@
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include <functional>
+
+#include <gtest/gtest.h>
+
+#include "eval/metrics.hpp"
+#include "eval/readers.hpp"
+#include "eval/report.hpp"
+
+namespace dronetrack::eval {
+namespace {
+
+// A source moving along x at 2 m/s from (10, 0, 20), 100 Hz for `duration_s`.
+TruthSource moving_source(const std::string& id, Eigen::Vector3d start, Eigen::Vector3d velocity,
+                          double duration_s) {
+  TruthSource source;
+  source.id = id;
+  for (int i = 0; i <= static_cast<int>(std::lround(duration_s * 100)); ++i) {
+    const double t = i * 0.01;
+    source.time_s.push_back(t);
+    source.position_m.push_back(start + velocity * t);
+    source.direction_by_array["A1"].push_back((start + velocity * t).normalized());
+  }
+  return source;
+}
+
+std::vector<TrackRecord> follow(const TruthSource& source, int id, Eigen::Vector3d offset,
+                                double from_s, double to_s) {
+  std::vector<TrackRecord> out;
+  for (int k = static_cast<int>(std::lround(from_s * 10)); k <= std::lround(to_s * 10); ++k) {
+    const double t = k * 0.1;
+    out.push_back({t, id, source.position_at(t) + offset, "confirmed"});
+  }
+  return out;
+}
+
+TEST(EvalMetrics, KnownOffsetGivesKnownErrors) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {10, 0, 20}, {2, 0, 0}, 10.0));
+  const auto tracks = follow(truth.sources[0], 7, {0.3, 0.4, 1.2}, 0.0, 10.0);  // |e| = 1.3
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  EXPECT_NEAR(report.tick_s, 0.1, 1e-9);
+  EXPECT_EQ(report.position.samples, 101);
+  EXPECT_NEAR(report.position.rmse_3d_m, 1.3, 1e-9);
+  EXPECT_NEAR(report.position.median_error_m, 1.3, 1e-9);
+  EXPECT_NEAR(report.position.rmse_horizontal_m, 0.5, 1e-9);
+  EXPECT_NEAR(report.position.rmse_vertical_m, 1.2, 1e-9);
+  EXPECT_NEAR(report.coverage, 1.0, 1e-9);
+  EXPECT_EQ(report.id_switches, 0);
+  EXPECT_NEAR(report.false_track_fraction, 0.0, 1e-12);
+  ASSERT_EQ(report.sources.size(), 1u);
+  EXPECT_EQ(report.sources[0].track_ids, std::vector<int>{7});
+}
+
+TEST(EvalMetrics, PercentageFitErrorRelativeToArrayCentroid) {
+  Truth truth;
+  TruthSource hover;
+  hover.id = "D1";
+  hover.time_s = {0.0, 1.0};
+  hover.position_m = {{30, 5, 0}, {30, 5, 0}};
+  truth.sources.push_back(hover);
+  truth.array_centres_m = {{"A1", {0, 5, 0}}, {"A2", {20, 5, 0}}};  // centroid (10, 5, 0)
+  // Truth relative to the centroid: (20, 0, 0); the estimate is 1 m off in x and 1 m in z.
+  const std::vector<TrackRecord> tracks{{0.0, 1, {31, 5, 1}, "confirmed"},
+                                        {0.5, 1, {31, 5, 1}, "confirmed"},
+                                        {1.0, 1, {31, 5, 1}, "confirmed"}};
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  EXPECT_NEAR(report.position.pfe_total_percent, 100.0 * std::sqrt(2.0) / 20.0, 1e-9);
+  EXPECT_NEAR(report.position.pfe_axis_percent.x(), 5.0, 1e-9);
+  // y and z of the truth are 0 relative to the centroid: no sample defines their ratio.
+  EXPECT_NEAR(report.position.pfe_axis_percent.y(), 0.0, 1e-12);
+}
+
+TEST(EvalMetrics, CoverageIdSwitchesAndFalseTracks) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {10, 0, 20}, {2, 0, 0}, 10.0));
+  // Covered by id 1 until 4 s, nothing until 5 s, then id 2; and a false track for 2 s.
+  auto tracks = follow(truth.sources[0], 1, {0.5, 0, 0}, 0.0, 3.9);
+  const auto later = follow(truth.sources[0], 2, {0.5, 0, 0}, 5.0, 10.0);
+  tracks.insert(tracks.end(), later.begin(), later.end());
+  for (int k = 0; k < 20; ++k) tracks.push_back({k * 0.1, 9, {500, 500, 50}, "confirmed"});
+  // Tentative lines are not tracks unless asked for.
+  for (int k = 40; k < 50; ++k) tracks.push_back({k * 0.1, 4, {18, 0, 20}, "tentative"});
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  EXPECT_NEAR(report.coverage, 91.0 / 101.0, 1e-9);
+  EXPECT_EQ(report.id_switches, 1);
+  EXPECT_EQ(report.tracks_seen, 3);
+  EXPECT_NEAR(report.false_track_time_s, 2.0, 1e-9);
+  EXPECT_NEAR(report.false_track_fraction, 20.0 / (91.0 + 20.0), 1e-9);
+  EXPECT_EQ(report.sources[0].track_ids, (std::vector<int>{1, 2}));
+
+  EvalOptions tentative;
+  tentative.include_tentative = true;
+  const EvalReport with_tentative = evaluate(truth, tracks, {}, tentative);
+  EXPECT_NEAR(with_tentative.coverage, 1.0, 1e-9);
+  EXPECT_EQ(with_tentative.id_switches, 2);  // 1 -> 4 -> 2
+}
+
+TEST(EvalMetrics, AssignmentKeepsCrossingSourcesApart) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {-20, 0, 20}, {4, 0, 0}, 10.0));
+  truth.sources.push_back(moving_source("D2", {20, 0.5, 20}, {-4, 0, 0}, 10.0));
+  auto tracks = follow(truth.sources[0], 1, {0, 0.2, 0}, 0.0, 10.0);
+  const auto second = follow(truth.sources[1], 2, {0, 0.2, 0}, 0.0, 10.0);
+  tracks.insert(tracks.end(), second.begin(), second.end());
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  EXPECT_EQ(report.id_switches, 0);
+  EXPECT_NEAR(report.position.rmse_3d_m, 0.2, 1e-9);
+  EXPECT_NEAR(report.coverage, 1.0, 1e-9);
+}
+
+TEST(EvalMetrics, DoaErrorAgainstTheNearestSource) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {50, 0, 0}, {0, 0, 0}, 2.0));
+  truth.sources.push_back(moving_source("D2", {0, 50, 0}, {0, 0, 0}, 2.0));
+  std::vector<DoaRecord> doas;
+  const double two_deg = 2.0 * M_PI / 180.0;
+  for (int k = 0; k < 10; ++k) {
+    doas.push_back({k * 0.1, "A1", {std::cos(two_deg), std::sin(two_deg), 0}});  // D1 + 2 deg
+    doas.push_back({k * 0.1, "A1", {std::sin(two_deg * 2), std::cos(two_deg * 2), 0}});  // D2 - 4
+  }
+  doas.push_back({0.5, "A9", {1, 0, 0}});  // no truth for this array
+  int unmatched = 0;
+  const auto metrics = doa_errors(truth, doas, &unmatched);
+  ASSERT_EQ(metrics.size(), 1u);
+  EXPECT_EQ(metrics[0].count, 20);
+  EXPECT_NEAR(metrics[0].mean_error_deg, 3.0, 1e-9);
+  EXPECT_NEAR(metrics[0].p90_error_deg, 4.0, 1e-9);
+  EXPECT_EQ(unmatched, 1);
+}
+
+std::string expect_input_error(const std::function<void()>& action) {
+  try {
+    action();
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  ADD_FAILURE() << "no InputError";
+  return "";
+}
+
+TEST(EvalReaders, ReadsTheDocumentedShapes) {
+  const Truth truth = parse_truth(R"({"sources": [{"id": "D1", "kind": "drone", "t": [0, 0.01],
+      "position_m": [[1,2,3],[1,2,4]], "velocity_mps": [[0,0,0],[0,0,0]],
+      "doa": {"A1": {"direction": [[1,0,0],[0,1,0]]}}}], "interferers": [],
+      "arrays": {"A1": {"centre_m": [0,0,2], "recording_end_s": 30}}})",
+                                  "truth.json");
+  ASSERT_EQ(truth.sources.size(), 1u);
+  EXPECT_NEAR(truth.sources[0].position_at(0.005).z(), 3.5, 1e-12);
+  EXPECT_EQ(truth.recording_end_s.value_or(0), 30.0);
+  const auto tracks = parse_tracks(
+      "{\"t\": 1.5, \"id\": 3, \"position_m\": [1,2,3], \"velocity_mps\": [0,0,0], "
+      "\"acceleration_mps2\": [0,0,0], \"position_std_m\": [1,1,1], \"status\": \"coasting\"}\n\n",
+      "T.jsonl");
+  ASSERT_EQ(tracks.size(), 1u);
+  EXPECT_EQ(tracks[0].id, 3);
+  EXPECT_EQ(tracks[0].status, "coasting");
+  const auto doas = parse_doas(
+      "{\"t\": 1.5, \"array\": \"A1\", \"direction\": [0,0,1], \"azimuth_deg\": 0, "
+      "\"elevation_deg\": 90, \"quality\": 0.5}\n",
+      "D.jsonl");
+  ASSERT_EQ(doas.size(), 1u);
+  EXPECT_EQ(doas[0].array, "A1");
+}
+
+TEST(EvalReaders, BadInputNamesFileLineAndKey) {
+  const std::string good =
+      "{\"t\": 1, \"id\": 1, \"position_m\": [1,2,3], \"status\": \"confirmed\"}\n";
+  EXPECT_EQ(expect_input_error([&] {
+              parse_tracks(good + good + "{\"t\": 1, \"id\": 1, \"position_m\": [1,2]}\n",
+                           "T.jsonl");
+            }),
+            "T.jsonl:3: position_m: expected 3 numbers, got a list of 2");
+  EXPECT_NE(expect_input_error([&] {
+              parse_tracks(good + "{\"t\": 1,\n", "T.jsonl");
+            }).find("T.jsonl:2: invalid JSON"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_tracks("{\"t\": 1, \"id\": 1, \"position_m\": [1,2,3], \"status\": \"lost\"}",
+                           "T.jsonl");
+            }).find("T.jsonl:1: status: unknown value \"lost\""),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas("{\"t\": 1, \"direction\": [1,0,0]}", "D.jsonl");
+            }).find("D.jsonl:1: array: required string is missing"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_truth(R"({"sources": [{"id": "D1", "t": [0, 1, 2],
+                  "position_m": [[1,2,3],[1,2,4]]}]})",
+                          "truth.json");
+            }).find("truth.json: sources[0].position_m: has 2 rows but t has 3"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_truth(R"({"sources": [{"id": "D1", "t": [0, 1, 1],
+                  "position_m": [[1,2,3],[1,2,4],[1,2,5]]}]})",
+                          "truth.json");
+            }).find("truth.json: sources[0].t[2]: times must be increasing"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([] {
+              parse_truth("{\n\"sources\": [}", "truth.json");
+            }).find("truth.json:2: invalid JSON"),
+            std::string::npos);
+}
+
+TEST(EvalReport, TableAndJsonCarryTheFigures) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {10, 0, 20}, {2, 0, 0}, 2.0));
+  const auto tracks = follow(truth.sources[0], 7, {0, 0, 1}, 0.0, 2.0);
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  const std::string table = format_table(report);
+  EXPECT_NE(table.find("D1"), std::string::npos);
+  EXPECT_NE(table.find("100.00%"), std::string::npos);
+  const auto json = to_json(report);
+  EXPECT_NEAR(json["position"]["rmse_3d_m"].get<double>(), 1.0, 1e-9);
+  EXPECT_EQ(json["sources"][0]["track_ids"][0].get<int>(), 7);
+}
+
+// The command end to end: files in, table out; a bad file is one line and exit 1.
+TEST(EvalCommand, RunsOnFilesAndRejectsBadOnes) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("dronetrack_eval_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream truth(dir / "truth.json");
+    truth
+        << R"({"sources": [{"id": "D1", "t": [0, 1, 2], "position_m": [[0,0,10],[1,0,10],[2,0,10]],
+                "doa": {"A1": {"direction": [[0,0,1],[0,0,1],[0,0,1]]}}}]})";
+    std::ofstream tracks(dir / "tracks.jsonl");
+    for (int k = 0; k <= 20; ++k) {
+      tracks << "{\"t\": " << k * 0.1 << ", \"id\": 1, \"position_m\": [" << k * 0.1
+             << ", 0, 11], \"status\": \"confirmed\"}\n";
+    }
+    std::ofstream bad(dir / "bad.jsonl");
+    bad << "{\"t\": 0, \"id\": 1, \"position_m\": [0, 0, 10], \"status\": \"confirmed\"}\n"
+        << "{\"t\": 0.1, \"id\": \"one\", \"position_m\": [0, 0, 10]}\n";
+  }
+  const std::string binary = DRONETRACK_BINARY;
+  const std::string base = binary + " eval --truth " + (dir / "truth.json").string();
+  const std::string json_path = (dir / "report.json").string();
+  EXPECT_EQ(std::system((base + " --tracks " + (dir / "tracks.jsonl").string() + " --json " +
+                         json_path + " > " + (dir / "out.txt").string())
+                            .c_str()),
+            0);
+  std::ifstream report_file(json_path);
+  std::stringstream report_text;
+  report_text << report_file.rdbuf();
+  const auto json = nlohmann::json::parse(report_text.str());
+  EXPECT_NEAR(json["position"]["rmse_3d_m"].get<double>(), 1.0, 1e-9);
+  const int status = std::system((base + " --tracks " + (dir / "bad.jsonl").string() + " 2> " +
+                                  (dir / "err.txt").string() + " > /dev/null")
+                                     .c_str());
+  EXPECT_NE(status, 0);
+  std::ifstream error_file(dir / "err.txt");
+  std::string first_line;
+  std::getline(error_file, first_line);
+  EXPECT_NE(first_line.find("bad.jsonl:2: id"), std::string::npos) << first_line;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace dronetrack::eval
