@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -159,6 +160,15 @@ void HttpServer::start() {
   server_->new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
   // A stuck client's write fails after this long; its queue has long since been dropped.
   server_->set_write_timeout(2, 0);
+  // httplib's default adds SO_REUSEPORT, which would let a second server silently share the
+  // port. A modest send buffer (inherited by accepted sockets) bounds what a stuck client can
+  // absorb before its writes block and it is cut off.
+  server_->set_socket_options([](socket_t sock) {
+    const int yes = 1;
+    const int send_buffer_bytes = 128 * 1024;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+    ::setsockopt(sock, SOL_SOCKET, SO_SNDBUF, &send_buffer_bytes, sizeof(send_buffer_bytes));
+  });
   server_->set_keep_alive_timeout(2);
   install_routes();
 
@@ -175,7 +185,15 @@ void HttpServer::start() {
                              (error != 0 ? std::string(": ") + std::strerror(error) : ""));
   }
   stopping_ = false;
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  auto listen_ended = std::make_shared<std::atomic<bool>>(false);
+  thread_ = std::thread([this, listen_ended] {
+    server_->listen_after_bind();
+    *listen_ended = true;
+  });
+  // httplib's stop() is a no-op until the listen loop runs; wait for it so stop() always works.
+  while (!server_->is_running() && !*listen_ended) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
 }
 
 void HttpServer::stop() {
