@@ -1,0 +1,258 @@
+// Browser test of the operator page: synthesises a short scene with `dronetrack sim`, serves it
+// with `dronetrack replay --realtime --http`, drives Debian's Chromium through playwright-core
+// and checks what an operator would look for. Saves screenshots.
+//
+//   node browser_test.mjs --dronetrack PATH/dronetrack --out DIR [--keep]
+//
+// Exit status 0 on success; any failed check prints one line and exits 1.
+import { spawn, spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const webRoot = path.resolve(here, '..');
+
+function arg(name, fallback) {
+  const i = process.argv.indexOf(name);
+  return i >= 0 && i + 1 < process.argv.length ? process.argv[i + 1] : fallback;
+}
+const dronetrack = arg('--dronetrack', process.env.DRONETRACK_BINARY);
+const outDir = path.resolve(arg('--out', process.cwd()));
+const chromiumPath = arg('--chromium', '/usr/bin/chromium');
+const keep = process.argv.includes('--keep');
+
+function fail(message) {
+  console.error(`browser test: FAIL: ${message}`);
+  process.exitCode = 1;
+  throw new Error(message);
+}
+function log(message) {
+  console.log(`browser test: ${message}`);
+}
+
+// playwright-core is installed by scripts/install-deps.sh (npm install in web/test); say so
+// plainly instead of skipping.
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch {
+  console.error(`browser test: FAIL: playwright-core is not installed in ${here}/node_modules; ` +
+                `run 'npm install' in web/test (scripts/install-deps.sh --tests does it)`);
+  process.exit(1);
+}
+if (!dronetrack || !fs.existsSync(dronetrack)) {
+  console.error(`browser test: FAIL: dronetrack binary not found ('${dronetrack}'); pass --dronetrack PATH`);
+  process.exit(1);
+}
+if (!fs.existsSync(chromiumPath)) {
+  console.error(`browser test: FAIL: Chromium not found at ${chromiumPath} (apt-get install chromium)`);
+  process.exit(1);
+}
+
+// A 28 s perimeter scene: four arrays on the corners of a 200 m square, one drone flying east
+// at 8 m/s, 35 m up, entering the 100 m "inner-yard" zone at about x = -50 m (t ~ 10 s). Array
+// N4's recording stops at 12 s, so that node goes stale.
+const tetra = [[0, 0, 0.5], [0.4714, 0, -0.1667], [-0.2357, 0.4082, -0.1667], [-0.2357, -0.4082, -0.1667]];
+const scenario = {
+  description: 'browser test: one drone entering the inner yard; N4 stops at 12 s',
+  seed: 11,
+  sample_rate_hz: 48000,
+  duration_s: 28,
+  ground: { reflection_coefficient: 0.5 },
+  site: {
+    speed_of_sound_mps: 343.0,
+    arrays: [
+      { id: 'N1', position_m: [-100, -100, 2], yaw_deg: 45, mics_m: tetra },
+      { id: 'N2', position_m: [100, -100, 2], yaw_deg: 135, mics_m: tetra },
+      { id: 'N3', position_m: [100, 100, 2], yaw_deg: -135, mics_m: tetra },
+      { id: 'N4', position_m: [-100, 100, 2], yaw_deg: -45, mics_m: tetra, recording_end_s: 12 },
+    ],
+    zones: [{ name: 'inner-yard', polygon_m: [[-50, -50], [50, -50], [50, 50], [-50, 50]], altitude_m: [0, 150] }],
+  },
+  sources: [{
+    id: 'D1', kind: 'drone', level_db: 95,
+    signal: { type: 'rotor', blade_pass_hz: 150, rpm_wander: 0.02, harmonics: 50, slope_db_per_octave: -2, broadband_db: -8 },
+    trajectory: { type: 'straight', start_m: [-130, 10, 35], end_m: [100, 10, 35], speed_mps: 8 },
+  }],
+  noise: { sensor: { level_db: 30 }, ambient: { level_db: 42 }, wind: { level_db: 55 } },
+};
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const server = net.createServer();
+    server.once('error', reject);
+    server.listen(0, '127.0.0.1', () => {
+      const { port } = server.address();
+      server.close(() => resolve(port));
+    });
+  });
+}
+
+async function waitFor(what, predicate, timeoutMs, stepMs = 100) {
+  const deadline = Date.now() + timeoutMs;
+  for (;;) {
+    const value = await predicate();
+    if (value) return value;
+    if (Date.now() > deadline) fail(`timed out after ${timeoutMs / 1000} s waiting for ${what}`);
+    await new Promise((r) => setTimeout(r, stepMs));
+  }
+}
+
+const work = fs.mkdtempSync(path.join(os.tmpdir(), 'dronetrack-browser-'));
+let replay = null;
+let context = null;
+const replayLog = [];
+try {
+  fs.mkdirSync(outDir, { recursive: true });
+  fs.writeFileSync(path.join(work, 'scenario.json'), JSON.stringify(scenario, null, 2));
+  const t0 = Date.now();
+  const sim = spawnSync(dronetrack, ['sim', path.join(work, 'scenario.json'), '--out', path.join(work, 'scene')],
+                        { encoding: 'utf8' });
+  if (sim.status !== 0) fail(`dronetrack sim exited ${sim.status}: ${(sim.stderr || '').trim().split('\n').pop()}`);
+  log(`scene synthesised in ${((Date.now() - t0) / 1000).toFixed(1)} s`);
+
+  const port = await freePort();
+  const url = `http://127.0.0.1:${port}/`;
+  replay = spawn(dronetrack, ['replay', path.join(work, 'scene', 'site.json'), '--realtime',
+                              '--http', `127.0.0.1:${port}`, '--tracks-out', path.join(work, 'tracks.jsonl')],
+                 { env: { ...process.env, DRONETRACK_WEB_ROOT: webRoot }, stdio: ['ignore', 'pipe', 'pipe'] });
+  let replayExit = null;
+  replay.on('exit', (code, signal) => { replayExit = { code, signal }; });
+  for (const stream of [replay.stdout, replay.stderr]) {
+    stream.setEncoding('utf8');
+    stream.on('data', (chunk) => replayLog.push(chunk));
+  }
+  await waitFor('the replay to serve', () => {
+    if (replayExit) fail(`replay exited early (${JSON.stringify(replayExit)}): ${replayLog.join('').trim().split('\n').pop()}`);
+    return replayLog.join('').includes('serving');
+  }, 20000);
+  const replayStart = Date.now();
+  log(`replay serving ${url}`);
+
+  context = await chromium.launchPersistentContext(path.join(work, 'profile'), {
+    executablePath: chromiumPath,
+    headless: true,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+    viewport: { width: 1280, height: 800 },
+  });
+  const page = context.pages()[0] || await context.newPage();
+  const pageErrors = [];
+  page.on('pageerror', (e) => pageErrors.push(e.message));
+  page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(m.text()); });
+  // Nothing may be fetched from anywhere but this server (the appliance is offline).
+  const foreign = [];
+  page.on('request', (r) => { if (!r.url().startsWith(url)) foreign.push(r.url()); });
+  await page.goto(url);
+
+  // 1. The arrays appear on the plan, with the site's ids.
+  await page.waitForSelector('#plan [data-array-id]', { timeout: 10000 });
+  const arrayIds = await page.$$eval('#plan [data-array-id]', (els) => els.map((e) => e.dataset.arrayId).sort());
+  if (JSON.stringify(arrayIds) !== JSON.stringify(['N1', 'N2', 'N3', 'N4'])) fail(`arrays on the plan: ${arrayIds}`);
+  if (await page.locator('#plan [data-zone="inner-yard"]').count() !== 1) fail('zone inner-yard not drawn');
+  if (await page.locator('#scale-bar').count() !== 1 || await page.locator('#north-arrow').count() !== 1) {
+    fail('scale bar or north arrow missing');
+  }
+  log(`arrays on the plan: ${arrayIds.join(' ')}`);
+
+  // 2. A track appears and moves.
+  const trackPosition = () => page.evaluate(() => {
+    const tracks = [...window.dronetrack.state.tracks.values()].filter((t) => t.status !== 'tentative');
+    return tracks.length ? { id: tracks[0].id, x: tracks[0].position_m[0], y: tracks[0].position_m[1], t: tracks[0].t } : null;
+  });
+  const first = await waitFor('a confirmed track on the plan', async () => {
+    const p = await trackPosition();
+    return p && (await page.locator(`#plan [data-track-id="${p.id}"]`).count()) === 1 ? p : null;
+  }, 25000);
+  log(`track T${first.id} at (${first.x.toFixed(1)}, ${first.y.toFixed(1)}) m, t = ${first.t.toFixed(1)} s`);
+  const moved = await waitFor('the track to move', async () => {
+    const p = await trackPosition();
+    return p && p.t >= first.t + 2 && Math.hypot(p.x - first.x, p.y - first.y) > 5 ? p : null;
+  }, 10000);
+  log(`track T${moved.id} moved to (${moved.x.toFixed(1)}, ${moved.y.toFixed(1)}) m, t = ${moved.t.toFixed(1)} s`);
+  if (!(moved.x > first.x)) fail(`the drone flies east but the track went from x ${first.x} to ${moved.x}`);
+  if (await page.locator('#plan polyline.trail').count() < 1) fail('no trail drawn');
+  if (await page.locator('#plan .track ellipse').count() < 1) fail('no uncertainty ellipse drawn');
+  if (await page.locator('#altitude polyline').count() < 1) fail('no altitude line drawn');
+
+  // 3. Selecting it (from the list) fills the panel with plausible numbers.
+  await page.click(`#track-list li[data-track-id="${moved.id}"]`);
+  await page.waitForSelector(`#selected-track[data-track-id="${moved.id}"]`, { timeout: 3000 });
+  const field = (name) => page.$eval(`#selected-track [data-field="${name}"]`, (e) => ({ text: e.textContent, value: e.dataset.value }));
+  const altitude = Number((await field('altitude')).value);
+  const speed = Number((await field('speed')).value);
+  const heading = Number((await field('heading')).value);
+  const uncertainty = Number((await field('uncertainty')).value);
+  const [px, py] = (await field('position')).value.split(',').map(Number);
+  const heard = (await field('arrays')).value.split(',').filter(Boolean);
+  log(`selected T${moved.id}: position (${px.toFixed(1)}, ${py.toFixed(1)}) m, altitude ${altitude.toFixed(1)} m, ` +
+      `speed ${speed.toFixed(1)} m/s, heading ${heading.toFixed(0)} deg, max 1-sigma ${uncertainty.toFixed(1)} m, ` +
+      `heard by ${heard.join(' ')}`);
+  if (!(altitude > 15 && altitude < 60)) fail(`altitude ${altitude} m (truth 35 m)`);
+  if (!(speed > 3 && speed < 15)) fail(`speed ${speed} m/s (truth 8 m/s)`);
+  if (!(Math.abs(((heading - 90 + 540) % 360) - 180) < 35)) fail(`heading ${heading} deg (truth 90, east)`);
+  if (!(Math.abs(py - 10) < 25 && px > -160 && px < 120)) fail(`position (${px}, ${py}) off the flight line y = 10 m`);
+  if (!(uncertainty > 0 && uncertainty < 50)) fail(`uncertainty ${uncertainty} m`);
+  if (heard.length < 2 || !heard.every((id) => ['N1', 'N2', 'N3', 'N4'].includes(id))) fail(`heard by '${heard}'`);
+  // Clicking the track on the plan selects it too.
+  await page.click(`#plan [data-track-id="${moved.id}"] circle`, { force: true });
+  if (await page.getAttribute('#selected-track', 'data-track-id') !== String(moved.id)) fail('clicking the plan did not select');
+
+  // 4. The zone alert reaches the banner.
+  await page.waitForSelector('#alert-banner:not([hidden])[data-zone="inner-yard"][data-event="entered"]', { timeout: 25000 });
+  const banner = (await page.textContent('#alert-text')).trim();
+  log(`banner: ${banner}`);
+  if (await page.locator('#alert-log li[data-zone="inner-yard"]').count() < 1) fail('alert not in the log');
+
+  // 5. N4 stopped at 12 s: shown stale in the node table and on the plan; the others alive.
+  await page.waitForSelector('#node-rows tr[data-node-id="N4"][data-node-state="stale"]', { timeout: 25000 });
+  await page.waitForSelector('#plan [data-array-id="N4"][data-node-state="stale"]', { timeout: 3000 });
+  const states = await page.$$eval('#node-rows tr', (rows) => rows.map((r) => `${r.dataset.nodeId}:${r.dataset.nodeState}`));
+  log(`nodes: ${states.join(' ')}`);
+  for (const id of ['N1', 'N2', 'N3']) if (!states.includes(`${id}:alive`)) fail(`${id} should be alive: ${states}`);
+
+  // Pan and zoom change the view.
+  const before = await page.evaluate(() => ({ ...window.dronetrack.state.view }));
+  await page.click('#zoom-in');
+  const box = await page.locator('#plan').boundingBox();
+  await page.mouse.move(box.x + box.width / 2, box.y + 60);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width / 2 + 80, box.y + 100, { steps: 5 });
+  await page.mouse.up();
+  const after = await page.evaluate(() => ({ ...window.dronetrack.state.view }));
+  if (!(after.scale > before.scale * 1.2 && Math.abs(after.cx - before.cx) > 1)) fail(`pan/zoom: ${JSON.stringify([before, after])}`);
+  await page.click('#zoom-fit');
+  await page.waitForTimeout(300);
+
+  const shot = path.join(outDir, 'browser_test_1280x800.png');
+  await page.screenshot({ path: shot });
+  log(`screenshot ${shot}`);
+
+  // Tablet width: no horizontal scrolling, the plan still large.
+  await page.setViewportSize({ width: 800, height: 1100 });
+  await page.waitForTimeout(400);
+  const layout = await page.evaluate(() => ({
+    scrollWidth: document.documentElement.scrollWidth,
+    plan: document.getElementById('plan').getBoundingClientRect().width,
+  }));
+  if (layout.scrollWidth > 800 || layout.plan < 700) fail(`tablet layout: ${JSON.stringify(layout)}`);
+  const tablet = path.join(outDir, 'browser_test_800.png');
+  await page.screenshot({ path: tablet, fullPage: true });
+  log(`screenshot ${tablet}`);
+
+  if (pageErrors.length) fail(`page errors: ${pageErrors.join(' | ')}`);
+  if (foreign.length) fail(`requests outside the server: ${foreign.join(' ')}`);
+  log(`PASS in ${((Date.now() - replayStart) / 1000).toFixed(1)} s of replay`);
+} catch (error) {
+  if (!process.exitCode) console.error(`browser test: FAIL: ${error.message}`);
+  process.exitCode = 1;
+  const tail = replayLog.join('').trim().split('\n').slice(-5).join('\n');
+  if (tail) console.error(`replay output (last lines):\n${tail}`);
+} finally {
+  if (context) await context.close().catch(() => {});
+  if (replay && replay.exitCode === null) replay.kill('SIGINT');
+  if (!keep) fs.rmSync(work, { recursive: true, force: true });
+}
