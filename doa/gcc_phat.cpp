@@ -90,6 +90,17 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
     max_half_span = std::max(max_half_span, half_span);
   }
   grid_stride_ = 2 * max_half_span + 1;
+  // Kernel table: offsets up to two maximal lags (two sources at opposite ends), 1/8 grid step.
+  kernel_step_s_ = lag_step_s_ / 8.0;
+  const int kernel_size = 16 * (2 * max_half_span + 2) + 2;
+  kernel_table_.resize(static_cast<std::size_t>(kernel_size));
+  for (int n = 0; n < kernel_size; ++n) {
+    double sum = 0.0;
+    for (const BandRun& run : runs_)
+      for (int k = run.first_bin; k <= run.last_bin; ++k)
+        sum += std::cos(k * bin_omega_ * n * kernel_step_s_);
+    kernel_table_[static_cast<std::size_t>(n)] = sum / band_bins_;
+  }
   grids_.assign(static_cast<std::size_t>(grid_stride_) * pairs_.size(), 0.0);
   results_.assign(pairs_.size(), PairCorrelation{});
   phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
@@ -195,6 +206,14 @@ double GccPhat::tdoa_variance_for_peak(double peak_value) const {
   const double rho = std::clamp(peak_value, 0.02, 0.999);
   const double phase_variance = -2.0 * std::log(rho);
   return bin_correlation_ * phase_variance / sum_omega2_;
+}
+
+double GccPhat::phat_kernel(double offset_s) const {
+  const double position = std::abs(offset_s) / kernel_step_s_;
+  const auto below = static_cast<std::size_t>(position);
+  if (below + 1 >= kernel_table_.size()) return 0.0;
+  const double fraction = position - static_cast<double>(below);
+  return kernel_table_[below] * (1.0 - fraction) + kernel_table_[below + 1] * fraction;
 }
 
 double GccPhat::value_at(int pair, double lag_s) const {

@@ -84,6 +84,10 @@ class GccPhat {
   int top_peaks(int pair, std::span<GccPeak> out) const;
   // |G|-weighted correlation at a lag: the share of the in-band power coherent at that lag.
   double coherence_at(int pair, double lag_s) const;
+  // The correlation a single ideal source puts at `offset_s` from its own lag (peak 1): the
+  // PHAT-whitened band's autocorrelation, (1/K) sum_k cos(w_k offset). Tabulated; used to
+  // subtract found sources before looking for the next (SrpPhat).
+  double phat_kernel(double offset_s) const;
   // Phase-noise TDOA variance for a given normalised peak value (exposed for the trackers).
   double tdoa_variance_for_peak(double peak_value) const;
 
@@ -110,6 +114,8 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
+  std::vector<double> kernel_table_;  // phat_kernel at multiples of kernel_step_s_ from 0
+  double kernel_step_s_ = 0.0;
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
   int grid_stride_ = 0;
   std::unique_ptr<Inverse> inverse_;

@@ -5,6 +5,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
@@ -54,6 +55,10 @@ LsDoaSolver::LsDoaSolver(const ArrayGeometry& geometry, const LsDoaSettings& set
       scatter += delta * delta.transpose();
     }
   }
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& mic : geometry.mics_m) centroid += mic;
+  centroid /= mics;
+  for (const Eigen::Vector3d& mic : geometry.mics_m) mics_centred_m_.push_back(mic - centroid);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
   const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
   rank_ = 0;
@@ -77,6 +82,81 @@ double LsDoaSolver::pair_variance(const PairTdoa& tdoa) const {
     return 0.0;
   return tdoa.variance_s2 + position_variance_s2_ +
          settings_.timing_floor_s * settings_.timing_floor_s;
+}
+
+double LsDoaSolver::arrival_s(const Eigen::Vector3d& u, double kappa, int mic) const {
+  // (|r u - m| - r) / c with r = 1 / kappa, written to stay exact as kappa -> 0.
+  const Eigen::Vector3d& position = mics_centred_m_[static_cast<std::size_t>(mic)];
+  const double along = u.dot(position);
+  const double squared = position.squaredNorm();
+  if (std::abs(kappa) < 1e-9)
+    return (-along + 0.5 * kappa * (squared - along * along)) / settings_.speed_of_sound_mps;
+  const double root =
+      std::sqrt(std::max(1e-12, 1.0 - 2.0 * kappa * along + kappa * kappa * squared));
+  return (root - 1.0) / kappa / settings_.speed_of_sound_mps;
+}
+
+bool LsDoaSolver::refine_near_field(std::span<const PairTdoa> tdoas, int skip_pair,
+                                    Eigen::Vector3d& direction_array, Eigen::Matrix3d& covariance,
+                                    double& chi2) const {
+  const double kappa_std = settings_.near_field_kappa_std_per_m;
+  const std::size_t count = std::min(pair_vectors_.size(), tdoas.size());
+  Eigen::Vector3d u = direction_array;
+  double kappa = 0.0;
+  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d tangent_1;
+  Eigen::Vector3d tangent_2;
+  auto model = [&](const Eigen::Vector3d& direction, double curvature, std::size_t p) {
+    return arrival_s(direction, curvature, pair_mics_[p].first) -
+           arrival_s(direction, curvature, pair_mics_[p].second);
+  };
+  constexpr double kAngleStep = 1e-6;
+  constexpr double kKappaStep = 1e-5;
+  for (int iteration = 0; iteration < 4; ++iteration) {
+    // Tangent basis at u; parameters (alpha, beta, kappa) with u(alpha, beta) on the sphere.
+    tangent_1 = u.unitOrthogonal();
+    tangent_2 = u.cross(tangent_1);
+    information = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
+    information(2, 2) = 1.0 / (kappa_std * kappa_std);
+    gradient(2) = kappa / (kappa_std * kappa_std);
+    for (std::size_t p = 0; p < count; ++p) {
+      if (static_cast<int>(p) == skip_pair) continue;
+      const double variance = pair_variance(tdoas[p]);
+      if (variance <= 0.0) continue;
+      const double value = model(u, kappa, p);
+      const Eigen::Vector3d row(
+          (model((u + kAngleStep * tangent_1).normalized(), kappa, p) - value) / kAngleStep,
+          (model((u + kAngleStep * tangent_2).normalized(), kappa, p) - value) / kAngleStep,
+          (model(u, kappa + kKappaStep, p) - value) / kKappaStep);
+      const double residual = value - tdoas[p].tdoa_s;
+      information += row * row.transpose() / variance;
+      gradient += row * residual / variance;
+    }
+    const Eigen::Vector3d step = -information.ldlt().solve(gradient);
+    if (!step.allFinite()) return false;
+    u = (u + step(0) * tangent_1 + step(1) * tangent_2).normalized();
+    kappa += step(2);
+    if (step.head<2>().norm() < 1e-10) break;
+  }
+  // A curvature far beyond its prior is the fit bending lobes of different sources together,
+  // not a close source: keep the plane wave (and let its residual judge it).
+  if (!(std::abs(kappa) <= 3.0 * kappa_std)) return false;
+  const Eigen::Matrix3d parameter_covariance = information.inverse();
+  Eigen::Matrix<double, 3, 2> tangent;
+  tangent << tangent_1, tangent_2;
+  covariance = tangent * parameter_covariance.topLeftCorner<2, 2>() * tangent.transpose();
+  if (!covariance.allFinite()) return false;
+  direction_array = u;
+  chi2 = (kappa / kappa_std) * (kappa / kappa_std);
+  for (std::size_t p = 0; p < count; ++p) {
+    if (static_cast<int>(p) == skip_pair) continue;
+    const double variance = pair_variance(tdoas[p]);
+    if (variance <= 0.0) continue;
+    const double residual = model(u, kappa, p) - tdoas[p].tdoa_s;
+    chi2 += residual * residual / variance;
+  }
+  return true;
 }
 
 DoaSolution LsDoaSolver::solve(std::span<const PairTdoa> tdoas) const {
@@ -135,6 +215,7 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
 
   Eigen::Vector3d direction_array;
   Eigen::Matrix3d direction_covariance;  // array frame, before the chi^2 inflation
+  double near_field_chi2 = -1.0;         // set when the spherical-wavefront fit was used
   if (dimensions == 3) {
     if (std::abs(norm - 1.0) > settings_.max_norm_error) return solution;
     const Eigen::Vector3d u = v / norm;
@@ -142,6 +223,14 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
     const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - u * u.transpose();
     direction_covariance =
         basis * (tangent * inverse * tangent) * basis.transpose() / (norm * norm);
+    if (settings_.near_field_kappa_std_per_m > 0.0) {
+      Eigen::Vector3d refined = direction_array;
+      Eigen::Matrix3d refined_covariance;
+      if (refine_near_field(tdoas, skip_pair, refined, refined_covariance, near_field_chi2)) {
+        direction_array = refined;
+        direction_covariance = refined_covariance;
+      }
+    }
   } else if (dimensions == 2) {
     if (norm > 1.0 + settings_.max_norm_error) return solution;
     const Eigen::Vector2d in_plane = v.head<2>() / std::max(norm, 1.0);
@@ -172,13 +261,14 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
   direction_array.normalize();
 
   double chi2 = 0.0;
-  for (std::size_t p = 0; p < count; ++p) {
+  for (std::size_t p = 0; p < count && near_field_chi2 < 0.0; ++p) {
     if (static_cast<int>(p) == skip_pair) continue;
     const double variance = pair_variance(tdoas[p]);
     if (variance <= 0.0) continue;
     const double residual = tdoas[p].tdoa_s + pair_vectors_[p].dot(direction_array);
     chi2 += residual * residual / variance;
   }
+  if (near_field_chi2 >= 0.0) chi2 = near_field_chi2;
   const int dof = std::max(1, used - dimensions);
   solution.chi2_per_dof = chi2 / dof;
   if (!(solution.chi2_per_dof <= settings_.max_chi2_per_dof)) return solution;

@@ -28,6 +28,12 @@ struct LsDoaSettings {
   double max_norm_error = 0.25;    // reject when ||A^-1 b| - 1| exceeds this (rank 3)
   double max_chi2_per_dof = 30.0;  // reject when the fit residual exceeds this
   double timing_floor_s = 0.5e-6;  // added in quadrature to every pair's TDOA std
+  // Near field: a source at range r bends the wavefront across the array by ~|p|^2 / (2 r c),
+  // tens of microseconds at 20 m for a 0.5 m arm. A tetrahedron (not centrally symmetric) turns
+  // that curvature into a direction bias of ~0.2-0.3 deg, so (for 3-D arrays) the plane-wave
+  // solution is refined with a spherical wavefront, curvature kappa = 1/r a nuisance parameter
+  // with a zero-mean prior of this standard deviation (1/m). 0 disables.
+  double near_field_kappa_std_per_m = 0.05;
 };
 
 struct DoaSolution {
@@ -64,6 +70,11 @@ class LsDoaSolver {
 
  private:
   DoaSolution solve_once(std::span<const PairTdoa> tdoas, int skip_pair) const;
+  // Gauss-Newton on (direction, kappa) from the plane-wave direction; false if it diverged.
+  bool refine_near_field(std::span<const PairTdoa> tdoas, int skip_pair,
+                         Eigen::Vector3d& direction_array, Eigen::Matrix3d& covariance,
+                         double& chi2) const;
+  double arrival_s(const Eigen::Vector3d& direction_array, double kappa, int mic) const;
   double pair_variance(const PairTdoa& tdoa) const;
 
   LsDoaSettings settings_;
@@ -71,7 +82,8 @@ class LsDoaSolver {
   std::vector<Eigen::Vector3d> pair_vectors_;  // (p_i - p_j) / c, array frame, s/unit
   std::vector<std::pair<int, int>> pair_mics_;
   std::vector<double> max_lags_s_;
-  double position_variance_s2_ = 0.0;  // TDOA variance from mic position uncertainty
+  std::vector<Eigen::Vector3d> mics_centred_m_;  // array frame, relative to the mic centroid
+  double position_variance_s2_ = 0.0;            // TDOA variance from mic position uncertainty
   int rank_ = 0;
   Eigen::Matrix3d subspace_;  // columns: principal axes of the geometry, strongest first
 };

@@ -88,8 +88,6 @@ struct NodePipeline::Impl {
     tdoas.resize(static_cast<std::size_t>(solver.pair_count()));
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
-      // One more peak than sources: the strongest SRP peak is usually the tracked source.
-      srp_peaks.resize(static_cast<std::size_t>(params.max_sources + 1));
     }
   }
 
@@ -102,7 +100,6 @@ struct NodePipeline::Impl {
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
   double mean_coherence(std::span<const PairTdoa> used) const;
-  bool is_ghost(const Eigen::Vector3d& direction_site) const;
   double inband_power() const;
   bool publish(const DoaSolution& solution, double time_s, std::span<const PairTdoa> used,
                int source_index, std::vector<DoaMeasurement>& out);
@@ -121,7 +118,6 @@ struct NodePipeline::Impl {
   std::vector<BandRun> band;
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
-  std::vector<SrpPeak> srp_peaks;
   std::vector<PairTdoa> tdoas;
   std::array<Candidate, kMaxSources> candidates{};
   int candidate_count = 0;
@@ -172,26 +168,6 @@ double NodePipeline::Impl::mean_coherence(std::span<const PairTdoa> used) const 
   return count > 0 ? sum / count : 0.0;
 }
 
-bool NodePipeline::Impl::is_ghost(const Eigen::Vector3d& direction_site) const {
-  // A combination of one source's lags on some pairs and its neighbouring correlation lobes
-  // (one carrier period away) on others can form a plausible plane wave: an SRP ghost. A real
-  // second source differs from the first in the lags of most pairs.
-  const Eigen::Vector3d direction = solver.array_to_site().transpose() * direction_site;
-  for (int s = 0; s < candidate_count; ++s) {
-    const Eigen::Vector3d other = solver.array_to_site().transpose() *
-                                  candidates[static_cast<std::size_t>(s)].solution.direction_site;
-    int shared = 0;
-    for (int p = 0; p < solver.pair_count(); ++p) {
-      shared += std::abs(solver.tdoa_for_direction(p, direction) -
-                         solver.tdoa_for_direction(p, other)) < 2.0 * gcc.lag_step_s()
-                    ? 1
-                    : 0;
-    }
-    if (2 * shared >= solver.pair_count()) return true;
-  }
-  return false;
-}
-
 void NodePipeline::Impl::find_candidates() {
   candidate_count = 0;
   Candidate& primary = candidates[0];
@@ -202,27 +178,39 @@ void NodePipeline::Impl::find_candidates() {
     ++candidate_count;
   }
   if (!srp) return;
-  const int peaks = srp->find_peaks(gcc, params.srp_min_separation_deg, srp_peaks);
+  srp->begin_frame(gcc);
+  double reference_power = 0.0;  // the strongest source's mean correlation value
+  if (candidate_count > 0) {
+    srp->subtract(gcc, tdoas);
+    for (const PairTdoa& tdoa : tdoas) reference_power += tdoa.peak_value;
+    reference_power /= static_cast<double>(tdoas.size());
+  }
   const double separation_cosine =
       std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
-  for (int k = 0; k < peaks && candidate_count < params.max_sources; ++k) {
-    const SrpPeak& peak = srp_peaks[static_cast<std::size_t>(k)];
-    if (peak.power < params.srp_min_relative_power * srp_peaks[0].power ||
+  // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
+  for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
+       ++look) {
+    SrpPeak peak;
+    if (!srp->strongest(peak)) break;
+    if (reference_power <= 0.0) reference_power = peak.power;
+    if (peak.power < params.srp_min_relative_power * reference_power ||
         peak.power < params.min_gcc_peak)
       break;
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
     candidate.solution = solver.solve(candidate_tdoas);
-    if (!candidate.solution.accepted) continue;
-    bool duplicate = false;
-    for (int s = 0; s < candidate_count; ++s)
+    bool duplicate = !candidate.solution.accepted;
+    for (int s = 0; s < candidate_count && !duplicate; ++s)
       duplicate =
-          duplicate ||
           candidate.solution.direction_site.dot(
               candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
-    if (duplicate || is_ghost(candidate.solution.direction_site)) continue;
+    if (duplicate) {
+      srp->subtract_direction(gcc, peak.direction_array);
+      continue;
+    }
     candidate.coherence = mean_coherence(candidate_tdoas);
+    srp->subtract(gcc, candidate_tdoas);
     ++candidate_count;
   }
 }

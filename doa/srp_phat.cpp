@@ -54,38 +54,68 @@ SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
           static_cast<float>(std::clamp(position - below, 0.0, 1.0));
     }
   }
-  power_.resize(directions_.size());
-  suppressed_.resize(directions_.size());
+  int max_half_span = 0;
+  for (int p = 0; p < pairs_; ++p) max_half_span = std::max(max_half_span, gcc.half_span(p));
+  grid_stride_ = 2 * max_half_span + 1;
+  residual_.assign(static_cast<std::size_t>(grid_stride_) * static_cast<std::size_t>(pairs_), 0.0);
 }
 
-int SrpPhat::find_peaks(const GccPhat& gcc, double min_separation_deg, std::span<SrpPeak> out) {
+void SrpPhat::begin_frame(const GccPhat& gcc) {
+  for (int p = 0; p < pairs_; ++p) {
+    const std::span<const double> grid = gcc.grid(p);
+    std::copy(grid.begin(), grid.end(),
+              residual_.begin() + static_cast<std::ptrdiff_t>(p) * grid_stride_);
+  }
+}
+
+void SrpPhat::subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas) {
+  const double step = gcc.lag_step_s();
+  for (int p = 0; p < pairs_; ++p) {
+    const PairTdoa& tdoa = tdoas[static_cast<std::size_t>(p)];
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    const int half = gcc.half_span(p);
+    double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    for (int m = 0; m <= 2 * half; ++m)
+      residual[m] -= tdoa.peak_value * gcc.phat_kernel((m - half) * step - tdoa.tdoa_s);
+  }
+}
+
+void SrpPhat::subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array) {
+  const double step = gcc.lag_step_s();
+  for (int p = 0; p < pairs_; ++p) {
+    const int half = gcc.half_span(p);
+    double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    const double lag = solver_->tdoa_for_direction(p, direction_array);
+    const double position = std::clamp(lag / step + half, 0.0, 2.0 * half);
+    const int below = std::min(static_cast<int>(position), 2 * half - 1);
+    const double fraction = position - below;
+    const double value =
+        std::max(0.0, residual[below] * (1.0 - fraction) + residual[below + 1] * fraction);
+    for (int m = 0; m <= 2 * half; ++m)
+      residual[m] -= value * gcc.phat_kernel((m - half) * step - lag);
+  }
+}
+
+bool SrpPhat::strongest(SrpPeak& out) const {
+  std::size_t best = directions_.size();
+  double best_power = 0.0;
   for (std::size_t d = 0; d < directions_.size(); ++d) {
     double sum = 0.0;
     for (int p = 0; p < pairs_; ++p) {
       const std::size_t at = d * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
-      const std::span<const double> grid = gcc.grid(p);
+      const double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
       const double fraction = lag_fraction_[at];
       const auto below = static_cast<std::size_t>(lag_index_[at]);
-      sum += grid[below] * (1.0 - fraction) + grid[below + 1] * fraction;
+      sum += residual[below] * (1.0 - fraction) + residual[below + 1] * fraction;
     }
-    power_[d] = sum / pairs_;
-    suppressed_[d] = 0;
-  }
-  const double separation_cosine = std::cos(min_separation_deg * std::numbers::pi / 180.0);
-  int found = 0;
-  while (found < static_cast<int>(out.size())) {
-    std::size_t best = directions_.size();
-    for (std::size_t d = 0; d < directions_.size(); ++d) {
-      if (suppressed_[d] != 0) continue;
-      if (best == directions_.size() || power_[d] > power_[best]) best = d;
-    }
-    if (best == directions_.size() || !(power_[best] > 0.0)) break;
-    out[static_cast<std::size_t>(found++)] = {directions_[best], power_[best]};
-    for (std::size_t d = 0; d < directions_.size(); ++d) {
-      if (directions_[d].dot(directions_[best]) >= separation_cosine) suppressed_[d] = 1;
+    if (sum > best_power) {
+      best_power = sum;
+      best = d;
     }
   }
-  return found;
+  if (best == directions_.size()) return false;
+  out = {directions_[best], best_power / pairs_};
+  return true;
 }
 
 void SrpPhat::tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_array,

@@ -26,8 +26,16 @@ class SrpPhat {
   // frame's principal plane for planar arrays, whose mirror is ambiguous anyway).
   SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg);
 
-  // Up to out.size() maxima, strongest first, at least min_separation_deg apart.
-  int find_peaks(const GccPhat& gcc, double min_separation_deg, std::span<SrpPeak> out);
+  // Successive cancellation (CLEAN): start from this frame's correlations, take the strongest
+  // direction, subtract what that source explains (its peak value times the PHAT kernel around
+  // its lag on every pair), look again. Without it, the correlation lobes of one source one
+  // carrier period off on some pairs add up to ghost directions ~10 deg away.
+  void begin_frame(const GccPhat& gcc);
+  void subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas);
+  // Subtracts the source at a grid direction itself (a peak no TDOA fit could confirm).
+  void subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array);
+  // The strongest direction of what is left; false if nothing positive is left.
+  bool strongest(SrpPeak& out) const;
   // TDOAs of the correlation maxima nearest a direction's lags: input for LsDoaSolver.
   void tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_array,
                   std::span<PairTdoa> out) const;
@@ -39,8 +47,8 @@ class SrpPhat {
   std::vector<Eigen::Vector3d> directions_;
   std::vector<std::int32_t> lag_index_;  // directions x pairs: grid index below the lag
   std::vector<float> lag_fraction_;      // directions x pairs
-  std::vector<double> power_;
-  std::vector<std::uint8_t> suppressed_;
+  std::vector<double> residual_;         // pairs x grid_stride_
+  int grid_stride_ = 0;
 };
 
 }  // namespace dronetrack::doa

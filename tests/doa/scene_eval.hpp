@@ -1,0 +1,58 @@
+#pragma once
+// Accuracy of NodePipeline on simulated scenes (sim/ in-memory API), against the simulator's
+// truth directions at the DOA times. A frame counts as "audible" for a drone at an array when
+// that drone's in-band SNR (its own rendering against everything that is not a drone: sensor,
+// wind and ambient noise and interferers, = full scene minus all drones) is at least
+// `audible_snr_db`; a drone is "found" in a frame when a DOA of that frame lies within
+// `found_within_deg` of its true direction, and its error is that DOA's angle to the truth.
+#include <string>
+#include <vector>
+
+#include "doa/doa_params.hpp"
+#include "sim/render.hpp"
+#include "sim/scenario.hpp"
+
+namespace dronetrack::doa::testing {
+
+struct RenderedScenario {
+  sim::Scenario scenario;
+  sim::Truth truth;
+  std::vector<sim::RenderedArray> full;                      // per array
+  std::vector<std::vector<sim::RenderedArray>> drone_alone;  // per drone, per array (no noise)
+};
+RenderedScenario render_for_evaluation(const sim::Scenario& scenario);
+
+struct DroneAtArray {
+  std::string drone_id;
+  std::string array_id;
+  int audible_frames = 0;
+  int found_frames = 0;
+  std::vector<double> errors_deg;  // one per found frame
+  double median_deg() const;
+  double p90_deg() const;
+  double coverage() const {
+    return audible_frames > 0 ? double(found_frames) / audible_frames : 0.0;
+  }
+};
+
+struct SceneResult {
+  std::vector<DroneAtArray> cells;  // drone-major
+  int doas = 0;
+  int stray_doas = 0;  // DOAs within found_within_deg of no source (drone or interferer)
+  double seconds_processed = 0.0;
+  double seconds_cpu = 0.0;
+};
+
+struct EvaluationSettings {
+  double audible_snr_db = 6.0;
+  double found_within_deg = 3.0;
+};
+
+SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
+                     const EvaluationSettings& settings = {});
+
+// "| scene | tracker | array | drone | median | p90 | coverage |" rows.
+std::string format_rows(const std::string& scene, const std::string& tracker,
+                        const SceneResult& result);
+
+}  // namespace dronetrack::doa::testing
