@@ -22,6 +22,7 @@
     bannerAlert: null,
     view: { cx: 0, cy: 0, scale: 2 },  // centre (m) and pixels per metre
     fitted: false,
+    userView: false,     // the operator panned or zoomed: keep the view on resize
   };
 
   const $ = (id) => document.getElementById(id);
@@ -67,6 +68,7 @@
     state.view.cx = (minX + maxX) / 2;
     state.view.cy = (minY + maxY) / 2;
     state.view.scale = Math.max(0.05, Math.min((r.width - 80) / (w * 1.3), (r.height - 80) / (h * 1.3)));
+    state.userView = false;
     render();
   }
   function zoomAt(factor, sx, sy) {
@@ -75,6 +77,7 @@
     const [nx, ny] = toWorld(sx, sy);
     state.view.cx += wx - nx;
     state.view.cy += wy - ny;
+    state.userView = true;
     render();
   }
   $('zoom-in').addEventListener('click', () => { const r = plan.getBoundingClientRect(); zoomAt(1.4, r.width / 2, r.height / 2); });
@@ -101,6 +104,7 @@
     if (drag.moved) {
       state.view.cx = drag.cx - dx / state.view.scale;
       state.view.cy = drag.cy + dy / state.view.scale;
+      state.userView = true;
       render();
     }
   });
@@ -113,7 +117,7 @@
     drag = null;
     plan.releasePointerCapture(e.pointerId);
   });
-  window.addEventListener('resize', () => render());
+  window.addEventListener('resize', () => (state.userView ? render() : fitView()));
 
   function select(id) {
     state.selected = id;
@@ -325,7 +329,7 @@
       const cells = [
         n.array,
         n.state + (n.stale_reason ? ` (${n.stale_reason.replace('_', ' ')})` : ''),
-        n.status ? `${fmt(s.level_dbfs)} dBFS` : '–',
+        n.status ? fmt(s.level_dbfs) : '–',
         n.status ? `${s.clipped_samples}` : '–',
         n.status ? `${s.overruns}` : '–',
         doa ? `${fmt(doa.azimuth_deg, 0)}° / ${fmt(doa.elevation_deg, 0)}°` : '–',
