@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -250,6 +251,31 @@ TEST(PortAudioErrors, BadOptions) {
   settings.mics = 2;
   settings.block_frames = 0;
   EXPECT_EQ(error_of(settings), "PortAudio input: block size must be >= 1 frame");
+}
+
+// `dronetrack devices` run as a child: it inherits HOME, so it sees the test PCM too.
+std::string run_devices_command(const std::string& arguments) {
+  const std::string command = std::string(DRONETRACK_BINARY) + " devices " + arguments + " 2>&1";
+  std::string output;
+  if (FILE* pipe = ::popen(command.c_str(), "r")) {
+    char buffer[512];
+    while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
+    ::pclose(pipe);
+  }
+  return output;
+}
+
+TEST_F(TestCapture, DevicesCommandListsTheDevice) {
+  if (!fs::exists(DRONETRACK_BINARY)) GTEST_SKIP() << DRONETRACK_BINARY << " not built";
+  const std::string channels = std::to_string(device_->max_input_channels);
+  const std::string json = run_devices_command("--json");
+  EXPECT_NE(json.find(std::string("\"name\":\"") + kTestDevice + "\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"max_input_channels\":" + channels), std::string::npos) << json;
+  EXPECT_NE(json.find("\"host_api\":\"ALSA\""), std::string::npos) << json;
+  const std::string table = run_devices_command("");
+  EXPECT_NE(table.find("index"), std::string::npos) << table;
+  EXPECT_NE(table.find(kTestDevice), std::string::npos) << table;
+  EXPECT_NE(table.find(channels), std::string::npos) << table;
 }
 
 TEST(RealDevice, OpensTheDefaultInputWhereThereIsOne) {
