@@ -328,16 +328,20 @@
       const doa = (n.doa || [])[0];
       const cells = [
         n.array,
-        n.state + (n.stale_reason ? ` (${n.stale_reason.replace('_', ' ')})` : ''),
+        n.state,
         n.status ? fmt(s.level_dbfs) : '–',
         n.status ? `${s.clipped_samples}` : '–',
         n.status ? `${s.overruns}` : '–',
-        doa ? `${fmt(doa.azimuth_deg, 0)}° / ${fmt(doa.elevation_deg, 0)}°` : '–',
+        doa ? `${fmt(doa.azimuth_deg, 0)}°/${fmt(doa.elevation_deg, 0)}°` : '–',
       ];
       cells.forEach((text, i) => {
         const td = document.createElement('td');
         td.textContent = text;
-        if (i === 1) td.className = 'state';
+        if (i === 1) {
+          td.className = 'state';
+          if (n.stale_reason) td.title = `stale: ${n.stale_reason.replace('_', ' ')}` +
+            (Number.isFinite(n.status_age_s) ? `, last status ${fmt(n.status_age_s)} s ago` : '');
+        }
         if ((i === 3 && s.clipped_samples > 0) || (i === 4 && s.overruns > 0)) td.className = 'warn';
         tr.appendChild(td);
       });
