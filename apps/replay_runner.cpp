@@ -1,6 +1,7 @@
 #include "apps/replay_runner.hpp"
 
 #include <algorithm>
+#include <barrier>
 #include <chrono>
 #include <limits>
 #include <thread>
@@ -11,19 +12,98 @@
 #include "common/log.hpp"
 
 namespace dronetrack::apps {
+namespace {
+
+// One array node and what it produced during the current step.
+struct NodeLane {
+  explicit NodeLane(ArrayNode array_node) : node(std::move(array_node)) { doas.reserve(64); }
+
+  void advance(double target_s) {
+    status_ready = false;
+    ended_now = false;
+    if (!active) return;
+    while (node.time_s() < target_s - 1e-9) {
+      if (!node.step(doas)) {
+        active = false;
+        ended_now = true;
+        break;
+      }
+    }
+    status_ready = node.status_due(status);
+  }
+
+  ArrayNode node;
+  std::vector<doa::DoaMeasurement> doas;
+  doa::NodeStatus status;
+  bool active = true;
+  bool ended_now = false;
+  bool status_ready = false;
+};
+
+// Advances every lane to the same stream time, spreading lanes over worker threads. The nodes
+// are independent until the fusion, so this is where a replay uses more than one core.
+class LaneRunner {
+ public:
+  LaneRunner(std::vector<NodeLane>& lanes, unsigned threads)
+      : lanes_(lanes),
+        thread_count_(
+            std::max(1u, std::min<unsigned>(threads, static_cast<unsigned>(lanes.size())))),
+        start_(thread_count_),
+        done_(thread_count_) {
+    for (unsigned worker = 1; worker < thread_count_; ++worker) {
+      workers_.emplace_back([this, worker] { work(worker); });
+    }
+  }
+  ~LaneRunner() {
+    stopping_ = true;
+    if (thread_count_ > 1) start_.arrive_and_wait();
+  }
+  LaneRunner(const LaneRunner&) = delete;
+  LaneRunner& operator=(const LaneRunner&) = delete;
+
+  void advance_all(double target_s) {
+    target_s_ = target_s;
+    if (thread_count_ > 1) start_.arrive_and_wait();
+    advance_share(0);
+    if (thread_count_ > 1) done_.arrive_and_wait();
+  }
+
+ private:
+  void work(unsigned worker) {
+    for (;;) {
+      start_.arrive_and_wait();
+      if (stopping_) return;
+      advance_share(worker);
+      done_.arrive_and_wait();
+    }
+  }
+  void advance_share(unsigned worker) {
+    for (std::size_t i = worker; i < lanes_.size(); i += thread_count_)
+      lanes_[i].advance(target_s_);
+  }
+
+  std::vector<NodeLane>& lanes_;
+  const unsigned thread_count_;
+  std::barrier<> start_;
+  std::barrier<> done_;
+  double target_s_ = 0.0;  // written before start_, read after it (the barrier orders them)
+  bool stopping_ = false;  // likewise
+  std::vector<std::jthread> workers_;
+};
+
+}  // namespace
 
 ReplaySummary run_replay(const config::SiteConfig& site,
                          const std::vector<FusionObserver*>& observers,
                          const ReplayOptions& options, const std::atomic<bool>* stop) {
   using Clock = std::chrono::steady_clock;
-  std::vector<ArrayNode> nodes;
-  nodes.reserve(site.arrays.size());
+  std::vector<NodeLane> lanes;
+  lanes.reserve(site.arrays.size());
   double total_s = 0.0;
   for (std::size_t i = 0; i < site.arrays.size(); ++i) {
-    auto source = open_recording(site.arrays[i], site.arrays[i].recording, options.block_s);
-    nodes.emplace_back(site, static_cast<int>(i), std::move(source));
-  }
-  for (const auto& array : site.arrays) {
+    const auto& array = site.arrays[i];
+    lanes.emplace_back(ArrayNode(site, static_cast<int>(i),
+                                 open_recording(array, array.recording, options.block_s)));
     // Only for the progress line's denominator; reads the header alone.
     const capture::RecordingInfo info = capture::probe_recording(array.recording);
     total_s = std::max(total_s, static_cast<double>(info.frames) / info.sample_rate_hz);
@@ -32,37 +112,35 @@ ReplaySummary run_replay(const config::SiteConfig& site,
 
   FusionDriver driver(site, observers);
   ReplaySummary summary;
-  std::vector<bool> active(nodes.size(), true);
-  std::vector<doa::DoaMeasurement> doas;
-  doas.reserve(256);
-  doa::NodeStatus status;
+  const unsigned threads =
+      options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  LaneRunner runner(lanes, threads);
   const auto wall_start = Clock::now();
   auto next_progress = wall_start + std::chrono::seconds(3);
   double target_s = 0.0;
 
-  while (std::any_of(active.begin(), active.end(), [](bool is_active) { return is_active; })) {
+  while (
+      std::any_of(lanes.begin(), lanes.end(), [](const NodeLane& lane) { return lane.active; })) {
     if (stop && stop->load()) break;
     target_s += options.block_s;
     if (options.max_duration_s > 0.0 && target_s > options.max_duration_s + 1e-9) break;
+    runner.advance_all(target_s);
+
+    // The in-process transport: the same messages a DDS fusion would receive, in array order.
     double slowest_s = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < nodes.size(); ++i) {
-      if (!active[i]) continue;
-      while (nodes[i].time_s() < target_s - 1e-9) {
-        if (!nodes[i].step(doas)) {
-          active[i] = false;
-          log::info("replay: ", nodes[i].array_id(), " recording ended at ", nodes[i].time_s(),
-                    " s");
-          break;
-        }
+    for (auto& lane : lanes) {
+      if (lane.ended_now) {
+        log::info("replay: ", lane.node.array_id(), " recording ended at ", lane.node.time_s(),
+                  " s");
       }
-      if (nodes[i].status_due(status)) driver.on_node_status(status);
-      if (active[i]) slowest_s = std::min(slowest_s, nodes[i].time_s());
+      if (lane.status_ready) driver.on_node_status(lane.status);
+      for (const auto& doa : lane.doas) {
+        ++summary.doas;
+        if (driver.on_doa(doa) == fusion::DoaVerdict::accepted) ++summary.doas_accepted;
+      }
+      lane.doas.clear();
+      if (lane.active) slowest_s = std::min(slowest_s, lane.node.time_s());
     }
-    for (const auto& doa : doas) {
-      ++summary.doas;
-      if (driver.on_doa(doa) == fusion::DoaVerdict::accepted) ++summary.doas_accepted;
-    }
-    doas.clear();
     if (std::isfinite(slowest_s)) {
       driver.advance_to(slowest_s);
       summary.stream_s = std::max(summary.stream_s, slowest_s);
@@ -79,6 +157,7 @@ ReplaySummary run_replay(const config::SiteConfig& site,
                 target_s / std::max(wall_s, 1e-9), "x real time");
     }
   }
+  for (const auto& lane : lanes) summary.stream_s = std::max(summary.stream_s, lane.node.time_s());
   driver.finish();
   summary.ticks = driver.ticks_emitted();
   summary.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();

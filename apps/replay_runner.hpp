@@ -15,6 +15,7 @@ struct ReplayOptions {
   double block_s = 0.05;        // audio read granularity; the nodes frame internally
   bool progress = true;         // a progress line on stderr every few seconds
   double max_duration_s = 0.0;  // stop after this much stream time (0: whole recordings)
+  unsigned threads = 0;         // node threads (0: one per core)
 };
 
 struct ReplaySummary {
