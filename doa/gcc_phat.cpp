@@ -94,13 +94,19 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   kernel_step_s_ = lag_step_s_ / 8.0;
   const int kernel_size = 16 * (2 * max_half_span + 2) + 2;
   kernel_table_.resize(static_cast<std::size_t>(kernel_size));
-  for (int n = 0; n < kernel_size; ++n) {
-    double sum = 0.0;
-    for (const BandRun& run : runs_)
-      for (int k = run.first_bin; k <= run.last_bin; ++k)
-        sum += std::cos(k * bin_omega_ * n * kernel_step_s_);
-    kernel_table_[static_cast<std::size_t>(n)] = sum / band_bins_;
+  std::fill(kernel_table_.begin(), kernel_table_.end(), 0.0);
+  for (const BandRun& run : runs_) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k) {
+      // cos(k w n step) for all n by a complex rotation: no trigonometry per entry.
+      const std::complex<double> step = std::polar(1.0, k * bin_omega_ * kernel_step_s_);
+      std::complex<double> rotation{1.0, 0.0};
+      for (double& entry : kernel_table_) {
+        entry += rotation.real();
+        rotation *= step;
+      }
+    }
   }
+  for (double& entry : kernel_table_) entry /= band_bins_;
   grids_.assign(static_cast<std::size_t>(grid_stride_) * pairs_.size(), 0.0);
   results_.assign(pairs_.size(), PairCorrelation{});
   phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
@@ -146,7 +152,7 @@ void GccPhat::process(const MultichannelFft& spectra) {
     for (const BandRun& run : runs_) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         const std::complex<double> cross = x_i[k] * std::conj(x_j[k]);
-        const double size = std::abs(cross);
+        const double size = std::sqrt(std::norm(cross));
         const std::complex<double> weighted =
             size > kSilentBin ? cross / size : std::complex<double>{0.0, 0.0};
         phasor[index] = weighted;
@@ -194,7 +200,7 @@ void GccPhat::process(const MultichannelFft& spectra) {
     result.peak_ratio = result.second_value > result.peak.value / kMaxPeakRatio
                             ? result.peak.value / result.second_value
                             : kMaxPeakRatio;
-    result.coherence = coherence_at(static_cast<int>(p), result.peak.lag_s);
+    result.coherence = result.peak.coherence;
     result.tdoa_variance_s2 = tdoa_variance_for_peak(result.peak.value);
   }
 }
@@ -288,41 +294,66 @@ bool GccPhat::refine_parabolic(int pair, int m, GccPeak& out) const {
       value -= 0.25 * (left - right) * offset;
     }
   }
-  out = {(m - half + offset) * lag_step_s_, value};
+  out = {(m - half + offset) * lag_step_s_, value, 0.0};
+  double unused = 0.0;
+  evaluate(pair, out.lag_s, unused, out.coherence);
   return true;
 }
 
 bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   const double start_lag_s = (m - half_spans_[static_cast<std::size_t>(pair)]) * lag_step_s_;
-  const std::complex<double>* phasor =
-      phasors_.data() + static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  const std::complex<double>* phasor = phasors_.data() + offset;
   double lag = start_lag_s;
   // Newton on R(tau) = sum Re(W_k e^{j w_k tau}): R' = -sum w_k Im(.), R'' = -sum w_k^2 Re(.).
-  // Started within half a grid step of a grid maximum, where R is concave, it converges in a
-  // few steps; each step is capped so it cannot jump to a neighbouring lobe.
-  for (int iteration = 0; iteration < 6; ++iteration) {
+  // Started at a grid maximum, where R is concave, it converges in two or three steps; each
+  // step is capped so it cannot jump to a neighbouring lobe.
+  constexpr double kConverged_s = 1e-9;
+  for (int iteration = 0; iteration < 5; ++iteration) {
     double sum1 = 0.0;
     double sum2 = 0.0;
     int index = 0;
     const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
     for (const BandRun& run : runs_) {
       std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag);
+      double omega = run.first_bin * bin_omega_;
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         const std::complex<double> term = phasor[index] * rotation;
-        const double omega = k * bin_omega_;
         sum1 -= omega * term.imag();
         sum2 -= omega * omega * term.real();
         rotation *= step;
+        omega += bin_omega_;
       }
     }
     if (!(sum2 < 0.0)) return refine_parabolic(pair, m, out);
     const double delta = std::clamp(-sum1 / sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
     lag += delta;
-    if (std::abs(delta) < 1e-10) break;
+    if (std::abs(delta) < kConverged_s) break;
   }
   if (std::abs(lag - start_lag_s) > 1.5 * lag_step_s_) return false;
-  out = {lag, value_at(pair, lag)};
+  out = {lag, 0.0, 0.0};
+  evaluate(pair, lag, out.value, out.coherence);
   return true;
+}
+
+void GccPhat::evaluate(int pair, double lag_s, double& value, double& coherence) const {
+  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
+  double sum = 0.0;
+  double weighted = 0.0;
+  int index = 0;
+  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
+  for (const BandRun& run : runs_) {
+    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      const double real = (phasors_[offset + static_cast<std::size_t>(index)] * rotation).real();
+      sum += real;
+      weighted += magnitudes_[offset + static_cast<std::size_t>(index)] * real;
+      rotation *= step;
+    }
+  }
+  value = sum / band_bins_;
+  const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
+  coherence = total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0;
 }
 
 double GccPhat::grid_value(int pair, double lag_s) const {

@@ -39,7 +39,8 @@ struct MicPairSpec {
 
 struct GccPeak {
   double lag_s = 0.0;
-  double value = 0.0;  // normalised correlation: 1 = every band bin in phase
+  double value = 0.0;      // normalised correlation: 1 = every band bin in phase
+  double coherence = 0.0;  // |G|-weighted correlation: the in-band power share coherent here
 };
 
 // Per pair, per frame.
@@ -96,6 +97,7 @@ class GccPhat {
   int climb(int pair, double start_lag_s) const;  // grid index of the local max uphill
   bool refine_band_limited(int pair, int grid_index, GccPeak& out) const;
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
+  void evaluate(int pair, double lag_s, double& value, double& coherence) const;
 
   double sample_rate_hz_;
   int fft_size_;

@@ -21,6 +21,7 @@ struct PairTdoa {
   double tdoa_s = 0.0;
   double variance_s2 = 0.0;  // <= 0 or non-finite: pair not used
   double peak_value = 0.0;   // GCC quality, for the DOA's quality figure
+  double coherence = 0.0;    // coherent share of the in-band power at this lag (detection)
 };
 
 struct LsDoaSettings {

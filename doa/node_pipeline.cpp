@@ -162,7 +162,7 @@ double NodePipeline::Impl::mean_coherence(std::span<const PairTdoa> used) const 
   for (int p = 0; p < gcc.pair_count(); ++p) {
     const PairTdoa& tdoa = used[static_cast<std::size_t>(p)];
     if (!(tdoa.variance_s2 > 0.0)) continue;
-    sum += gcc.coherence_at(p, tdoa.tdoa_s);
+    sum += tdoa.coherence;
     ++count;
   }
   return count > 0 ? sum / count : 0.0;
@@ -219,13 +219,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   ++diagnostics.frames_processed;
   const double time_s =
       (static_cast<double>(frame.first_sample) + 0.5 * (frame.length - 1)) / sample_rate_hz;
-  double sum_squares = 0.0;
-  for (int c = 0; c < frame.channels; ++c) {
-    const double* samples = frame.channel(c);
-    for (int n = 0; n < frame.length; ++n) sum_squares += samples[n] * samples[n];
-  }
-  diagnostics.level_dbfs =
-      10.0 * std::log10(std::max(sum_squares / (frame.length * frame.channels), 1e-20));
+  diagnostics.level_dbfs = 10.0 * std::log10(std::max(frame.recent_mean_square, 1e-20));
 
   fft.process(frame);
   gcc.process(fft);

@@ -17,7 +17,7 @@ struct NodeDiagnostics {
   std::int64_t doas_published = 0;
   std::int64_t non_finite_samples = 0;  // NaN/Inf replaced by 0 and counted
   std::int64_t clipped_samples = 0;     // |x| >= 0.999
-  double level_dbfs = -120.0;           // RMS of the last frame, all channels
+  double level_dbfs = -120.0;           // RMS of the samples of the last hop, all channels
   double noise_floor_dbfs = -120.0;     // adaptive in-band noise floor
   double snr_db = 0.0;                  // in-band SNR of the last frame
   bool detecting = false;

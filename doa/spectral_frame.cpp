@@ -19,7 +19,7 @@ std::mutex& fftw_planner_mutex() {
 }
 
 namespace {
-constexpr float kClipLevel = 0.999F;
+constexpr double kClipLevel = 0.999;
 constexpr std::uint8_t kFlagNonFinite = 1;
 constexpr std::uint8_t kFlagClipped = 2;
 }  // namespace
@@ -55,23 +55,43 @@ bool Framer::accept_block(const AudioBlockView& block) {
   return true;
 }
 
-void Framer::append_sample(const AudioBlockView& block, std::size_t frame) {
-  std::uint8_t flag = 0;
+void Framer::append_run(const AudioBlockView& block, std::size_t first, std::size_t count) {
+  std::uint8_t* flags = flags_.data() + filled_;
+  std::fill_n(flags, count, std::uint8_t{0});
+  const auto stride = static_cast<std::size_t>(channels_);
   for (int c = 0; c < channels_; ++c) {
-    float value = block.sample(frame, c);
-    if (!std::isfinite(value)) {
-      value = 0.0F;
-      flag |= kFlagNonFinite;
-      ++counters_.non_finite_samples;
-    } else if (std::fabs(value) >= kClipLevel) {
-      flag |= kFlagClipped;
-      ++counters_.clipped_samples;
+    const float* source = block.interleaved + first * stride + static_cast<std::size_t>(c);
+    double* target = samples_.data() + static_cast<std::ptrdiff_t>(c) * length_ + filled_;
+    double sum_squares = 0.0;
+    bool odd = false;  // any non-finite or clipped value in this run of this channel
+    for (std::size_t n = 0; n < count; ++n) {
+      const double value = source[n * stride];
+      target[n] = value;
+      sum_squares += value * value;
+      // NaN fails every comparison: one test catches NaN, Inf and clipping.
+      odd = odd || !(std::fabs(value) < kClipLevel);
     }
-    samples_[static_cast<std::size_t>(c) * static_cast<std::size_t>(length_) +
-             static_cast<std::size_t>(filled_)] = value;
+    if (odd) {
+      // Rare: redo this run sample by sample to replace and count.
+      sum_squares = 0.0;
+      for (std::size_t n = 0; n < count; ++n) {
+        double value = target[n];
+        if (!std::isfinite(value)) {
+          value = 0.0;
+          target[n] = 0.0;
+          flags[n] |= kFlagNonFinite;
+          ++counters_.non_finite_samples;
+        } else if (std::fabs(value) >= kClipLevel) {
+          flags[n] |= kFlagClipped;
+          ++counters_.clipped_samples;
+        }
+        sum_squares += value * value;
+      }
+    }
+    recent_sum_squares_ += sum_squares;
   }
-  flags_[static_cast<std::size_t>(filled_)] = flag;
-  ++filled_;
+  recent_values_ += static_cast<std::int64_t>(count) * channels_;
+  filled_ += static_cast<int>(count);
 }
 
 FrameView Framer::emit_and_shift_view() {
@@ -80,6 +100,10 @@ FrameView Framer::emit_and_shift_view() {
   view.channels = channels_;
   view.length = length_;
   view.samples = samples_.data();
+  view.recent_mean_square =
+      recent_values_ > 0 ? recent_sum_squares_ / static_cast<double>(recent_values_) : 0.0;
+  recent_sum_squares_ = 0.0;
+  recent_values_ = 0;
   for (const std::uint8_t flag : flags_) {
     view.non_finite_samples += (flag & kFlagNonFinite) != 0 ? 1 : 0;
     view.clipped_samples += (flag & kFlagClipped) != 0 ? 1 : 0;

@@ -4,6 +4,7 @@
 //                    NaN/Inf replaced by 0 and counted, clipping counted, stream gaps detected.
 //   MultichannelFft: one Hann-windowed real FFT per channel per frame (FFTW plan made once).
 // Both preallocate everything in their constructors; the per-frame path allocates nothing.
+#include <algorithm>
 #include <complex>
 #include <cstdint>
 #include <memory>
@@ -21,6 +22,7 @@ struct FrameView {
   const double* samples = nullptr;  // channel c at samples + c * length
   int non_finite_samples = 0;       // in this frame, all channels (already replaced by 0)
   int clipped_samples = 0;          // in this frame, all channels
+  double recent_mean_square = 0.0;  // of the samples new since the previous frame (level meter)
   const double* channel(int c) const { return samples + static_cast<std::ptrdiff_t>(c) * length; }
 };
 
@@ -42,7 +44,8 @@ class Framer {
 
  private:
   bool accept_block(const AudioBlockView& block);
-  void append_sample(const AudioBlockView& block, std::size_t frame);
+  // Copies `count` frames of the block (channel by channel) behind what is buffered.
+  void append_run(const AudioBlockView& block, std::size_t first, std::size_t count);
   FrameView emit_and_shift_view();
   void shift();
 
@@ -52,16 +55,22 @@ class Framer {
   int filled_ = 0;
   std::int64_t buffer_first_sample_ = 0;
   std::int64_t expected_next_sample_ = -1;
-  std::vector<double> samples_;      // channels_ x length_
-  std::vector<std::uint8_t> flags_;  // per time index: bit0 non-finite, bit1 clipped
+  std::vector<double> samples_;  // channels_ x length_
+  std::vector<std::uint8_t> flags_;
+  double recent_sum_squares_ = 0.0;
+  std::int64_t recent_values_ = 0;  // per time index: bit0 non-finite, bit1 clipped
   FramerCounters counters_;
 };
 
 template <class OnFrame>
 void Framer::push(const AudioBlockView& block, OnFrame&& on_frame) {
   if (!accept_block(block)) return;
-  for (std::size_t frame = 0; frame < block.frames; ++frame) {
-    append_sample(block, frame);
+  std::size_t frame = 0;
+  while (frame < block.frames) {
+    const std::size_t count =
+        std::min(block.frames - frame, static_cast<std::size_t>(length_ - filled_));
+    append_run(block, frame, count);
+    frame += count;
     if (filled_ == length_) {
       on_frame(emit_and_shift_view());
       shift();

@@ -125,7 +125,8 @@ void SrpPhat::tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_ar
     GccPeak peak;
     out[static_cast<std::size_t>(p)] =
         gcc.refine(p, lag, peak) && peak.value > 0.0
-            ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value}
+            ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value,
+                       peak.coherence}
             : PairTdoa{};
   }
 }

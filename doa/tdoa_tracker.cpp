@@ -15,7 +15,7 @@ namespace {
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 PairTdoa from_peak(const GccPhat& gcc, const GccPeak& peak) {
-  return {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value};
+  return {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value, peak.coherence};
 }
 
 class PerFrameEstimator final : public TdoaEstimator {
@@ -25,7 +25,7 @@ class PerFrameEstimator final : public TdoaEstimator {
       const PairCorrelation& pair = gcc.pair(p);
       out[static_cast<std::size_t>(p)] =
           signal_present && pair.peak.value > 0.0
-              ? PairTdoa{pair.peak.lag_s, pair.tdoa_variance_s2, pair.peak.value}
+              ? PairTdoa{pair.peak.lag_s, pair.tdoa_variance_s2, pair.peak.value, pair.coherence}
               : PairTdoa{};
     }
   }
@@ -82,13 +82,11 @@ class GridEstimator final : public TdoaEstimator {
         if (multi_peak_) {
           for (int k = 0; k < peak_count; ++k) {
             const double distance = (m - half) - peaks_[static_cast<std::size_t>(k)].lag_s / step;
-            likelihood += std::pow(peaks_[static_cast<std::size_t>(k)].value,
-                                   settings_.likelihood_sharpness) *
+            likelihood += sharpen(peaks_[static_cast<std::size_t>(k)].value) *
                           std::exp(-0.5 * distance * distance);
           }
         } else {
-          likelihood += std::pow(std::max(grid[static_cast<std::size_t>(m)], 0.0),
-                                 settings_.likelihood_sharpness);
+          likelihood += sharpen(std::max(grid[static_cast<std::size_t>(m)], 0.0));
         }
         posterior[static_cast<std::size_t>(m)] =
             predicted[static_cast<std::size_t>(m)] * likelihood;
@@ -106,7 +104,11 @@ class GridEstimator final : public TdoaEstimator {
       }
       GccPeak refined;
       const double map_lag = (map_index - half) * step;
-      if (gcc.refine(p, map_lag, refined) && refined.value > 0.0) {
+      const PairCorrelation& pair = gcc.pair(p);
+      if (std::abs(pair.peak.lag_s - map_lag) <= 1.5 * step && pair.peak.value > 0.0) {
+        // The MAP is this frame's highest peak: already refined.
+        out[static_cast<std::size_t>(p)] = from_peak(gcc, pair.peak);
+      } else if (gcc.refine(p, map_lag, refined) && refined.value > 0.0) {
         // The MAP lobe must hold a correlation maximum in this frame (not just the prior).
         const double limit = gcc.pair_spec(p).max_lag_s + step;
         if (std::abs(refined.lag_s) <= limit && std::abs(refined.lag_s - map_lag) <= 2.0 * step)
@@ -116,6 +118,15 @@ class GridEstimator final : public TdoaEstimator {
   }
 
  private:
+  // value^sharpness; the default 4 without pow(), which is most of the filter's cost.
+  double sharpen(double value) const {
+    if (settings_.likelihood_sharpness == 4.0) {
+      const double squared = value * value;
+      return squared * squared;
+    }
+    return std::pow(value, settings_.likelihood_sharpness);
+  }
+
   void predict(const std::vector<double>& kernel, const std::vector<double>& prior,
                std::vector<double>& predicted) const {
     const int size = static_cast<int>(prior.size());
@@ -232,7 +243,8 @@ class RegressionEstimator final : public TdoaEstimator {
       weights_[i] = fresh ? 1.0 / point.variance_s2 : 0.0;
       candidates += fresh ? 1 : 0;
     }
-    const PairTdoa per_frame{current.peak.lag_s, current.tdoa_variance_s2, current.peak.value};
+    const PairTdoa per_frame{current.peak.lag_s, current.tdoa_variance_s2, current.peak.value,
+                             current.coherence};
     if (candidates < 5) return per_frame;
     // Start from the median (robust to a minority of outliers, which a least-squares quadratic
     // is not: an outlier at the window's end pulls the curve onto itself), gate on the median
@@ -275,7 +287,7 @@ class RegressionEstimator final : public TdoaEstimator {
       ++used;
     }
     const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
-    return {coefficients(0), covariance(0, 0) * inflation, peak_sum / used};
+    return {coefficients(0), covariance(0, 0) * inflation, peak_sum / used, current.coherence};
   }
 
   TdoaTrackerSettings settings_;
