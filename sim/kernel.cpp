@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 namespace dronetrack::sim {
 namespace {
@@ -21,6 +22,9 @@ double bessel_i0(double x) {
 
 InterpolationKernel::InterpolationKernel(int half_taps, double cutoff, double beta, int phases)
     : half_taps_(half_taps), taps_(2 * half_taps), phases_(phases) {
+  if (half_taps < 2 || half_taps % 2 != 0 || phases < 2) {
+    throw std::invalid_argument("InterpolationKernel: half_taps must be even and >= 2");
+  }
   table_.resize(static_cast<std::size_t>((phases_ + 1) * taps_));
   const double window_norm = bessel_i0(beta);
   for (int phase = 0; phase <= phases_; ++phase) {
@@ -47,31 +51,8 @@ InterpolationKernel::InterpolationKernel(int half_taps, double cutoff, double be
   }
 }
 
-float InterpolationKernel::at(const float* samples, double position) const {
-  const double floor_position = std::floor(position);
-  const double phase_position = (position - floor_position) * phases_;
-  int phase = static_cast<int>(phase_position);
-  if (phase >= phases_) phase = phases_ - 1;
-  const float blend = static_cast<float>(phase_position - phase);
-  const float* row0 = table_.data() + static_cast<std::ptrdiff_t>(phase) * taps_;
-  const float* row1 = row0 + taps_;
-  const float* first = samples + static_cast<std::ptrdiff_t>(floor_position) - half_taps_ + 1;
-  // Four independent partial sums so the compiler can keep them in one SIMD register.
-  float sum0[4] = {0, 0, 0, 0};
-  float sum1[4] = {0, 0, 0, 0};
-  for (int tap = 0; tap < taps_; tap += 4) {
-    for (int lane = 0; lane < 4; ++lane) {
-      sum0[lane] += first[tap + lane] * row0[tap + lane];
-      sum1[lane] += first[tap + lane] * row1[tap + lane];
-    }
-  }
-  const float value0 = (sum0[0] + sum0[1]) + (sum0[2] + sum0[3]);
-  const float value1 = (sum1[0] + sum1[1]) + (sum1[2] + sum1[3]);
-  return value0 + blend * (value1 - value0);
-}
-
 const InterpolationKernel& source_kernel() {
-  static const InterpolationKernel kernel(8, 0.5, 13.0, 256);
+  static const InterpolationKernel kernel(6, 0.5, 10.0, 256);
   return kernel;
 }
 

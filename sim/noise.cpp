@@ -123,13 +123,24 @@ void add_noise(const NoiseShape& shape, double rms, std::uint64_t seed, std::siz
       for (int n = 0; n < static_cast<int>(4.0 * fs / shape.wind_corner_hz); ++n) {
         filter.process(random.fast_normal());
       }
-      for (std::size_t n = 0; n < frames; ++n) {
+      // The envelope is slow: evaluate it every 64 samples and interpolate linearly.
+      auto envelope_at = [&](std::size_t n) {
         double gust = 0.0;
-        for (int i = 0; i < 3; ++i)
+        for (int i = 0; i < 3; ++i) {
           gust += std::cos(gust_rate[i] * static_cast<double>(n) + gust_phase[i]);
-        const double envelope = 1.0 + depth * gust / 3.0;
-        interleaved[n * channels + channel] +=
-            static_cast<float>(scale * envelope * filter.process(random.fast_normal()));
+        }
+        return 1.0 + depth * gust / 3.0;
+      };
+      constexpr std::size_t kEnvelopeStep = 64;
+      for (std::size_t block = 0; block < frames; block += kEnvelopeStep) {
+        const double envelope0 = envelope_at(block);
+        const double slope = (envelope_at(block + kEnvelopeStep) - envelope0) / kEnvelopeStep;
+        const std::size_t end = std::min(frames, block + kEnvelopeStep);
+        for (std::size_t n = block; n < end; ++n) {
+          const double envelope = envelope0 + slope * static_cast<double>(n - block);
+          interleaved[n * channels + channel] +=
+              static_cast<float>(scale * envelope * filter.process(random.fast_normal()));
+        }
       }
     }
     return;

@@ -16,7 +16,7 @@ constexpr double kMinDistance_m = 0.1;
 
 EmissionSolution solve_emission_time(const Trajectory& trajectory,
                                      const Eigen::Vector3d& receiver_m, double arrival_time_s,
-                                     double speed_of_sound_mps, bool mirrored) {
+                                     double speed_of_sound_mps, bool mirrored, double guess) {
   auto state_at = [&](double t_s) {
     TrajectoryState state = trajectory.at(t_s);
     if (mirrored) {
@@ -27,8 +27,12 @@ EmissionSolution solve_emission_time(const Trajectory& trajectory,
   };
   // Start from the delay of the source's position at arrival time; Newton on
   // f(t_e) = t_e + |p(t_e) - m| / c - t with f' = 1 + u.v / c (> 0 below Mach 1).
-  TrajectoryState state = state_at(arrival_time_s);
-  double emission = arrival_time_s - (state.position_m - receiver_m).norm() / speed_of_sound_mps;
+  TrajectoryState state;
+  double emission = guess;
+  if (!std::isfinite(emission)) {
+    state = state_at(arrival_time_s);
+    emission = arrival_time_s - (state.position_m - receiver_m).norm() / speed_of_sound_mps;
+  }
   EmissionSolution solution;
   for (int iteration = 0; iteration < 30; ++iteration) {
     state = state_at(emission);
@@ -58,8 +62,11 @@ EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Eigen::Vector3d& 
   distance_m_.resize(points);
   for (std::size_t k = 0; k < points; ++k) {
     const double t_s = begin_s + static_cast<double>(k) * step_s;
+    // The previous point extrapolated is within nanoseconds: Newton then needs one or two steps.
+    const double guess = k == 0 ? std::numeric_limits<double>::quiet_NaN()
+                                : emission_time_s_[k - 1] + derivative_[k - 1] * step_s;
     const EmissionSolution solution =
-        solve_emission_time(trajectory, receiver_m, t_s, speed_of_sound_mps, mirrored);
+        solve_emission_time(trajectory, receiver_m, t_s, speed_of_sound_mps, mirrored, guess);
     emission_time_s_[k] = solution.emission_time_s;
     derivative_[k] = solution.derivative;
     distance_m_[k] = std::max(solution.distance_m, kMinDistance_m);

@@ -7,6 +7,7 @@
 // for trajectories made of lines and arcs the error stays in the nanoseconds (bounded in
 // tests/sim/propagation_test.cpp against a per-sample solve).
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,10 +29,12 @@ struct EmissionSolution {
   double distance_m = 0.0;  // |p(t_e) - m|
 };
 
-// Newton's method to ~1e-13 s. `mirrored`: the ground image of the source.
+// Newton's method to ~1e-14 s relative. `mirrored`: the ground image of the source. `guess`:
+// a starting emission time (NaN: start from the delay of the source's position at arrival).
 EmissionSolution solve_emission_time(const Trajectory& trajectory,
                                      const Eigen::Vector3d& receiver_m, double arrival_time_s,
-                                     double speed_of_sound_mps, bool mirrored = false);
+                                     double speed_of_sound_mps, bool mirrored = false,
+                                     double guess = std::numeric_limits<double>::quiet_NaN());
 
 class EmissionGrid {
  public:

@@ -130,14 +130,43 @@ void synthesise_rotor(const Scenario& scenario, std::size_t source_index, double
         static_cast<float>(harmonic_scale * wave[static_cast<std::size_t>(m)]);
   }
   table[kTable] = table[0];
-  for (std::size_t i = 0; i < buffer.samples.size(); ++i) {
-    const double t_s =
-        static_cast<double>(buffer.first_index + static_cast<std::int64_t>(i)) / buffer.rate_hz;
-    const double cycles = cycles_at(t_s);
-    const double position = (cycles - std::floor(cycles)) * kTable;
-    const auto index = static_cast<std::size_t>(position);
-    const auto fraction = static_cast<float>(position - static_cast<double>(index));
-    buffer.samples[i] += table[index] + fraction * (table[index + 1] - table[index]);
+  // The rotor phase evaluated exactly every 64 samples (value and derivative f0) and by cubic
+  // Hermite in between: the wander is slow, so the error is far below 1e-9 cycles.
+  auto frequency_at = [&](double t_s) {
+    double wander = 0.0;
+    for (const auto& item : wanders) {
+      wander += std::sin(kTwoPi * t_s / item.period_s + item.phase_rad);
+    }
+    return rotor.blade_pass_hz * (1.0 + depth * wander);
+  };
+  constexpr std::int64_t kStep = 64;
+  const double step_s = kStep / buffer.rate_hz;
+  // Blocks on the absolute sample grid, so any time range gives identical samples.
+  const auto count = static_cast<std::int64_t>(buffer.samples.size());
+  for (std::int64_t block = floor_div(buffer.first_index, kStep) * kStep;
+       block < buffer.first_index + count; block += kStep) {
+    const double t0 = static_cast<double>(block) / buffer.rate_hz;
+    const double y0 = cycles_at(t0);
+    const double y1 = cycles_at(t0 + step_s);
+    const double m0 = frequency_at(t0) * step_s;
+    const double m1 = frequency_at(t0 + step_s) * step_s;
+    const double base = std::floor(y0);
+    const double difference = y1 - y0;
+    const double c2 = 3.0 * difference - 2.0 * m0 - m1;
+    const double c3 = -2.0 * difference + m0 + m1;
+    const std::int64_t from = std::max(block, buffer.first_index);
+    const std::int64_t to = std::min(block + kStep, buffer.first_index + count);
+    for (std::int64_t i = from; i < to; ++i) {
+      const double u = static_cast<double>(i - block) / kStep;
+      const double cycles = (y0 - base) + u * (m0 + u * (c2 + u * c3));
+      // cycles >= 0 here, so truncation is the floor.
+      const double position =
+          (cycles - static_cast<double>(static_cast<long long>(cycles))) * kTable;
+      const auto index = static_cast<std::size_t>(position);
+      const auto fraction = static_cast<float>(position - static_cast<double>(index));
+      buffer.samples[static_cast<std::size_t>(i - buffer.first_index)] +=
+          table[index] + fraction * (table[index + 1] - table[index]);
+    }
   }
   const double broadband_rms = rms * std::sqrt(broadband_ratio / (1.0 + broadband_ratio));
   add_shaped_noise(
