@@ -3,6 +3,10 @@
 #include <cmath>
 
 namespace dronetrack::apps {
+namespace {
+// Tick times are multiples of the output period; k * 0.1 is not exact in binary.
+constexpr double kTimeEpsilon_s = 1e-9;
+}  // namespace
 
 FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObserver*> observers)
     : engine_(site.fusion, site.geometries(), site.speed_of_sound_mps),
@@ -28,13 +32,13 @@ void FusionDriver::advance_to(double now_s) {
   latest_time_s_ = now_s;
   // A tick may only be reported once no DOA older than it can still arrive (reorder window),
   // and the engine is run exactly up to each tick so the report never predicts backwards.
-  while (next_tick_s_ <= now_s - reorder_window_s_) emit_tick(next_tick_s_);
+  while (next_tick_s_ <= now_s - reorder_window_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(now_s);
   for (auto* observer : observers_) observer->on_time(now_s);
 }
 
 void FusionDriver::finish() {
-  while (next_tick_s_ <= latest_time_s_) emit_tick(next_tick_s_);
+  while (next_tick_s_ <= latest_time_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(latest_time_s_ + reorder_window_s_);
 }
 

@@ -1,0 +1,129 @@
+// JSON-lines outputs (SPEC 3.2) parse back to what was written; the fusion driver reports at
+// the output rate, in time order, only once the reorder window has passed.
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "apps/fusion_driver.hpp"
+#include "apps/jsonl_output.hpp"
+#include "doa/array_geometry.hpp"
+
+namespace dronetrack::apps {
+namespace {
+
+TEST(JsonLines, DoaLineCarriesTheSpecFields) {
+  doa::DoaMeasurement doa;
+  doa.array_id = "A1";
+  doa.time_s = 12.35;
+  doa.direction = doa::direction_from_azel_deg(-170.0, 25.0);
+  doa.quality = 0.75;
+  doa.azel_covariance_rad2 = Eigen::Vector2d(1e-6, 4e-6).asDiagonal();
+  char buffer[1024];
+  const int length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(length, 0);
+  const auto line = nlohmann::json::parse(std::string(buffer, static_cast<std::size_t>(length)));
+  EXPECT_DOUBLE_EQ(line.at("t").get<double>(), 12.35);
+  EXPECT_EQ(line.at("array"), "A1");
+  EXPECT_NEAR(line.at("azimuth_deg").get<double>(), -170.0, 1e-4);
+  EXPECT_NEAR(line.at("elevation_deg").get<double>(), 25.0, 1e-4);
+  const auto direction = line.at("direction").get<std::vector<double>>();
+  ASSERT_EQ(direction.size(), 3u);
+  EXPECT_NEAR(Eigen::Vector3d(direction[0], direction[1], direction[2]).norm(), 1.0, 1e-8);
+  EXPECT_NEAR(line.at("azel_std_deg")[1].get<double>(), 2e-3 * 180.0 / std::numbers::pi, 1e-4);
+  EXPECT_DOUBLE_EQ(line.at("quality").get<double>(), 0.75);
+}
+
+TEST(JsonLines, TrackLineCarriesTheSpecFields) {
+  fusion::TrackReport track;
+  track.id = 3;
+  track.position_m = {1.5, -2.25, 30.0};
+  track.velocity_mps = {5.0, 0.0, -1.0};
+  track.covariance.diagonal().head<3>() = Eigen::Vector3d(4.0, 9.0, 16.0);
+  track.status = fusion::TrackStatus::coasting;
+  char buffer[1024];
+  const int length = format_track_line(7.5, track, buffer, sizeof buffer);
+  const auto line = nlohmann::json::parse(std::string(buffer, static_cast<std::size_t>(length)));
+  EXPECT_DOUBLE_EQ(line.at("t").get<double>(), 7.5);
+  EXPECT_EQ(line.at("id"), 3);
+  EXPECT_EQ(line.at("position_m").get<std::vector<double>>(),
+            (std::vector<double>{1.5, -2.25, 30.0}));
+  EXPECT_EQ(line.at("velocity_mps").get<std::vector<double>>(),
+            (std::vector<double>{5.0, 0.0, -1.0}));
+  EXPECT_EQ(line.at("position_std_m").get<std::vector<double>>(),
+            (std::vector<double>{2.0, 3.0, 4.0}));
+  EXPECT_EQ(line.at("status"), "coasting");
+  EXPECT_TRUE(line.contains("acceleration_mps2"));
+}
+
+class RecordingObserver : public FusionObserver {
+ public:
+  void on_tracks(double time_s, const std::vector<fusion::TrackReport>&) override {
+    ticks.push_back(time_s);
+  }
+  void on_time(double time_s) override { latest_time_s = time_s; }
+  std::vector<double> ticks;
+  double latest_time_s = 0.0;
+};
+
+config::SiteConfig two_array_site() {
+  config::SiteConfig site;
+  for (int i = 0; i < 2; ++i) {
+    config::ArrayConfig array;
+    array.geometry.id = i == 0 ? "A1" : "A2";
+    array.geometry.position_m = {20.0 * i, 0.0, 1.5};
+    array.geometry.mics_m = {
+        {0, 0, 0.5}, {0.4714, 0, -0.1667}, {-0.2357, 0.4082, -0.1667}, {-0.2357, -0.4082, -0.1667}};
+    site.arrays.push_back(array);
+  }
+  site.fusion.output_rate_hz = 10.0;
+  site.fusion.reorder_window_s = 0.3;
+  return site;
+}
+
+TEST(FusionDriver, TicksAtTheOutputRateOnlyPastTheReorderWindow) {
+  RecordingObserver observer;
+  FusionDriver driver(two_array_site(), {&observer});
+  driver.advance_to(0.25);
+  EXPECT_TRUE(observer.ticks.empty()) << "no tick may precede now - reorder window";
+  driver.advance_to(1.0);
+  ASSERT_EQ(observer.ticks.size(), 8u);  // 0.0 .. 0.7
+  EXPECT_NEAR(observer.ticks.back(), 0.7, 1e-9);
+  driver.advance_to(0.9);  // time never goes backwards
+  EXPECT_EQ(observer.ticks.size(), 8u);
+  EXPECT_DOUBLE_EQ(observer.latest_time_s, 1.0);
+  driver.finish();
+  ASSERT_EQ(observer.ticks.size(), 11u);  // up to the last time seen
+  for (std::size_t i = 1; i < observer.ticks.size(); ++i) {
+    EXPECT_NEAR(observer.ticks[i] - observer.ticks[i - 1], 0.1, 1e-9);
+  }
+}
+
+TEST(FusionDriver, RejectedDoasAreNotForwarded) {
+  class DoaCounter : public FusionObserver {
+   public:
+    void on_doa(const doa::DoaMeasurement&) override { ++count; }
+    int count = 0;
+  } counter;
+  FusionDriver driver(two_array_site(), {&counter});
+  doa::DoaMeasurement doa;
+  doa.array_id = "A9";  // not in the site
+  doa.array_index = 9;
+  doa.time_s = 1.0;
+  EXPECT_NE(driver.on_doa(doa), fusion::DoaVerdict::accepted);
+  doa.array_id = "A1";
+  doa.array_index = 0;
+  doa.direction = Eigen::Vector3d(std::nan(""), 0, 1);
+  EXPECT_NE(driver.on_doa(doa), fusion::DoaVerdict::accepted);
+  EXPECT_EQ(counter.count, 0);
+  doa.direction = Eigen::Vector3d(0, 0.6, 0.8);
+  doa.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+  EXPECT_EQ(driver.on_doa(doa), fusion::DoaVerdict::accepted);
+  EXPECT_EQ(counter.count, 1);
+}
+
+}  // namespace
+}  // namespace dronetrack::apps
