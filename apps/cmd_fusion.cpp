@@ -1,11 +1,110 @@
-// PLACEHOLDER: the `fusion` subcommand; its owner replaces this file.
+// `dronetrack fusion SITE.json [--tracks-out T.jsonl] [--http ADDR:PORT] [--domain N]`: the
+// site's fusion as its own process. Subscribes Doa and NodeStatus, publishes Track and Alert,
+// writes tracks as JSON lines (SPEC 3.2) and serves the web page's API. Ends cleanly on
+// SIGINT/SIGTERM (pending output ticks are emitted, files flushed).
+#include <chrono>
+#include <memory>
+#include <optional>
+
 #include "apps/commands.hpp"
+#include "apps/dds_fusion_service.hpp"
+#include "apps/dds_support.hpp"
+#include "apps/jsonl_output.hpp"
+#include "apps/live_state_observer.hpp"
+#include "apps/signals.hpp"
+#include "common/log.hpp"
+#include "config/site_config.hpp"
+#include "http_api/http_server.hpp"
+#include "http_api/live_state.hpp"
 
 namespace dronetrack::apps {
+namespace {
+
+struct FusionArguments {
+  std::string site;
+  std::string tracks_out;
+  std::string http;
+  std::string web_root;
+  std::optional<int> domain;
+  double duration_s = 0.0;
+};
+
+int run(const FusionArguments& arguments) {
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  load_options.check_recordings = false;  // the fusion never reads audio
+  const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
+  for (const auto& warning : warnings) log::warn(warning);
+  const int domain = resolve_domain(site, arguments.domain);
+
+  std::vector<std::unique_ptr<FusionObserver>> owned;
+  if (!arguments.tracks_out.empty()) {
+    owned.push_back(std::make_unique<TrackLinesWriter>(arguments.tracks_out));
+  }
+  std::unique_ptr<http_api::LiveState> live_state;
+  std::unique_ptr<http_api::HttpServer> server;
+  if (!arguments.http.empty()) {
+    live_state = std::make_unique<http_api::LiveState>(
+        http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
+    owned.push_back(std::make_unique<LiveStateObserver>(*live_state));
+    http_api::HttpOptions options;
+    options.bind = arguments.http;
+    options.web_root =
+        arguments.web_root.empty() ? default_web_root() : std::filesystem::path(arguments.web_root);
+    server = std::make_unique<http_api::HttpServer>(*live_state, options);
+    server->start();
+    log::info("fusion: serving ", server->url());
+  }
+  std::vector<FusionObserver*> observers;
+  for (auto& observer : owned) observers.push_back(observer.get());
+
+  dds::Participant participant(domain);  // first: destroyed last
+  DdsFusionService service(site, participant, observers);
+  log::info("fusion: ", site.arrays.size(), " arrays, DDS domain ", domain);
+  install_stop_handlers();
+  const auto started = std::chrono::steady_clock::now();
+  const auto limit = std::chrono::duration<double>(arguments.duration_s);
+  while (!stop_requested()) {
+    service.poll(std::chrono::milliseconds(100));
+    if (arguments.duration_s > 0.0 && std::chrono::steady_clock::now() - started > limit) break;
+  }
+  service.finish();
+  const IntakeCounters& counters = service.counters();
+  const fusion::FusionCounters& engine = service.engine_counters();
+  log::info("fusion: ", counters.doa_received, " DOAs received, ", counters.doa_accepted,
+            " accepted, ", counters.doa_ignored(), " malformed, ", counters.doa_rejected_by_engine,
+            " rejected by the engine; ", engine.tracks_started, " tracks started; ",
+            counters.tracks_published, " track samples and ", counters.alerts_published,
+            " alerts published; nodes lost ", counters.nodes_lost, ", rejoined ",
+            counters.nodes_rejoined);
+  if (server) server->stop();
+  return 0;
+}
+
+}  // namespace
 
 void register_fusion(CLI::App& root, CommandTable& table) {
-  auto* command = root.add_subcommand("fusion", "(not implemented yet)");
-  table.add(command, []() -> int { throw UserError("'fusion' is not implemented yet"); });
+  auto arguments = std::make_shared<FusionArguments>();
+  auto* command = root.add_subcommand(
+      "fusion", "Run the site's fusion: DOAs in over DDS, tracks and zone alerts out");
+  command->add_option("site", arguments->site, "Site config (JSON, SPEC 3.1)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--tracks-out", arguments->tracks_out,
+                      "Write tracks as JSON lines here ('-' for stdout)");
+  command->add_option("--http", arguments->http, "Serve the web page and JSON API on ADDR:PORT");
+  command
+      ->add_option(
+          "--web-root", arguments->web_root,
+          "With --http: folder of the web page (default: $DRONETRACK_WEB_ROOT or the built-in one)")
+      ->check(CLI::ExistingDirectory);
+  command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
+      ->check(CLI::Range(0, 232));
+  command
+      ->add_option("--duration", arguments->duration_s,
+                   "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")
+      ->check(CLI::NonNegativeNumber);
+  table.add(command, [arguments]() { return run(*arguments); });
 }
 
 }  // namespace dronetrack::apps

@@ -1,11 +1,228 @@
-// PLACEHOLDER: the `node` subcommand; its owner replaces this file.
+// `dronetrack node SITE.json --array ID [--device N | --recording F] [--realtime] [--domain N]`:
+// one array node as its own process. Audio (a recording or a live device) -> NodePipeline ->
+// a Doa sample per direction found, and a NodeStatus sample every second of stream time.
+//
+// Time on the wire: recordings use recording time (t = 0 at sample 0, SPEC 2), so every node
+// replaying the same scene shares one clock without any synchronisation. Live capture uses Unix
+// time: the stream's start on the system clock plus the sample count, so all nodes of a site
+// share one clock as far as their system clocks agree (docs/deployment.md: chrony/PTP).
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "apps/array_node.hpp"
 #include "apps/commands.hpp"
+#include "apps/dds_support.hpp"
+#include "apps/signals.hpp"
+#include "capture/portaudio_source.hpp"
+#include "common/log.hpp"
+#include "config/site_config.hpp"
+#include "dds_idl/conversions.hpp"
+#include "dds_idl/dds.hpp"
+#include "dds_idl/topics.hpp"
 
 namespace dronetrack::apps {
+namespace {
+
+using Clock = std::chrono::system_clock;
+
+struct NodeArguments {
+  std::string site;
+  std::string array;
+  std::optional<int> device;
+  std::string recording;
+  bool realtime = false;
+  std::optional<double> epoch_unix_s;
+  std::optional<int> domain;
+  double sample_rate_hz = 48000.0;
+  double block_s = 0.01;
+};
+
+// Skips, without processing, the part of a recording whose due time has long passed: a node
+// restarted with the same --epoch resumes where the other nodes are instead of replaying
+// minutes of stale audio that the fusion would only count as too late.
+class SkippingSource : public capture::AudioSource {
+ public:
+  SkippingSource(std::unique_ptr<capture::AudioSource> inner, double skip_to_s)
+      : inner_(std::move(inner)), skip_to_s_(skip_to_s) {}
+  bool next(doa::AudioBlockView& block) override {
+    while (inner_->next(block)) {
+      const double block_end_s =
+          static_cast<double>(block.first_sample + static_cast<std::int64_t>(block.frames)) /
+          inner_->sample_rate_hz();
+      if (block_end_s > skip_to_s_) return true;
+    }
+    return false;
+  }
+  double sample_rate_hz() const override { return inner_->sample_rate_hz(); }
+  int channels() const override { return inner_->channels(); }
+  const capture::SourceCounters& counters() const override { return inner_->counters(); }
+  std::string describe() const override { return inner_->describe(); }
+
+ private:
+  std::unique_ptr<capture::AudioSource> inner_;
+  double skip_to_s_;
+};
+
+double unix_now_s() {
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
+
+int run(const NodeArguments& arguments) {
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  // Only the recording this node reads matters; it is checked when it is opened.
+  load_options.check_recordings = false;
+  const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
+  for (const auto& warning : warnings) log::warn(warning);
+  const int array_index = site.array_index(arguments.array);
+  if (array_index < 0) {
+    std::string known;
+    for (const auto& id : array_ids(site)) known += (known.empty() ? "" : ", ") + id;
+    throw UserError("--array " + arguments.array + ": no such array in " + arguments.site +
+                    " (arrays: " + known + ")");
+  }
+  const config::ArrayConfig& array = site.arrays[static_cast<std::size_t>(array_index)];
+  const int domain = resolve_domain(site, arguments.domain);
+  const std::optional<int> device = arguments.device ? arguments.device : array.device;
+  const bool live = arguments.device.has_value() ||
+                    (arguments.recording.empty() && array.recording.empty() && device);
+
+  // The source. Live: the stream's start time on the system clock gives Unix time.
+  capture::PortAudioSource* live_source = nullptr;
+  std::unique_ptr<capture::AudioSource> source;
+  double epoch_unix_s = 0.0;
+  if (live) {
+    capture::PortAudioOptions options;
+    options.device_index = device.value_or(-1);
+    options.mics = static_cast<int>(array.geometry.mic_count());
+    options.channel_map = array.channel_map;
+    options.sample_rate_hz = arguments.sample_rate_hz;
+    options.block_frames =
+        static_cast<std::size_t>(std::max(64.0, std::round(0.02 * arguments.sample_rate_hz)));
+    auto portaudio = std::make_unique<capture::PortAudioSource>(options);
+    live_source = portaudio.get();
+    source = std::move(portaudio);
+  } else {
+    const std::filesystem::path recording =
+        arguments.recording.empty() ? array.recording : std::filesystem::path(arguments.recording);
+    if (recording.empty()) {
+      throw UserError("array " + arguments.array +
+                      " has no recording in the site config: give --recording F or --device N");
+    }
+    source = open_recording(array, recording, arguments.block_s);
+    if (arguments.realtime) {
+      epoch_unix_s = arguments.epoch_unix_s.value_or(unix_now_s());
+      const double overdue_s = unix_now_s() - epoch_unix_s;
+      if (overdue_s > 1.0) {
+        log::info("node ", arguments.array, ": skipping the first ", overdue_s - 0.5,
+                  " s of the recording (already due since --epoch)");
+        source = std::make_unique<SkippingSource>(std::move(source), overdue_s - 0.5);
+      }
+    }
+  }
+  ArrayNode node(site, array_index, std::move(source));
+  log::info("node ", node.array_id(), ": ", node.source().describe(), ", ", node.sample_rate_hz(),
+            " Hz, DDS domain ", domain, live ? ", live" : "",
+            arguments.realtime ? ", real time" : "");
+
+  // Participant first: destroyed last.
+  dds::Participant participant(domain);
+  dds::Topic<dronetrack_Doa> doa_topic(participant);
+  dds::Topic<dronetrack_NodeStatus> status_topic(participant);
+  dds::Qos doa_qos, status_qos;
+  dds::doa_writer_qos(doa_qos);
+  dds::status_writer_qos(status_qos);
+  dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
+  dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
+
+  install_stop_handlers();
+  std::vector<doa::DoaMeasurement> doas;
+  doas.reserve(64);
+  doa::NodeStatus status;
+  dronetrack_Doa doa_sample{};
+  dronetrack_NodeStatus status_sample{};
+  std::int64_t published = 0;
+  std::int64_t write_failures = 0;
+  // Recordings: stream time is the wire time. Live: offset by the stream's Unix start.
+  auto time_offset_ns = [&]() -> std::int64_t {
+    return live_source ? dds::seconds_to_ns(live_source->stream_start_unix_s()) : 0;
+  };
+  const auto wall_epoch = Clock::time_point(
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(epoch_unix_s)));
+
+  while (!stop_requested()) {
+    if (!node.step(doas)) break;
+    if (arguments.realtime && !live) {
+      // The block is due when its last sample would have been captured.
+      std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
+                                                     std::chrono::duration<double>(node.time_s())));
+    }
+    const std::int64_t offset_ns = time_offset_ns();
+    for (const auto& measurement : doas) {
+      dds::to_idl(measurement, offset_ns, doa_sample);
+      if (doa_writer.try_write(doa_sample) < 0) {
+        ++write_failures;
+      } else {
+        ++published;
+      }
+    }
+    doas.clear();
+    if (node.status_due(status)) {
+      dds::to_idl(status, offset_ns + dds::seconds_to_ns(status.time_s), status_sample);
+      if (status_writer.try_write(status_sample) < 0) ++write_failures;
+    }
+  }
+  if (live_source) live_source->request_stop();
+
+  // Say goodbye: readers see alive = false, then the writers' deletion leaves the instances
+  // without writers, exactly as a lost liveliness would.
+  status = node.status();
+  status.alive = false;
+  dds::to_idl(status, time_offset_ns() + dds::seconds_to_ns(status.time_s), status_sample);
+  status_writer.try_write(status_sample);
+  status_writer.wait_for_acks(std::chrono::milliseconds(500));
+  doa_writer.wait_for_acks(std::chrono::milliseconds(500));
+  log::info("node ", node.array_id(), ": ", node.time_s(), " s of audio, ", published,
+            " DOAs published", write_failures ? ", " : "",
+            write_failures ? std::to_string(write_failures) + " writes failed" : "");
+  return 0;
+}
+
+}  // namespace
 
 void register_node(CLI::App& root, CommandTable& table) {
-  auto* command = root.add_subcommand("node", "(not implemented yet)");
-  table.add(command, []() -> int { throw UserError("'node' is not implemented yet"); });
+  auto arguments = std::make_shared<NodeArguments>();
+  auto* command = root.add_subcommand(
+      "node", "Run one array node: audio in, DOAs and node status out over DDS");
+  command->add_option("site", arguments->site, "Site config (JSON, SPEC 3.1)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--array", arguments->array, "Id of this node's array in the site config")
+      ->required();
+  auto* device =
+      command->add_option("--device", arguments->device,
+                          "Capture live from this PortAudio device (dronetrack devices)");
+  auto* recording =
+      command->add_option("--recording", arguments->recording,
+                          "Replay this recording instead of the array's configured one");
+  device->excludes(recording);
+  recording->check(CLI::ExistingFile);
+  command->add_flag("--realtime", arguments->realtime,
+                    "Pace a recording at real time (live capture is always real time)");
+  command
+      ->add_option("--epoch", arguments->epoch_unix_s,
+                   "With --realtime: Unix time (s) at which recording time 0 is due; nodes given "
+                   "the same epoch replay in step, and a restarted node resumes in step")
+      ->needs("--realtime");
+  command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
+      ->check(CLI::Range(0, 232));
+  command->add_option("--sample-rate", arguments->sample_rate_hz, "Live capture sample rate, Hz")
+      ->capture_default_str()
+      ->check(CLI::Range(8000.0, 384000.0));
+  table.add(command, [arguments]() { return run(*arguments); });
 }
 
 }  // namespace dronetrack::apps

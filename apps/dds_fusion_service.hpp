@@ -1,0 +1,117 @@
+#pragma once
+// The fusion process's DDS side: takes Doa and NodeStatus samples, validates every one (a remote
+// process can send anything), feeds the valid ones to a FusionDriver, publishes Track and Alert
+// samples per output tick, and follows node liveliness. The `fusion` subcommand is a loop over
+// poll(); tests drive the same class in-process.
+//
+// Time base: the tracker runs on the DOAs' own times. The output clock is the newest valid time
+// seen on Doa or NodeStatus (nodes report status every second even when they hear nothing, so
+// tracks keep coasting and ending through silence); FusionDriver reports each tick once the
+// reorder window has passed it. Live (Unix) times are rebased to the first whole second seen
+// so the driver's tick counter starts near zero; everything written out adds the base back.
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/dds_support.hpp"
+#include "apps/fusion_driver.hpp"
+#include "apps/fusion_observer.hpp"
+#include "config/site_config.hpp"
+#include "dds_idl/conversions.hpp"
+#include "dds_idl/dds.hpp"
+#include "dds_idl/topics.hpp"
+
+namespace dronetrack::apps {
+
+struct IntakeCounters {
+  std::int64_t doa_received = 0;
+  std::int64_t doa_accepted = 0;  // passed validation and the engine took it
+  std::int64_t status_received = 0;
+  // Indexed by dds::SampleProblem: samples ignored before reaching the engine.
+  std::int64_t doa_problems[dds::kSampleProblemCount] = {};
+  std::int64_t status_problems[dds::kSampleProblemCount] = {};
+  std::int64_t doa_rejected_by_engine = 0;  // engine verdicts other than accepted
+  std::int64_t tracks_published = 0;
+  std::int64_t alerts_published = 0;
+  std::int64_t nodes_lost = 0;
+  std::int64_t nodes_rejoined = 0;
+
+  std::int64_t doa_ignored() const;
+};
+
+struct FusionServiceOptions {
+  // A sample this far ahead of the newest time seen is absurd (a broken clock would otherwise
+  // drag every track's output clock along with it). Nodes report at least once a second.
+  double max_time_jump_s = 30.0;
+  // No NodeStatus for this long (wall time) while the writer is still alive: stale anyway
+  // (a hung node whose DDS thread still asserts liveliness).
+  std::chrono::milliseconds status_silence_limit{3500};
+};
+
+class DdsFusionService {
+ public:
+  // `observers` receive everything the FusionDriver produces, with times in the wire's base
+  // (Unix seconds for live nodes, recording seconds for replayed recordings).
+  DdsFusionService(const config::SiteConfig& site, const dds::Participant& participant,
+                   std::vector<FusionObserver*> observers, FusionServiceOptions options = {});
+  ~DdsFusionService();
+  DdsFusionService(const DdsFusionService&) = delete;
+  DdsFusionService& operator=(const DdsFusionService&) = delete;
+
+  // Waits up to `timeout` for samples, handles everything available, advances the fusion.
+  void poll(std::chrono::nanoseconds timeout);
+  // Emits the remaining output ticks (at shutdown).
+  void finish();
+
+  const IntakeCounters& counters() const { return counters_; }
+  const fusion::FusionCounters& engine_counters() const { return driver_.engine().counters(); }
+  // False once a node's liveliness was lost (or it went silent), true again when it reports.
+  bool node_alive(const std::string& array_id) const;
+  // Seconds (wire base) of the newest valid sample, or NaN before the first.
+  double latest_time_s() const;
+
+ private:
+  class Outputs;  // the observer that rebases times and writes Track/Alert samples
+
+  void take_doas();
+  void take_statuses();
+  void check_silent_nodes();
+  bool plausible_time(std::int64_t time_ns, dds::SampleProblem& problem);
+  void mark_stale(const std::string& array_id, const char* why);
+  double rebased(std::int64_t time_ns) const;
+
+  const config::SiteConfig& site_;
+  std::vector<std::string> array_ids_;
+  FusionServiceOptions options_;
+  dds::Topic<dronetrack_Doa> doa_topic_;
+  dds::Topic<dronetrack_NodeStatus> status_topic_;
+  dds::Topic<dronetrack_Track> track_topic_;
+  dds::Topic<dronetrack_Alert> alert_topic_;
+  dds::Reader<dronetrack_Doa> doa_reader_;
+  dds::Reader<dronetrack_NodeStatus> status_reader_;
+  dds::Writer<dronetrack_Track> track_writer_;
+  dds::Writer<dronetrack_Alert> alert_writer_;
+  dds::WaitSet waitset_;
+  std::unique_ptr<Outputs> outputs_;
+  FusionDriver driver_;
+  IntakeCounters counters_;
+  ThrottledWarnings warnings_;
+
+  bool have_time_ = false;
+  std::int64_t base_ns_ = 0;
+  std::int64_t newest_ns_ = 0;
+  doa::DoaMeasurement measurement_;  // reused: no allocation per sample
+  doa::NodeStatus status_;
+
+  struct NodeState {
+    bool alive = false;
+    doa::NodeStatus last;
+    std::chrono::steady_clock::time_point last_report{};
+  };
+  std::map<std::string, NodeState> nodes_;
+};
+
+}  // namespace dronetrack::apps

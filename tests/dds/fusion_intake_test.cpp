@@ -1,0 +1,240 @@
+// The fusion process's DDS intake under attack: a clean stream of DOAs toward a hovering drone is
+// published together with malformed samples (NaN, Inf, absurd times, unknown and empty array
+// ids, non-unit directions, bad covariances, bad enums) and a seeded random fuzz in which every
+// sample carries at least one defect. The fusion must survive, count each kind, ignore every bad
+// sample, and still track the drone from the clean stream alone.
+//
+// Oversized TDOA sequences cannot be sent through Cyclone at all (dds_write refuses them with
+// BAD_PARAMETER: DdsWrappers.WriterRejectsOversizedSequence); the receiving check is covered by
+// DdsConversions.EachKindOfDamagedDoaIsNamed.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "apps/dds_fusion_service.hpp"
+#include "config/site_config.hpp"
+#include "dds_idl/conversions.hpp"
+#include "dds_idl/dds.hpp"
+#include "dds_idl/topics.hpp"
+#include "tests/dds/dds_test_support.hpp"
+
+namespace dronetrack::apps {
+namespace {
+
+using namespace std::chrono_literals;
+using dds::SampleProblem;
+
+constexpr const char* kSite = R"({
+  "speed_of_sound_mps": 343.0,
+  "arrays": [
+    {"id": "N1", "position_m": [-60, -60, 2], "yaw_deg": 0,
+     "mics_m": [[0,0,0.5],[0.4714,0,-0.1667],[-0.2357,0.4082,-0.1667],[-0.2357,-0.4082,-0.1667]]},
+    {"id": "N2", "position_m": [60, -60, 2], "yaw_deg": 0,
+     "mics_m": [[0,0,0.5],[0.4714,0,-0.1667],[-0.2357,0.4082,-0.1667],[-0.2357,-0.4082,-0.1667]]},
+    {"id": "N3", "position_m": [0, 60, 2], "yaw_deg": 0,
+     "mics_m": [[0,0,0.5],[0.4714,0,-0.1667],[-0.2357,0.4082,-0.1667],[-0.2357,-0.4082,-0.1667]]}
+  ]
+})";
+
+class LastTracks : public FusionObserver {
+ public:
+  void on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) override {
+    time_s_ = time_s;
+    tracks_ = tracks;
+  }
+  double time_s_ = 0.0;
+  std::vector<fusion::TrackReport> tracks_;
+};
+
+TEST(DdsFusionIntake, MalformedSamplesAreCountedAndIgnoredAndTrackingGoesOn) {
+  dds::testing::use_loopback();
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  load_options.check_recordings = false;
+  const config::SiteConfig site = config::parse_site_config(kSite, ".", warnings, load_options);
+  const Eigen::Vector3d drone_m(10.0, 20.0, 30.0);
+
+  dds::Participant participant(121);
+  LastTracks last;
+  DdsFusionService service(site, participant, {&last});
+  dds::Topic<dronetrack_Doa> doa_topic(participant);
+  dds::Topic<dronetrack_NodeStatus> status_topic(participant);
+  dds::Qos doa_qos, status_qos;
+  dds::doa_writer_qos(doa_qos);
+  dds::status_writer_qos(status_qos);
+  dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
+  dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
+  ASSERT_TRUE(doa_writer.wait_for_readers(1, 5s));
+
+  std::int64_t sent_doas = 0;
+  std::int64_t clean_doas = 0;
+  std::int64_t expected[dds::kSampleProblemCount] = {};
+  auto send = [&](const dronetrack_Doa& sample, SampleProblem problem) {
+    doa_writer.write(sample);
+    ++sent_doas;
+    if (problem == SampleProblem::none) ++clean_doas;
+    ++expected[static_cast<int>(problem)];
+    // Keep the reader's per-array history (keep-last 64) from overflowing: let the fusion
+    // take what arrived.
+    if (sent_doas % 16 == 0) service.poll(1ms);
+  };
+  auto clean_doa = [&](std::size_t array, double time_s, doa::DoaMeasurement& measurement) {
+    measurement = {};
+    measurement.array_id = site.arrays[array].geometry.id;
+    measurement.time_s = time_s;
+    measurement.direction = (drone_m - site.arrays[array].geometry.centre_site_m()).normalized();
+    measurement.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-4;
+    measurement.quality = 0.9;
+    measurement.snr_db = 20.0;
+  };
+
+  std::mt19937_64 random(6);
+  const double nasty[] = {std::numeric_limits<double>::quiet_NaN(),
+                          std::numeric_limits<double>::infinity(),
+                          -std::numeric_limits<double>::infinity(), 1e308, -1e308};
+  doa::DoaMeasurement measurement;
+  dronetrack_Doa sample{};
+  for (int frame = 0; frame < 80; ++frame) {  // 4 s at 20 DOAs per second per array
+    const double time_s = 0.05 * frame;
+    for (std::size_t array = 0; array < 3; ++array) {
+      clean_doa(array, time_s, measurement);
+      dds::to_idl(measurement, 0, sample);
+      send(sample, SampleProblem::none);
+    }
+    // One of each deliberate defect every few frames.
+    if (frame % 8 == 3) {
+      clean_doa(0, time_s, measurement);
+      dds::to_idl(measurement, 0, sample);
+      dronetrack_Doa bad = sample;
+      bad.direction[2] = std::numeric_limits<double>::quiet_NaN();
+      send(bad, SampleProblem::non_finite);
+      bad = sample;
+      bad.azel_covariance_rad2[0] = std::numeric_limits<double>::infinity();
+      send(bad, SampleProblem::non_finite);
+      bad = sample;
+      bad.array_id[0] = '\0';
+      send(bad, SampleProblem::empty_key);
+      bad = sample;
+      dds::copy_bounded(bad.array_id, "N9");
+      send(bad, SampleProblem::unknown_array);
+      bad = sample;
+      bad.time_ns = -1'000'000'000;
+      send(bad, SampleProblem::absurd_time);
+      bad = sample;
+      bad.time_ns = std::numeric_limits<std::int64_t>::max();
+      send(bad, SampleProblem::absurd_time);
+      bad = sample;
+      bad.time_ns = sample.time_ns + 3'600'000'000'000;  // an hour ahead of everything else
+      send(bad, SampleProblem::absurd_time);
+      bad = sample;
+      bad.direction[0] *= 3.0;
+      send(bad, SampleProblem::bad_value);
+      bad = sample;
+      bad.azel_covariance_rad2[1] = 1.0;  // |cov| > sqrt(var_az var_el)
+      send(bad, SampleProblem::bad_value);
+      bad = sample;
+      bad.ambiguity = 200;
+      send(bad, SampleProblem::bad_value);
+    }
+    // Random fuzz: every field drawn at random, then one defect forced so none is valid.
+    for (int k = 0; k < 3; ++k) {
+      dronetrack_Doa fuzz{};
+      const char* ids[] = {"N1", "N2", "N3", "", "n1", "N1 "};
+      dds::copy_bounded(fuzz.array_id, ids[random() % 6]);
+      // A random direction of length 0.5 or 2: never a unit vector.
+      Eigen::Vector3d direction = Eigen::Vector3d::Zero();
+      while (direction.norm() < 1e-3) {
+        for (int axis = 0; axis < 3; ++axis) {
+          direction[axis] = std::uniform_real_distribution(-1.0, 1.0)(random);
+        }
+      }
+      direction = direction.normalized() * (random() % 2 ? 0.5 : 2.0);
+      for (int axis = 0; axis < 3; ++axis) fuzz.direction[axis] = direction[axis];
+      fuzz.quality = std::uniform_real_distribution(-2.0, 2.0)(random);
+      fuzz.azel_covariance_rad2[0] = fuzz.azel_covariance_rad2[2] = 1e-4;
+      fuzz.source_index = static_cast<std::int32_t>(random() % 5) - 1;
+      fuzz.ambiguity = static_cast<std::uint8_t>(random() % 4);
+      fuzz.time_ns = sample.time_ns;
+      const double value = nasty[random() % 5];
+      switch (random() % 4) {
+        case 0:
+          fuzz.direction[random() % 3] = value;
+          break;
+        case 1:
+          fuzz.snr_db = value;
+          break;
+        case 2:
+          fuzz.azel_covariance_rad2[random() % 3] = value;
+          break;
+        default:
+          fuzz.elevation_deg = value;
+          break;
+      }
+      // What the intake must call it: the first check that fails, in its order. A finite
+      // nasty value may be harmless where it landed, but the random direction is never a unit
+      // vector, so a sample with a known key is then a bad value.
+      const std::string id = fuzz.array_id;
+      SampleProblem problem = SampleProblem::bad_value;
+      if (id.empty()) {
+        problem = SampleProblem::empty_key;
+      } else if (id != "N1" && id != "N2" && id != "N3") {
+        problem = SampleProblem::unknown_array;
+      } else if (!std::isfinite(value)) {
+        problem = SampleProblem::non_finite;
+      }
+      send(fuzz, problem);
+    }
+    // A status per array each second, and a few bad ones.
+    if (frame % 20 == 0) {
+      for (const auto& array : site.arrays) {
+        doa::NodeStatus status;
+        status.array_id = array.geometry.id;
+        status.sample_rate_hz = 48000.0;
+        dronetrack_NodeStatus status_sample{};
+        dds::to_idl(status, dds::seconds_to_ns(time_s), status_sample);
+        status_writer.write(status_sample);
+      }
+      // NodeStatus is keep-last 1 per array: take the good one before the bad one replaces it.
+      service.poll(1ms);
+      dronetrack_NodeStatus bad{};
+      dds::copy_bounded(bad.array_id, "N2");
+      bad.level_dbfs = std::numeric_limits<double>::quiet_NaN();
+      status_writer.write(bad);
+    }
+  }
+  // Let the fusion take everything, then run out the remaining ticks.
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (service.counters().doa_received < sent_doas &&
+         std::chrono::steady_clock::now() < deadline) {
+    service.poll(50ms);
+  }
+  service.finish();
+
+  const IntakeCounters& counters = service.counters();
+  ASSERT_EQ(counters.doa_received, sent_doas);
+  for (int kind = 1; kind < dds::kSampleProblemCount; ++kind) {
+    EXPECT_EQ(counters.doa_problems[kind], expected[kind])
+        << dds::to_string(static_cast<SampleProblem>(kind));
+  }
+  EXPECT_GT(expected[static_cast<int>(SampleProblem::non_finite)], 50);
+  EXPECT_EQ(counters.doa_accepted + counters.doa_rejected_by_engine, clean_doas);
+  EXPECT_EQ(counters.doa_accepted, clean_doas) << "no clean DOA may be pushed out by the garbage";
+  EXPECT_EQ(counters.status_problems[static_cast<int>(SampleProblem::non_finite)], 4);
+  EXPECT_TRUE(service.node_alive("N1") && service.node_alive("N2") && service.node_alive("N3"));
+
+  // The clean stream alone decides the picture: one confirmed track on the drone.
+  ASSERT_FALSE(last.tracks_.empty());
+  int confirmed = 0;
+  for (const auto& track : last.tracks_) {
+    if (track.status != fusion::TrackStatus::confirmed) continue;
+    ++confirmed;
+    EXPECT_LT((track.position_m - drone_m).norm(), 2.0) << track.position_m.transpose();
+  }
+  EXPECT_EQ(confirmed, 1);
+}
+
+}  // namespace
+}  // namespace dronetrack::apps
