@@ -12,6 +12,7 @@
 #include <utility>
 
 #include <httplib.h>
+#include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
 namespace dronetrack::http_api {
@@ -136,6 +137,8 @@ std::pair<std::string, int> parse_bind(const std::string& bind) {
   return {host, port};
 }
 
+constexpr int kListenBacklog = 256;
+
 }  // namespace
 
 HttpServer::HttpServer(LiveState& state, HttpOptions options)
@@ -163,7 +166,8 @@ void HttpServer::start() {
   // httplib's default adds SO_REUSEPORT, which would let a second server silently share the
   // port. A modest send buffer (inherited by accepted sockets) bounds what a stuck client can
   // absorb before its writes block and it is cut off.
-  server_->set_socket_options([](socket_t sock) {
+  server_->set_socket_options([this](socket_t sock) {
+    listen_socket_ = static_cast<int>(sock);
     const int yes = 1;
     const int send_buffer_bytes = 128 * 1024;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
@@ -184,6 +188,10 @@ void HttpServer::start() {
     throw std::runtime_error("cannot listen on " + options_.bind +
                              (error != 0 ? std::string(": ") + std::strerror(error) : ""));
   }
+  // httplib listens with a backlog of 5: a burst of clients (a control room opening the page,
+  // the load test's 50 streams) would see dropped SYNs and second-long connect delays. Linux
+  // lets listen() be called again on a listening socket to raise it.
+  if (listen_socket_ >= 0) ::listen(listen_socket_, kListenBacklog);
   stopping_ = false;
   auto listen_ended = std::make_shared<std::atomic<bool>>(false);
   thread_ = std::thread([this, listen_ended] {

@@ -43,6 +43,7 @@ class HttpServer {
   HttpOptions options_;
   std::string host_;
   int port_ = 0;
+  int listen_socket_ = -1;  // seen in httplib's socket-options hook, to raise the backlog
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};

@@ -75,15 +75,21 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<std::uint16_t>(server.port()));
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(::connect(stuck, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  // EXPECT, not ASSERT, from here on: the client threads must be joined whatever happens.
+  EXPECT_EQ(::connect(stuck, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
   const std::string request = "GET /api/stream HTTP/1.1\r\nHost: x\r\n\r\n";
-  ASSERT_EQ(::send(stuck, request.data(), request.size(), 0), static_cast<ssize_t>(request.size()));
+  EXPECT_EQ(::send(stuck, request.data(), request.size(), 0), static_cast<ssize_t>(request.size()));
 
-  auto deadline = Clock::now() + std::chrono::seconds(10);
+  const auto connect_start = Clock::now();
+  auto deadline = connect_start + std::chrono::seconds(10);
   while (state.subscriber_count() < kClients + 1 && Clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  ASSERT_EQ(state.subscriber_count(), static_cast<std::size_t>(kClients + 1));
+  const double connect_s = std::chrono::duration<double>(Clock::now() - connect_start).count();
+  // All 51 streams open within a second (httplib's own listen backlog of 5 made this take
+  // seconds; HttpServer raises it).
+  EXPECT_EQ(state.subscriber_count(), static_cast<std::size_t>(kClients + 1));
+  EXPECT_LT(connect_s, 1.0);
 
   // A realistic picture: 8 tracks and 4 DOAs per tick (several kB per tracks event), so the
   // stuck client's socket buffers fill within the run.
@@ -129,10 +135,10 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
   for (const auto& c : clients) min_events = std::min(min_events, c->tracks_events.load());
   std::printf(
       "sse load: %d ticks at %.1f Hz target -> %.2f Hz achieved, %d late, max publish %.3f ms; "
-      "%d clients, fewest tracks events %d/%d; subscribers now %zu, dropped for a full queue "
-      "%lld\n",
-      kTicks, kRateHz, achieved_hz, late_ticks, max_publish_ms, kClients, min_events, kTicks + 1,
-      state.subscriber_count(), static_cast<long long>(state.dropped_clients()));
+      "%d clients connected in %.2f s, fewest tracks events %d/%d; subscribers now %zu, dropped "
+      "for a full queue %lld\n",
+      kTicks, kRateHz, achieved_hz, late_ticks, max_publish_ms, kClients, connect_s, min_events,
+      kTicks + 1, state.subscriber_count(), static_cast<long long>(state.dropped_clients()));
 
   EXPECT_GE(achieved_hz, 0.98 * kRateHz);
   EXPECT_EQ(late_ticks, 0);
