@@ -77,8 +77,11 @@ void BM_FftCrossSpectrumKernel(benchmark::State& state) {
 }
 BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 
+// Arg 0: default DoaParams; 1: max_sources 1 (no SRP-PHAT); 2: also per_frame TDOAs.
 void BM_NodePipeline(benchmark::State& state) {
-  const DoaParams params;
+  DoaParams params;
+  if (state.range(0) >= 1) params.max_sources = 1;
+  if (state.range(0) >= 2) params.tdoa_tracker = TdoaTracker::per_frame;
   NodePipeline pipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
   const int hop = pipeline.hop_samples();
   const testing::Recording& audio = scene();
@@ -111,7 +114,7 @@ void BM_NodePipeline(benchmark::State& state) {
   state.counters["doas_per_frame"] =
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
 }
-BENCHMARK(BM_NodePipeline)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NodePipeline)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
 // Records each run's time per iteration so main() can print the ratio.
 class RecordingReporter : public benchmark::ConsoleReporter {
@@ -119,7 +122,7 @@ class RecordingReporter : public benchmark::ConsoleReporter {
   void ReportRuns(const std::vector<Run>& runs) override {
     for (const Run& run : runs)
       if (run.run_type == Run::RT_Iteration && run.iterations > 0)
-        seconds[run.run_name.function_name] = run.GetAdjustedCPUTime() * 1e-6;
+        seconds[run.benchmark_name()] = run.GetAdjustedCPUTime() * 1e-6;
     ConsoleReporter::ReportRuns(runs);
   }
   std::map<std::string, double> seconds;  // CPU seconds per iteration
@@ -133,7 +136,7 @@ int main(int argc, char** argv) {
   benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
   const auto kernel = reporter.seconds.find("BM_FftCrossSpectrumKernel");
-  const auto pipeline = reporter.seconds.find("BM_NodePipeline");
+  const auto pipeline = reporter.seconds.find("BM_NodePipeline/0");
   if (kernel != reporter.seconds.end() && pipeline != reporter.seconds.end()) {
     const double hop_s = DoaParams{}.hop_s;
     std::printf("\n4-mic 48 kHz array, default DoaParams (frame %.2f s, hop %.2f s):\n",

@@ -30,7 +30,7 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
     diagnostics.error(section.path_of("hop_s"), "must not exceed frame_s");
   }
   const std::string tracker =
-      section.choice("tdoa_tracker", "bayesian_grid",
+      section.choice("tdoa_tracker", "robust_regression",
                      {"per_frame", "bayesian_grid", "multi_peak", "robust_regression"});
   if (tracker == "per_frame") params.tdoa_tracker = doa::TdoaTracker::per_frame;
   if (tracker == "bayesian_grid") params.tdoa_tracker = doa::TdoaTracker::bayesian_grid;
@@ -55,6 +55,11 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("max_angular_rate_dps", params.max_angular_rate_dps, 1.0, 3600.0);
   params.regression_window_frames =
       section.integer("regression_window_frames", params.regression_window_frames, 5, 64);
+  params.regression_delay_frames =
+      section.integer("regression_delay_frames", params.regression_delay_frames, 0, 63);
+  if (params.regression_delay_frames >= params.regression_window_frames)
+    diagnostics.error(section.path_of("regression_delay_frames"),
+                      "must be less than regression_window_frames");
   params.max_norm_error = section.number("max_norm_error", params.max_norm_error, 0.001, 1.0);
   params.max_chi2_per_dof = section.number("max_chi2_per_dof", params.max_chi2_per_dof, 1.0, 1e6);
   params.srp_grid_deg = section.number("srp_grid_deg", params.srp_grid_deg, 0.5, 30.0);

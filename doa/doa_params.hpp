@@ -22,9 +22,9 @@ struct DoaParams {
   std::vector<FrequencyBand> bands_hz{FrequencyBand{}};  // seed 002: 1.5-3.5 kHz
   double frame_s = 0.17;  // analysis frame length; FFT size = next FFTW-friendly size >= frame
   double hop_s = 0.05;    // about 20 DOAs per second
-  TdoaTracker tdoa_tracker = TdoaTracker::bayesian_grid;
-  int max_sources = 2;            // DOAs per frame (SRP-PHAT peaks)
-  double detection_snr_db = 6.0;  // in-band level over the adaptive noise floor to publish
+  TdoaTracker tdoa_tracker = TdoaTracker::robust_regression;  // best on the scenes (docs/doa.md)
+  int max_sources = 2;                                        // DOAs per frame (SRP-PHAT peaks)
+  double detection_snr_db = 0.0;  // in-band level over the adaptive noise floor to publish
 
   // Added with the DSP (issue 4); all optional keys of the "doa" config section.
   double min_gcc_peak = 0.2;  // mean normalised GCC-PHAT peak over pairs needed to publish
@@ -33,7 +33,9 @@ struct DoaParams {
   LagInterpolation lag_interpolation = LagInterpolation::band_limited;
   int correlation_oversample = 1;        // lag grid: 2x the band's Nyquist rate, times this
   double max_angular_rate_dps = 90.0;    // trackers: largest plausible DOA rate of a source
-  int regression_window_frames = 9;      // robust_regression: frames in the sliding window
+  int regression_window_frames = 13;     // robust_regression: frames in the sliding window
+  int regression_delay_frames = 6;       // robust_regression: evaluate the fit this many frames
+                                         // back (6 = the window's centre; adds 6 hops latency)
   double max_norm_error = 0.1;           // LS: reject when ||A^-1 b| - 1| exceeds this
   double max_chi2_per_dof = 30.0;        // LS: reject when the TDOA fit residual exceeds this
   double srp_grid_deg = 5.0;             // SRP-PHAT direction grid spacing

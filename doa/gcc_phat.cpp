@@ -119,7 +119,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   if (inverse_->spectrum == nullptr || inverse_->correlation == nullptr) throw std::bad_alloc();
   std::fill_n(reinterpret_cast<double*>(inverse_->spectrum), correlation_size_ + 2, 0.0);
   inverse_->plan = fftw_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
-                                        inverse_->correlation, FFTW_ESTIMATE);
+                                        inverse_->correlation, FFTW_MEASURE);
   if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
 }
 
@@ -281,35 +281,30 @@ int GccPhat::climb(int pair, double start_lag_s) const {
 }
 
 bool GccPhat::refine_parabolic(int pair, int m, GccPeak& out) const {
-  const std::span<const double> values = grid(pair);
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  double offset = 0.0;
-  double value = values[static_cast<std::size_t>(m)];
-  if (m > 0 && m < 2 * half) {
-    const double left = values[static_cast<std::size_t>(m - 1)];
-    const double right = values[static_cast<std::size_t>(m + 1)];
-    const double curvature = left - 2.0 * value + right;
-    if (curvature < 0.0) {
-      offset = 0.5 * (left - right) / curvature;
-      value -= 0.25 * (left - right) * offset;
-    }
-  }
-  out = {(m - half + offset) * lag_step_s_, value, 0.0};
+  refine_parabolic_grid_only(pair, m, out);
   double unused = 0.0;
   evaluate(pair, out.lag_s, unused, out.coherence);
   return true;
 }
 
 bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
-  const double start_lag_s = (m - half_spans_[static_cast<std::size_t>(pair)]) * lag_step_s_;
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  const double grid_lag_s = (m - half) * lag_step_s_;
+  // Start from the parabola through the grid maximum: within a fraction of a grid step, so
+  // Newton (quadratic convergence) needs one or two passes over the band.
+  GccPeak start;
+  refine_parabolic_grid_only(pair, m, start);
+  double lag = start.lag_s;
   const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
   const std::complex<double>* phasor = phasors_.data() + offset;
-  double lag = start_lag_s;
+  const double* magnitude = magnitudes_.data() + offset;
   // Newton on R(tau) = sum Re(W_k e^{j w_k tau}): R' = -sum w_k Im(.), R'' = -sum w_k^2 Re(.).
-  // Started at a grid maximum, where R is concave, it converges in two or three steps; each
-  // step is capped so it cannot jump to a neighbouring lobe.
-  constexpr double kConverged_s = 1e-9;
-  for (int iteration = 0; iteration < 5; ++iteration) {
+  // Each pass also yields R and the |G|-weighted sum at the current lag; the last step is below
+  // kConverged_s, where R changes by ~R'' step^2, far below anything that matters.
+  constexpr double kConverged_s = 1e-8;
+  for (int iteration = 0; iteration < 6; ++iteration) {
+    double sum0 = 0.0;
+    double weighted = 0.0;
     double sum1 = 0.0;
     double sum2 = 0.0;
     int index = 0;
@@ -319,6 +314,8 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
       double omega = run.first_bin * bin_omega_;
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         const std::complex<double> term = phasor[index] * rotation;
+        sum0 += term.real();
+        weighted += magnitude[index] * term.real();
         sum1 -= omega * term.imag();
         sum2 -= omega * omega * term.real();
         rotation *= step;
@@ -328,12 +325,31 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
     if (!(sum2 < 0.0)) return refine_parabolic(pair, m, out);
     const double delta = std::clamp(-sum1 / sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
     lag += delta;
-    if (std::abs(delta) < kConverged_s) break;
+    if (std::abs(delta) < kConverged_s || iteration == 5) {
+      if (std::abs(lag - grid_lag_s) > 1.5 * lag_step_s_) return false;
+      const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
+      out = {lag, sum0 / band_bins_, total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0};
+      return true;
+    }
   }
-  if (std::abs(lag - start_lag_s) > 1.5 * lag_step_s_) return false;
-  out = {lag, 0.0, 0.0};
-  evaluate(pair, lag, out.value, out.coherence);
-  return true;
+  return false;
+}
+
+void GccPhat::refine_parabolic_grid_only(int pair, int m, GccPeak& out) const {
+  const std::span<const double> values = grid(pair);
+  const int half = half_spans_[static_cast<std::size_t>(pair)];
+  double offset = 0.0;
+  double value = values[static_cast<std::size_t>(m)];
+  if (m > 0 && m < 2 * half) {
+    const double left = values[static_cast<std::size_t>(m - 1)];
+    const double right = values[static_cast<std::size_t>(m + 1)];
+    const double curvature = left - 2.0 * value + right;
+    if (curvature < 0.0) {
+      offset = std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5);
+      value -= 0.25 * (left - right) * offset;
+    }
+  }
+  out = {(m - half + offset) * lag_step_s_, value, 0.0};
 }
 
 void GccPhat::evaluate(int pair, double lag_s, double& value, double& coherence) const {

@@ -97,6 +97,7 @@ class GccPhat {
   int climb(int pair, double start_lag_s) const;  // grid index of the local max uphill
   bool refine_band_limited(int pair, int grid_index, GccPeak& out) const;
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
+  void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
 
   double sample_rate_hz_;

@@ -43,6 +43,9 @@ void validate(const ArrayGeometry& geometry, const DoaParams& params, double sam
     fail("correlation_oversample must be in [1, 16]");
   if (params.regression_window_frames < 5 || params.regression_window_frames > 64)
     fail("regression_window_frames must be in [5, 64]");
+  if (params.regression_delay_frames < 0 ||
+      params.regression_delay_frames >= params.regression_window_frames)
+    fail("regression_delay_frames must be in [0, regression_window_frames)");
 }
 
 std::vector<MicPairSpec> pair_specs(const LsDoaSolver& solver) {
@@ -84,6 +87,7 @@ struct NodePipeline::Impl {
     tracker_settings.hop_s = static_cast<double>(hop) / sample_rate_hz;
     tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
     tracker_settings.regression_window_frames = params.regression_window_frames;
+    tracker_settings.regression_delay_frames = params.regression_delay_frames;
     tracker = make_tdoa_estimator(params.tdoa_tracker, gcc, tracker_settings);
     tdoas.resize(static_cast<std::size_t>(solver.pair_count()));
     if (params.max_sources > 1 && solver.rank() >= 2) {
@@ -95,6 +99,7 @@ struct NodePipeline::Impl {
     DoaSolution solution;
     std::array<PairTdoa, kMaxPairs> tdoas{};
     double coherence = 0.0;
+    double time_offset_s = 0.0;  // the tracker's output delay (primary only)
   };
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
@@ -175,6 +180,7 @@ void NodePipeline::Impl::find_candidates() {
   if (primary.solution.accepted) {
     std::copy(tdoas.begin(), tdoas.end(), primary.tdoas.begin());
     primary.coherence = mean_coherence(tdoas);
+    primary.time_offset_s = tracker->output_delay_s();
     ++candidate_count;
   }
   if (!srp) return;
@@ -210,6 +216,7 @@ void NodePipeline::Impl::find_candidates() {
       continue;
     }
     candidate.coherence = mean_coherence(candidate_tdoas);
+    candidate.time_offset_s = 0.0;
     srp->subtract(gcc, candidate_tdoas);
     ++candidate_count;
   }
@@ -255,7 +262,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   if (!detecting) return;
   for (int s = 0; s < candidate_count; ++s) {
     const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
-    publish(candidate.solution, time_s, candidate.tdoas, s, out);
+    publish(candidate.solution, time_s - candidate.time_offset_s, candidate.tdoas, s, out);
   }
 }
 

@@ -168,9 +168,11 @@ MultichannelFft::MultichannelFft(int channels, int frame_length, int fft_size)
   plan_->output =
       fftw_alloc_complex(static_cast<std::size_t>(channels) * static_cast<std::size_t>(stride_));
   if (plan_->input == nullptr || plan_->output == nullptr) throw std::bad_alloc();
-  std::fill_n(plan_->input, fft_size, 0.0);
-  plan_->plan = fftw_plan_dft_r2c_1d(fft_size, plan_->input, plan_->output, FFTW_ESTIMATE);
+  // FFTW_MEASURE times candidate algorithms once per size and process (FFTW keeps the wisdom),
+  // ~2x faster transforms than FFTW_ESTIMATE here. It scribbles on the arrays: zero after.
+  plan_->plan = fftw_plan_dft_r2c_1d(fft_size, plan_->input, plan_->output, FFTW_MEASURE);
   if (plan_->plan == nullptr) throw std::runtime_error("MultichannelFft: FFTW plan failed");
+  std::fill_n(plan_->input, fft_size, 0.0);
 }
 
 MultichannelFft::~MultichannelFft() {

@@ -160,6 +160,7 @@ class RegressionEstimator final : public TdoaEstimator {
   RegressionEstimator(const GccPhat& gcc, const TdoaTrackerSettings& settings)
       : settings_(settings),
         window_(static_cast<std::size_t>(std::max(4, settings.regression_window_frames))) {
+    delay_s_ = std::max(0, settings.regression_delay_frames) * settings.hop_s;
     histories_.resize(static_cast<std::size_t>(gcc.pair_count()));
     for (History& history : histories_) history.points.resize(window_);
     residuals_.resize(window_);
@@ -245,7 +246,15 @@ class RegressionEstimator final : public TdoaEstimator {
     }
     const PairTdoa per_frame{current.peak.lag_s, current.tdoa_variance_s2, current.peak.value,
                              current.coherence};
-    if (candidates < 5) return per_frame;
+    // With a delay, the newest frame's own value is not a substitute for the earlier frame's.
+    const PairTdoa fallback = delay_s_ > 0.0 ? PairTdoa{} : per_frame;
+    if (candidates < 5) return fallback;
+    // Only frames that themselves had signal get an estimate (no DOA stamped on a dropout).
+    bool target_present = delay_s_ <= 0.0;
+    for (std::size_t i = 0; i < window_ && !target_present; ++i)
+      target_present = weights_[i] > 0.0 && std::abs(history.points[i].time_s - (now - delay_s_)) <
+                                                0.5 * settings_.hop_s;
+    if (!target_present) return fallback;
     // Start from the median (robust to a minority of outliers, which a least-squares quadratic
     // is not: an outlier at the window's end pulls the curve onto itself), gate on the median
     // absolute deviation, fit, gate again on the fit's residuals, refit.
@@ -259,7 +268,7 @@ class RegressionEstimator final : public TdoaEstimator {
     gate_residuals(history);
     Eigen::Vector3d coefficients;
     Eigen::Matrix3d covariance;
-    if (!weighted_fit(history, now, coefficients, covariance)) return per_frame;
+    if (!weighted_fit(history, now, coefficients, covariance)) return fallback;
     for (std::size_t i = 0; i < window_; ++i) {
       // Re-admit every fresh point, then gate on the residuals of the fit.
       const Point& point = history.points[i];
@@ -273,7 +282,7 @@ class RegressionEstimator final : public TdoaEstimator {
               : 0.0;
     }
     gate_residuals(history);
-    if (!weighted_fit(history, now, coefficients, covariance)) return per_frame;
+    if (!weighted_fit(history, now, coefficients, covariance)) return fallback;
     double chi2 = 0.0;
     int used = 0;
     double peak_sum = 0.0;
@@ -287,10 +296,15 @@ class RegressionEstimator final : public TdoaEstimator {
       ++used;
     }
     const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
-    return {coefficients(0), covariance(0, 0) * inflation, peak_sum / used, current.coherence};
+    const Eigen::Vector3d at(1.0, -delay_s_, delay_s_ * delay_s_);
+    return {coefficients.dot(at), at.dot(covariance * at) * inflation, peak_sum / used,
+            current.coherence};
   }
 
+  double output_delay_s() const override { return delay_s_; }
+
   TdoaTrackerSettings settings_;
+  double delay_s_ = 0.0;
   std::size_t window_;
   std::vector<History> histories_;
   std::vector<double> residuals_;

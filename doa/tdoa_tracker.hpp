@@ -25,6 +25,10 @@ struct TdoaTrackerSettings {
   double likelihood_floor = 0.02;
   int multi_peak_count = 4;
   int regression_window_frames = 9;
+  // robust_regression evaluates its fit this many frames back (the window's centre when
+  // (window - 1) / 2): a smoothed TDOA for an earlier frame instead of an extrapolated one for
+  // the newest. The DOA then carries that earlier frame's time (output_delay_s()).
+  int regression_delay_frames = 0;
   double regression_mad_gate = 3.0;
 };
 
@@ -35,6 +39,8 @@ class TdoaEstimator {
   // `out` has one entry per pair of `gcc`.
   virtual void update(double time_s, const GccPhat& gcc, bool signal_present,
                       std::span<PairTdoa> out) = 0;
+  // How far before the frame's own time the estimates refer to (their DOA's time offset).
+  virtual double output_delay_s() const { return 0.0; }
 };
 
 std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPhat& gcc,

@@ -1,8 +1,9 @@
-// doa_scene_eval SCENARIO.json [TRACKER ...]: renders a simulated scene in memory, runs every
-// array's NodePipeline with each TDOA tracker (default: all four) and prints the accuracy table
-// (markdown rows) that docs/doa.md quotes.
+// doa_scene_eval SCENARIO.json [--audible-snr-db DB] [TRACKER ...]: renders a simulated scene in
+// memory, runs every array's NodePipeline with each TDOA tracker (default: all four) and prints the
+// accuracy table (markdown rows) that docs/doa.md quotes.
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -14,7 +15,8 @@ int main(int argc, char** argv) {
   using namespace dronetrack;
   if (argc < 2) {
     std::fprintf(stderr,
-                 "usage: doa_scene_eval SCENARIO.json [per_frame|bayesian_grid|multi_peak|"
+                 "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] "
+                 "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
   }
@@ -22,7 +24,12 @@ int main(int argc, char** argv) {
     std::vector<std::string> warnings;
     const sim::Scenario scenario = sim::load_scenario(argv[1], warnings);
     std::vector<doa::TdoaTracker> trackers;
+    doa::testing::EvaluationSettings settings;
     for (int i = 2; i < argc; ++i) {
+      if (argv[i] == std::string("--audible-snr-db") && i + 1 < argc) {
+        settings.audible_snr_db = std::stod(argv[++i]);
+        continue;
+      }
       bool known = false;
       for (const auto kind : {doa::TdoaTracker::per_frame, doa::TdoaTracker::bayesian_grid,
                               doa::TdoaTracker::multi_peak, doa::TdoaTracker::robust_regression}) {
@@ -47,7 +54,7 @@ int main(int argc, char** argv) {
     for (const doa::TdoaTracker tracker : trackers) {
       doa::DoaParams params = scenario.site.doa;
       params.tdoa_tracker = tracker;
-      const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params);
+      const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);
       std::printf("%s",
                   doa::testing::format_rows(name, doa::tdoa_tracker_name(tracker), result).c_str());
       std::fflush(stdout);
