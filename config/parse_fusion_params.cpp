@@ -53,6 +53,10 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.init_acceleration_std_mps2 =
       section.number("init_acceleration_std_mps2", params.init_acceleration_std_mps2, 0.01, 1000.0);
   params.max_tracks = section.integer("max_tracks", params.max_tracks, 1, 1000);
+  params.confirm_min_arrays =
+      section.integer("confirm_min_arrays", params.confirm_min_arrays, 1, 64);
+  params.max_position_std_m =
+      section.number("max_position_std_m", params.max_position_std_m, 0.1, 1e5);
 }
 
 }  // namespace dronetrack::config

@@ -168,6 +168,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(params.init_velocity_std_mps > 0.0, "init_velocity_std_mps", "must be > 0");
   check(params.init_acceleration_std_mps2 > 0.0, "init_acceleration_std_mps2", "must be > 0");
   check(params.max_tracks >= 1, "max_tracks", "must be >= 1");
+  check(params.confirm_min_arrays >= 1, "confirm_min_arrays", "must be >= 1");
+  check(params.max_position_std_m > 0.0, "max_position_std_m", "must be > 0");
   if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
     throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
   }
@@ -375,22 +377,22 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   if (tracks.size() >= static_cast<std::size_t>(params.max_tracks)) return false;
   RecentDoa& seed = recent[array][recent_index];
   const auto array_count = static_cast<int>(arrays.size());
-  // The rays of a pair are at most dt apart in arrival time and up to baseline / c apart in
-  // emission time; a drone moves init_max_speed_mps * that in between. Widen each ray's angular
-  // noise by that motion seen from 50 m (closer targets have wider angles; the ranges refine).
-  const auto widened = [this](const RecentDoa& doa, double dt_s, double range_m) {
-    const double motion_m = params.init_max_speed_mps * dt_s;
-    const double extra = std::pow(motion_m / std::max(range_m, 1.0), 2);
-    return MeasurementCovariance(doa.noise + MeasurementCovariance::Identity() * extra);
-  };
+  // Rays of different arrays at nearby reception times left the drone at different emission
+  // times (t - r / c); it moves up to init_max_speed_mps in between. Widen each ray's angular
+  // noise by that motion seen from its range, relative to the seed's emission time.
   const auto chi2_against = [&](const RecentDoa& doa, int doa_array, const Eigen::Vector3d& point,
-                                double dt_s) {
+                                double reference_emission_s) {
     const Eigen::Vector3d to_point = point - models[doa_array].centre_m;
-    const double range = to_point.norm();
-    const double delay_spread = range / models[doa_array].speed_of_sound_mps;
+    const double range = std::max(to_point.norm(), 1.0);
+    const double emission_s = doa.time_s - range / models[doa_array].speed_of_sound_mps;
+    const double motion_m = params.init_max_speed_mps * std::abs(emission_s - reference_emission_s);
+    const MeasurementCovariance r =
+        doa.noise + MeasurementCovariance::Identity() * std::pow(motion_m / range, 2);
     const Measurement residual = azel_residual(doa.azel, azel_of(to_point));
-    const MeasurementCovariance r = widened(doa, dt_s + delay_spread * 0.1, range);
     return residual.dot(r.ldlt().solve(residual));
+  };
+  const auto emission_of = [&](const Eigen::Vector3d& point) {
+    return time_s - (point - models[array].centre_m).norm() / models[array].speed_of_sound_mps;
   };
 
   struct Candidate {
@@ -414,7 +416,9 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
       if (!fix || !fix->in_front) continue;
       const Eigen::Vector3d p = fix->position_m;
       if ((p - models[array].centre_m).norm() > params.init_max_range_m) continue;
-      const double chi2 = chi2_against(seed, array, p, 0.0) + chi2_against(partner, other, p, dt);
+      const double reference = emission_of(p);
+      const double chi2 =
+          chi2_against(seed, array, p, reference) + chi2_against(partner, other, p, reference);
       // Two rays, three unknowns: one degree of freedom left to test consistency.
       if (chi2 > chi_square_quantile(params.gate_probability, 1)) continue;
       if (chi2 < best.score) best = {*fix, other, i, chi2};
@@ -422,8 +426,8 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   }
   if (best.partner_array < 0) return false;
 
-  // Every other array that heard something meanwhile must agree with the point (ghost rejection
-  // where rays of different drones cross); agreeing, unclaimed DOAs sharpen the fix.
+  // Other arrays' unclaimed DOAs that agree with the point sharpen the fix and count toward
+  // the arrays that support the new track.
   rays.clear();
   rays.push_back({models[array].centre_m, seed.direction, seed.noise});
   const RecentDoa& partner = recent[best.partner_array][best.partner_index];
@@ -439,16 +443,18 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
       const double dt = std::abs(time_s - ring[i].time_s);
       if (dt > params.init_pair_window_s) continue;
       heard = true;
-      const double chi2 = chi2_against(ring[i], other, best.fix.position_m, dt);
+      const double chi2 =
+          chi2_against(ring[i], other, best.fix.position_m, emission_of(best.fix.position_m));
       if (chi2 < best_chi2) {
         best_chi2 = chi2;
         extra_index[other] = static_cast<int>(i);
       }
     }
-    if (!heard) continue;
-    if (best_chi2 > gate_chi2) {
-      ++counters.ghosts_rejected;
-      return false;
+    // No agreement is not proof of a ghost: with one or two DOAs per frame, a louder drone can
+    // mask this one at that array. Continuity decides (confirm_min_arrays).
+    if (!heard || best_chi2 > gate_chi2) {
+      extra_index[other] = -1;
+      continue;
     }
     const RecentDoa& agreeing = ring[static_cast<std::size_t>(extra_index[other])];
     if (!agreeing.used && !agreeing.associated) {
@@ -499,10 +505,11 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   track.heard_by_array_s.fill(kNeverS);
   track.heard_by_array_s[array] = time_s;
   track.heard_by_array_s[best.partner_array] = time_s;
-  track.confirmed = params.confirm_hits <= 1;
-  tracks.push_back(std::move(track));
+  for (int other = 0; other < array_count; ++other) {
+    if (extra_index[other] >= 0) track.heard_by_array_s[other] = time_s;
+  }
+  tracks.push_back(std::move(track));  // confirmed by life_cycle
   ++counters.tracks_started;
-  if (tracks.back().confirmed) ++counters.tracks_confirmed;
 
   seed.used = true;
   recent[best.partner_array][best.partner_index].used = true;
@@ -517,13 +524,26 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
 void FusionEngine::Impl::life_cycle(double now_s) {
   const std::uint32_t window_mask =
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
+  const int min_arrays = std::min<int>(params.confirm_min_arrays, static_cast<int>(arrays.size()));
   for (Track& track : tracks) {
-    if (!track.confirmed && std::popcount(track.hits & window_mask) >= params.confirm_hits) {
+    int arrays_heard = 0;
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      if (track.heard_by_array_s[a] != kNeverS) ++arrays_heard;
+    }
+    if (!track.confirmed && arrays_heard >= min_arrays &&
+        std::popcount(track.hits & window_mask) >= params.confirm_hits) {
       track.confirmed = true;
       ++counters.tracks_confirmed;
     }
   }
+  const double max_variance = params.max_position_std_m * params.max_position_std_m;
   const auto dead = [&](const Track& track) {
+    const bool unconfirmed_expired =
+        !track.confirmed && now_s - track.last_update_s > params.tentative_timeout_s;
+    if (unconfirmed_expired) ++counters.ghosts_rejected;
+    const Eigen::Vector3d variance =
+        track.filter->covariance().diagonal().segment<3>(StateBlock::position);
+    if (!(variance.maxCoeff() <= max_variance)) return true;
     const double unheard = now_s - track.last_update_s;
     return unheard > (track.confirmed ? params.coast_timeout_s : params.tentative_timeout_s);
   };

@@ -36,10 +36,16 @@ struct FusionParams {
   // Initiation: DOAs of different arrays this close in time are paired and triangulated.
   double init_pair_window_s = 0.3;
   double init_max_range_m = 2000.0;  // candidate points farther from every array are rejected
-  double init_max_speed_mps = 40.0;  // bounds the motion between paired DOAs (widens their gate)
+  double init_max_speed_mps = 25.0;  // bounds the motion between paired DOAs (widens their gate)
   double init_velocity_std_mps = 10.0;
   double init_acceleration_std_mps2 = 3.0;
   int max_tracks = 32;
+  // Ghost rejection by continuity: a tentative track is confirmed only once this many distinct
+  // arrays have updated it (clamped to the number of arrays). A crossing of two drones' rays is
+  // consistent with the two arrays that made it, rarely with a third.
+  int confirm_min_arrays = 3;
+  // A track whose position std (largest axis) grows beyond this is lost, not tracked: deleted.
+  double max_position_std_m = 50.0;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)
