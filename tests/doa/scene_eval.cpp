@@ -69,14 +69,35 @@ RenderedScenario render_for_evaluation(const sim::Scenario& scenario) {
   for (std::size_t a = 0; a < arrays; ++a) rendered.full.push_back(sim::render_array(scenario, a));
   for (std::size_t s = 0; s < scenario.sources.size(); ++s) {
     if (scenario.sources[s].kind != sim::SourceKind::drone) continue;
+    // Silence the other sources instead of removing them: a source's random streams follow its
+    // index in the scenario, so removing one would change the others' signals.
     sim::Scenario alone = scenario;
-    alone.sources = {scenario.sources[s]};
+    for (std::size_t other = 0; other < alone.sources.size(); ++other)
+      if (other != s) alone.sources[other].level_db_spl = -400.0;
     alone.noise.sensor.enabled = false;
     alone.noise.wind.enabled = false;
     alone.noise.ambient.enabled = false;
     std::vector<sim::RenderedArray> per_array;
     for (std::size_t a = 0; a < arrays; ++a) per_array.push_back(sim::render_array(alone, a));
     rendered.drone_alone.push_back(std::move(per_array));
+  }
+  sim::Scenario interferers = scenario;
+  bool any_interferer = false;
+  for (sim::SourceSpec& source : interferers.sources) {
+    if (source.kind == sim::SourceKind::drone) source.level_db_spl = -400.0;
+    any_interferer = any_interferer || source.kind != sim::SourceKind::drone;
+  }
+  interferers.noise.sensor.enabled = false;
+  interferers.noise.wind.enabled = false;
+  interferers.noise.ambient.enabled = false;
+  for (std::size_t a = 0; a < arrays; ++a) {
+    if (!any_interferer) {
+      sim::RenderedArray silent = rendered.full[a];
+      std::fill(silent.samples.begin(), silent.samples.end(), 0.0F);
+      rendered.interferers_alone.push_back(std::move(silent));
+    } else {
+      rendered.interferers_alone.push_back(sim::render_array(interferers, a));
+    }
   }
   return rendered;
 }
@@ -96,6 +117,8 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
     std::vector<float> noise = full.samples;
     for (const auto& drone : rendered.drone_alone)
       for (std::size_t n = 0; n < noise.size(); ++n) noise[n] -= drone[a].samples[n];
+    for (std::size_t n = 0; n < noise.size(); ++n)
+      noise[n] -= rendered.interferers_alone[a].samples[n];
     const std::vector<double> noise_power =
         frame_powers(noise, full.channels, full.sample_rate_hz, params);
 
@@ -154,6 +177,7 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
       for (std::size_t k = 0; k < drone_power.size() && k < noise_power.size(); ++k) {
         const double snr_db =
             10.0 * std::log10(std::max(drone_power[k], 1e-30) / std::max(noise_power[k], 1e-30));
+        cell.max_snr_db = std::max(cell.max_snr_db, snr_db);
         if (snr_db < settings.audible_snr_db) continue;
         ++cell.audible_frames;
         const double time_s =
@@ -179,10 +203,11 @@ std::string format_rows(const std::string& scene, const std::string& tracker,
   std::string rows;
   char line[256];
   for (const DroneAtArray& cell : result.cells) {
-    std::snprintf(line, sizeof line, "| %s | %s | %s | %s | %.3f | %.3f | %.1f %% (%d/%d) |\n",
-                  scene.c_str(), tracker.c_str(), cell.array_id.c_str(), cell.drone_id.c_str(),
-                  cell.median_deg(), cell.p90_deg(), 100.0 * cell.coverage(), cell.found_frames,
-                  cell.audible_frames);
+    std::snprintf(line, sizeof line,
+                  "| %s | %s | %s | %s | %.3f | %.3f | %.1f %% (%d/%d) | %.1f |\n", scene.c_str(),
+                  tracker.c_str(), cell.array_id.c_str(), cell.drone_id.c_str(), cell.median_deg(),
+                  cell.p90_deg(), 100.0 * cell.coverage(), cell.found_frames, cell.audible_frames,
+                  cell.max_snr_db);
     rows += line;
   }
   std::snprintf(line, sizeof line,

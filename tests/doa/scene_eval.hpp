@@ -1,8 +1,8 @@
 #pragma once
 // Accuracy of NodePipeline on simulated scenes (sim/ in-memory API), against the simulator's
 // truth directions at the DOA times. A frame counts as "audible" for a drone at an array when
-// that drone's in-band SNR (its own rendering against everything that is not a drone: sensor,
-// wind and ambient noise and interferers, = full scene minus all drones) is at least
+// that drone's in-band SNR (its own rendering against the background: sensor, wind and ambient
+// noise = full scene minus every source rendered alone; interferers are not background) is at least
 // `audible_snr_db`; a drone is "found" in a frame when a DOA of that frame lies within
 // `found_within_deg` of its true direction, and its error is that DOA's angle to the truth.
 #include <string>
@@ -19,6 +19,7 @@ struct RenderedScenario {
   sim::Truth truth;
   std::vector<sim::RenderedArray> full;                      // per array
   std::vector<std::vector<sim::RenderedArray>> drone_alone;  // per drone, per array (no noise)
+  std::vector<sim::RenderedArray> interferers_alone;         // per array, all interferers
 };
 RenderedScenario render_for_evaluation(const sim::Scenario& scenario);
 
@@ -28,6 +29,7 @@ struct DroneAtArray {
   int audible_frames = 0;
   int found_frames = 0;
   std::vector<double> errors_deg;  // one per found frame
+  double max_snr_db = -100.0;      // best in-band SNR over the frames
   double median_deg() const;
   double p90_deg() const;
   double coverage() const {

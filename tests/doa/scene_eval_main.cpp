@@ -49,8 +49,8 @@ int main(int argc, char** argv) {
     const doa::testing::RenderedScenario rendered = doa::testing::render_for_evaluation(scenario);
     std::string name = std::filesystem::path(argv[1]).stem().string();
     std::printf(
-        "| scene | tracker | array | drone | median deg | p90 deg | coverage |\n"
-        "|---|---|---|---|---|---|---|\n");
+        "| scene | tracker | array | drone | median deg | p90 deg | coverage | max SNR dB |\n"
+        "|---|---|---|---|---|---|---|---|\n");
     for (const doa::TdoaTracker tracker : trackers) {
       doa::DoaParams params = scenario.site.doa;
       params.tdoa_tracker = tracker;
