@@ -1,0 +1,91 @@
+// `dronetrack sim` end to end: files written for a bundled scenario; a bad scenario gives one
+// line per problem and exit status 1.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <sndfile.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int status = -1;
+  std::string out, err;
+};
+
+CommandResult run(const std::string& arguments, const fs::path& dir) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string command =
+      std::string(DRONETRACK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
+  CommandResult result;
+  const int raw = std::system(command.c_str());
+  result.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  auto slurp = [](const fs::path& path) {
+    std::ifstream stream(path);
+    std::ostringstream text;
+    text << stream.rdbuf();
+    return text.str();
+  };
+  result.out = slurp(out);
+  result.err = slurp(err);
+  return result;
+}
+
+class SimCommand : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("sim_cli_test_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(SimCommand, WritesSiteWavsAndTruthForABundledScenario) {
+  const fs::path scenario =
+      fs::path(DRONETRACK_SOURCE_DIR) / "config/scenarios/seed002-rectangle.json";
+  const CommandResult result = run(
+      "sim " + scenario.string() + " --out " + (dir_ / "scene").string() + " --duration-s 1", dir_);
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_NE(result.out.find("wrote " + (dir_ / "scene" / "A1.wav").string()), std::string::npos)
+      << result.out;
+  for (const char* id : {"A1", "A2"}) {
+    SF_INFO info{};
+    SNDFILE* file = sf_open((dir_ / "scene" / (std::string(id) + ".wav")).c_str(), SFM_READ, &info);
+    ASSERT_NE(file, nullptr) << id;
+    sf_close(file);
+    EXPECT_EQ(info.frames, 48000);
+    EXPECT_EQ(info.channels, 4);
+  }
+  std::ifstream site_stream(dir_ / "scene" / "site.json");
+  const auto site = nlohmann::json::parse(site_stream);
+  EXPECT_EQ(site["arrays"][1]["recording"], "A2.wav");
+  EXPECT_EQ(site["doa"]["frame_s"], 0.17);
+  std::ifstream truth_stream(dir_ / "scene" / "truth.json");
+  const auto truth = nlohmann::json::parse(truth_stream);
+  EXPECT_EQ(truth["sources"][0]["t"].size(), 101u);
+}
+
+TEST_F(SimCommand, BadScenarioIsOneLinePerProblemAndExitOne) {
+  const fs::path scenario = dir_ / "bad.json";
+  std::ofstream(scenario) << R"({"site": {"arrays": []}, "sources": [{"id": "D1"}]})";
+  const CommandResult result =
+      run("sim " + scenario.string() + " --out " + (dir_ / "scene").string(), dir_);
+  EXPECT_EQ(result.status, 1);
+  const std::string prefix = "dronetrack sim: error: " + scenario.string() + ": ";
+  EXPECT_EQ(result.err, prefix + "duration_s: required number is missing\n" + prefix +
+                            "site.arrays: at least one array is required\n" + prefix +
+                            "sources[0].trajectory: required trajectory is missing\n");
+  EXPECT_FALSE(fs::exists(dir_ / "scene"));
+}
+
+}  // namespace
