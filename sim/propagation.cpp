@@ -94,17 +94,23 @@ double EmissionGrid::distance_m(double arrival_time_s) const {
 }
 
 void EmissionGrid::accumulate(const SourceBuffer& source, double gain, double sample_rate_hz,
-                              std::size_t frames, float* out, std::size_t stride) const {
+                              std::size_t frame_begin, std::size_t frame_end, float* out,
+                              std::size_t stride) const {
   const InterpolationKernel& kernel = source_kernel();
   const double samples_per_step = step_s_ * sample_rate_hz;
   const double offset_samples = begin_s_ * sample_rate_hz;  // grid start in output samples
-  for (std::size_t k = 0; k < intervals(); ++k) {
+  const double first_interval =
+      std::floor((static_cast<double>(frame_begin) - offset_samples) / samples_per_step) - 1.0;
+  const auto k_begin = static_cast<std::size_t>(std::max(0.0, first_interval));
+  for (std::size_t k = k_begin; k < intervals(); ++k) {
     // Output samples whose time falls in [t_k, t_k+1).
     const double first = offset_samples + static_cast<double>(k) * samples_per_step;
     const double last = first + samples_per_step;
-    const auto n_begin = static_cast<std::size_t>(std::max(0.0, std::ceil(first - 1e-9)));
+    const auto n_begin =
+        std::max(frame_begin, static_cast<std::size_t>(std::max(0.0, std::ceil(first - 1e-9))));
     const auto n_end =
-        std::min(frames, static_cast<std::size_t>(std::max(0.0, std::ceil(last - 1e-9))));
+        std::min(frame_end, static_cast<std::size_t>(std::max(0.0, std::ceil(last - 1e-9))));
+    if (first >= static_cast<double>(frame_end)) break;
     if (n_begin >= n_end) continue;
     // The Hermite cubic in source-sample units, as a polynomial in u in [0, 1).
     const double y0 = source.position(emission_time_s_[k]);

@@ -52,10 +52,12 @@ class EmissionGrid {
   double min_emission_time() const { return emission_time_s_.front(); }
   double max_emission_time() const { return emission_time_s_.back(); }
 
-  // Adds gain / r(t) * source(t_e(t)) to out[n * stride] for output samples n in [0, frames),
-  // at t = n / sample_rate_hz. `source` must cover the emission times (plus the kernel).
+  // Adds gain / r(t) * source(t_e(t)) to out[n * stride] for output samples n in
+  // [frame_begin, frame_end), at t = n / sample_rate_hz. `source` must cover the emission times
+  // (plus the kernel). Callers render in chunks so the output stays in cache across paths.
   void accumulate(const SourceBuffer& source, double gain, double sample_rate_hz,
-                  std::size_t frames, float* out, std::size_t stride) const;
+                  std::size_t frame_begin, std::size_t frame_end, float* out,
+                  std::size_t stride) const;
 
  private:
   double begin_s_;

@@ -74,16 +74,31 @@ class Renderer {
     const double c = scenario_.site.speed_of_sound_mps;
     const std::size_t frames = out.frames();
     const double end_s = static_cast<double>(frames) / scenario_.sample_rate_hz;
+    struct Path {
+      EmissionGrid grid;
+      std::size_t source, channel;
+      double gain;
+    };
+    std::vector<Path> paths_to_render;
     for (std::size_t s = 0; s < scenario_.sources.size(); ++s) {
       if ((scenario_.sources[s].kind == SourceKind::drone) != drones) continue;
       for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
         for (bool image : paths()) {
-          const EmissionGrid grid(scenario_.sources[s].trajectory, array.geometry.mic_site_m(mic),
-                                  image, c, 0.0, end_s + EmissionGrid::kDefaultStep_s);
-          grid.accumulate(sources_[s], image ? scenario_.ground_reflection : 1.0,
-                          scenario_.sample_rate_hz, frames,
-                          out.samples.data() + channel_of(array, mic), out.channels);
+          paths_to_render.push_back(
+              {EmissionGrid(scenario_.sources[s].trajectory, array.geometry.mic_site_m(mic), image,
+                            c, 0.0, end_s + EmissionGrid::kDefaultStep_s),
+               s, channel_of(array, mic), image ? scenario_.ground_reflection : 1.0});
         }
+      }
+    }
+    // In chunks, all paths per chunk: the chunk of output stays in cache instead of the whole
+    // recording streaming through memory once per path.
+    constexpr std::size_t kChunk = 4096;
+    for (std::size_t begin = 0; begin < frames; begin += kChunk) {
+      const std::size_t end = std::min(frames, begin + kChunk);
+      for (const Path& path : paths_to_render) {
+        path.grid.accumulate(sources_[path.source], path.gain, scenario_.sample_rate_hz, begin, end,
+                             out.samples.data() + path.channel, out.channels);
       }
     }
   }
