@@ -128,24 +128,29 @@ std::string sse_event(const std::string& name, const std::string& data) {
 }
 
 bool EventQueue::push(std::shared_ptr<const std::string> event) {
+  bool dropped_now = false;
   {
     std::lock_guard lock(mutex_);
     if (dropped_ || closed_) return false;
     if (events_.size() >= capacity_) {
-      dropped_ = true;
+      dropped_ = dropped_now = true;
       events_.clear();  // nothing more will be sent to this client
     } else {
       events_.push_back(std::move(event));
     }
   }
-  ready_.notify_one();
+  // No wake-up for an ordinary event: the reader polls (pop_all), so a publish costs no
+  // context switch per client. A drop is signalled so the connection ends at once.
+  if (dropped_now) ready_.notify_all();
   return true;
 }
 
 bool EventQueue::pop_all(std::vector<std::shared_ptr<const std::string>>& out, int timeout_ms) {
   std::unique_lock lock(mutex_);
-  ready_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
-                  [&] { return !events_.empty() || dropped_ || closed_; });
+  if (events_.empty() && !dropped_ && !closed_) {
+    ready_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
+                    [&] { return dropped_ || closed_; });
+  }
   if (dropped_ || closed_) return false;
   for (auto& event : events_) out.push_back(std::move(event));
   events_.clear();

@@ -47,7 +47,9 @@ class EventQueue {
   explicit EventQueue(std::size_t capacity) : capacity_(capacity) {}
   // Returns false (and marks the queue dropped) when the queue is full.
   bool push(std::shared_ptr<const std::string> event);
-  // Waits up to `timeout_ms` for events; appends them all to `out`. False once dropped/closed.
+  // Appends all queued events to `out`; if there are none, first sleeps `timeout_ms` (the
+  // reader polls: publishers never wake readers, which keeps a publish free of context
+  // switches). False once dropped or closed.
   bool pop_all(std::vector<std::shared_ptr<const std::string>>& out, int timeout_ms);
   void close();
   bool dropped() const;

@@ -97,10 +97,12 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
   const auto period = std::chrono::duration<double>(1.0 / kRateHz);
   const auto start = Clock::now();
   double max_publish_ms = 0.0;
-  int late_ticks = 0;
+  double total_publish_ms = 0.0;
+  double max_late_ms = 0.0;
   for (int k = 0; k < kTicks; ++k) {
     const auto due = start + std::chrono::duration_cast<Clock::duration>(period * k);
-    if (Clock::now() > due + std::chrono::milliseconds(25)) ++late_ticks;
+    max_late_ms = std::max(max_late_ms,
+                           std::chrono::duration<double, std::milli>(Clock::now() - due).count());
     std::this_thread::sleep_until(due);
     const double t = k / kRateHz;
     tracks.clear();
@@ -115,8 +117,10 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
       d.time_s = t;
       state.publish_doa(d);
     }
-    max_publish_ms = std::max(
-        max_publish_ms, std::chrono::duration<double, std::milli>(Clock::now() - before).count());
+    const double publish_ms =
+        std::chrono::duration<double, std::milli>(Clock::now() - before).count();
+    max_publish_ms = std::max(max_publish_ms, publish_ms);
+    total_publish_ms += publish_ms;
   }
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
   const double achieved_hz = (kTicks - 1) / elapsed_s;
@@ -133,16 +137,23 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
   }
   int min_events = kTicks * 10;
   for (const auto& c : clients) min_events = std::min(min_events, c->tracks_events.load());
+  const double mean_publish_ms = total_publish_ms / kTicks;
   std::printf(
-      "sse load: %d ticks at %.1f Hz target -> %.2f Hz achieved, %d late, max publish %.3f ms; "
-      "%d clients connected in %.2f s, fewest tracks events %d/%d; subscribers now %zu, dropped "
-      "for a full queue %lld\n",
-      kTicks, kRateHz, achieved_hz, late_ticks, max_publish_ms, kClients, connect_s, min_events,
-      kTicks + 1, state.subscriber_count(), static_cast<long long>(state.dropped_clients()));
+      "sse load: %d ticks at %.1f Hz target -> %.2f Hz achieved, publish mean %.3f ms max %.3f ms, "
+      "max tick lateness %.1f ms; %d clients connected in %.2f s, fewest tracks events %d/%d; "
+      "subscribers now %zu, dropped for a full queue %lld\n",
+      kTicks, kRateHz, achieved_hz, mean_publish_ms, max_publish_ms, max_late_ms, kClients,
+      connect_s, min_events, kTicks + 1, state.subscriber_count(),
+      static_cast<long long>(state.dropped_clients()));
 
+  // The rate holds over the run (ticks are scheduled on absolute deadlines, so only a publisher
+  // that is held up can lose them). Single calls may wait for the CPU on a loaded 2-core
+  // machine under a sanitizer (tens of ms); a publisher blocked by the stuck client would wait
+  // for the 2 s write timeout, which these bounds catch.
   EXPECT_GE(achieved_hz, 0.98 * kRateHz);
-  EXPECT_EQ(late_ticks, 0);
-  EXPECT_LT(max_publish_ms, 25.0);  // half a period, under any sanitizer
+  EXPECT_LT(mean_publish_ms, 10.0);
+  EXPECT_LT(max_publish_ms, 250.0);
+  EXPECT_LT(max_late_ms, 250.0);
   EXPECT_TRUE(all_caught_up());
   // The snapshot on connect plus every tick: nothing was lost by a good client.
   EXPECT_GE(min_events, kTicks);
