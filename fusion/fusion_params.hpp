@@ -13,7 +13,7 @@ enum class TriangulationMethod { least_squares_3d, seed_xy_projection };
 
 struct FusionParams {
   FilterKind filter = FilterKind::ukf;
-  double jerk_noise_std_mps3 = 3.0;  // sqrt(q) of the constant-jerk model (SPEC 4.5)
+  double jerk_noise_std_mps3 = 5.0;  // sqrt(q) of the constant-jerk model (SPEC 4.5)
   double output_rate_hz = 10.0;      // track reports per second
   double reorder_window_s = 0.3;     // DOAs are fed oldest first after this delay
   double gate_probability = 0.999;   // chi-square gate on the DOA innovation
@@ -30,7 +30,7 @@ struct FusionParams {
   bool model_propagation_delay = true;
   TriangulationMethod triangulation = TriangulationMethod::least_squares_3d;
   // Added in quadrature to each DOA's own angular std: model error (array pose, wind, refraction).
-  double doa_noise_floor_deg = 0.5;
+  double doa_noise_floor_deg = 0.3;
   double coast_after_s = 0.5;        // a confirmed track unheard this long reports "coasting"
   double tentative_timeout_s = 1.5;  // a tentative track unheard this long is deleted
   // Initiation: DOAs of different arrays this close in time are paired and triangulated.
