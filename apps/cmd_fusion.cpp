@@ -73,7 +73,8 @@ int run(const FusionArguments& arguments) {
   const fusion::FusionCounters& engine = service.engine_counters();
   log::info("fusion: ", counters.doa_received, " DOAs received, ", counters.doa_accepted,
             " accepted, ", counters.doa_ignored(), " malformed, ", counters.doa_rejected_by_engine,
-            " rejected by the engine; ", engine.tracks_started, " tracks started; ",
+            " rejected by the engine (too late ", engine.rejected_too_late, ", duplicate ",
+            engine.rejected_duplicate, "); ", engine.tracks_started, " tracks started; ",
             counters.tracks_published, " track samples and ", counters.alerts_published,
             " alerts published; nodes lost ", counters.nodes_lost, ", rejoined ",
             counters.nodes_rejoined);

@@ -138,6 +138,17 @@ int run(const NodeArguments& arguments) {
   dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
   dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
 
+  // A volatile sample written before a reader has matched is lost to it. Give discovery a
+  // moment (milliseconds on a LAN) before the first block; never wait for a fusion forever.
+  const auto discovery_started = std::chrono::steady_clock::now();
+  if (doa_writer.wait_for_readers(1, std::chrono::seconds(2))) {
+    log::info(
+        "node ", node.array_id(), ": fusion matched after ",
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - discovery_started).count(),
+        " s");
+  } else {
+    log::warn("node ", node.array_id(), ": no Doa subscriber yet; publishing anyway");
+  }
   install_stop_handlers();
   std::vector<doa::DoaMeasurement> doas;
   doas.reserve(64);

@@ -7,8 +7,11 @@
 // What must hold, and why the tolerances are what they are:
 // - Before the kill the fusion sees exactly the DOAs `replay` sees (same recordings, same
 //   deterministic pipeline) and feeds them oldest first after the 0.3 s reorder window; on
-//   loopback a DOA arrives within milliseconds, so none is late and the tracks must match
-//   replay's to numerical noise: 0.25 m (the track's own 1-sigma is ~0.3-0.5 m here).
+//   loopback a DOA arrives within milliseconds (the fusion's window is widened to 1.5 s for
+//   loaded test machines; see below), so none is late. DOAs of equal time from different
+//   arrays may reach the filter in a different order than in replay, which moves a young
+//   track (1-sigma ~2.5 m in its first half second) by up to ~0.2 m; so 1.0 m: well inside
+//   the track's own uncertainty, far below any real disagreement (metres).
 // - While one node is down, two arrays still triangulate (baseline 120 m, target 60 m away):
 //   the track must go on (confirmed or coasting at every tick) within 5 m of replay's, i.e. a
 //   few sigma of a two-array fix, far less than the 40 m zone.
@@ -197,11 +200,14 @@ TEST(DdsMultiProcess, NodesFusionAndAlertAgreeWithReplayAndSurviveANodeKill) {
   Process fusion(
       {binary, "fusion", site, "--domain", kDomain, "--tracks-out", (dir / "dds.jsonl").string()},
       dir / "fusion.out", fusion_log);
-  Process alert({binary, "alert", site, "--domain", kDomain}, dir / "alerts.jsonl",
-                dir / "alert.err");
+  // --exec runs a script per alert with the alert as arguments (no shell in between).
+  setenv("DRONETRACK_ALERT_LOG", (dir / "exec.log").c_str(), 1);
+  Process alert({binary, "alert", site, "--domain", kDomain, "--exec",
+                 std::string(DRONETRACK_SOURCE_DIR) + "/tests/dds/record_alert.sh"},
+                dir / "alerts.jsonl", dir / "alert.err");
   ASSERT_TRUE(fusion.started() && alert.started());
   // All nodes replay in step from this wall time (recording time 0); discovery is done by then.
-  const double epoch = std::floor(unix_now_s()) + 2.0;
+  const double epoch = std::floor(unix_now_s()) + 3.0;
   char epoch_text[32];
   std::snprintf(epoch_text, sizeof epoch_text, "%.3f", epoch);
   auto start_node = [&](const std::string& id, const std::string& suffix) {
@@ -256,7 +262,7 @@ TEST(DdsMultiProcess, NodesFusionAndAlertAgreeWithReplayAndSurviveANodeKill) {
     const char* name;
     double from_s, to_s, tolerance_m;
   };
-  const Phase phases[] = {{"before the kill", 0.0, kKillAt_s - 0.5, 0.25},
+  const Phase phases[] = {{"before the kill", 0.0, kKillAt_s - 0.5, 1.0},
                           {"one node down", kKillAt_s - 0.5, kRestartAt_s + 3.0, 5.0},
                           {"after the rejoin", kRestartAt_s + 3.0, 13.0, 2.0}};
   for (const Phase& phase : phases) {
@@ -296,6 +302,10 @@ TEST(DdsMultiProcess, NodesFusionAndAlertAgreeWithReplayAndSurviveANodeKill) {
     }
   }
   EXPECT_TRUE(entered) << read_text(dir / "alerts.jsonl");
+  // ZONE TRACK_ID entered|left TIME_S X Y Z, one line per alert.
+  const std::string executed = read_text(dir / "exec.log");
+  EXPECT_NE(executed.find("inner-yard "), std::string::npos) << executed;
+  EXPECT_NE(executed.find(" entered "), std::string::npos) << executed;
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 
