@@ -198,8 +198,19 @@ try {
   if (!(uncertainty > 0 && uncertainty < 50)) fail(`uncertainty ${uncertainty} m`);
   if (heard.length < 2 || !heard.every((id) => ['N1', 'N2', 'N3', 'N4'].includes(id))) fail(`heard by '${heard}'`);
   // Clicking the track on the plan selects it too.
-  await page.click(`#plan [data-track-id="${moved.id}"] circle`, { force: true });
-  if (await page.getAttribute('#selected-track', 'data-track-id') !== String(moved.id)) fail('clicking the plan did not select');
+  // The plan is redrawn on every update, so click where the marker is rather than on a node
+  // that may be replaced meanwhile.
+  await page.evaluate(() => window.dronetrack.select(null));
+  await waitFor('a click on the plan to select the track', async () => {
+    const centre = await page.evaluate((id) => {
+      const dot = document.querySelector(`#plan [data-track-id="${id}"] circle`);
+      if (!dot) return null;
+      const r = dot.getBoundingClientRect();
+      return { x: r.x + r.width / 2, y: r.y + r.height / 2 };
+    }, moved.id);
+    if (centre) await page.mouse.click(centre.x, centre.y);
+    return (await page.getAttribute('#selected-track', 'data-track-id')) === String(moved.id);
+  }, 5000, 200);
 
   // 4. The zone alert reaches the banner.
   await page.waitForSelector('#alert-banner:not([hidden])[data-zone="inner-yard"][data-event="entered"]', { timeout: 25000 });
