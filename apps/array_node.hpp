@@ -21,6 +21,8 @@ class ArrayNode {
   bool step(std::vector<doa::DoaMeasurement>& doas);
   // Stream time at the end of the last block read, seconds since sample 0.
   double time_s() const { return static_cast<double>(samples_read_) / sample_rate_hz_; }
+  // No DOA older than this will come from this node any more (see NodePipeline).
+  double settled_time_s() const { return time_s() - pipeline_.output_latency_s(); }
   // True (and fills `status`) when a status report is due: once per second of stream time.
   bool status_due(doa::NodeStatus& status);
   doa::NodeStatus status() const;

@@ -139,7 +139,8 @@ ReplaySummary run_replay(const config::SiteConfig& site,
         if (driver.on_doa(doa) == fusion::DoaVerdict::accepted) ++summary.doas_accepted;
       }
       lane.doas.clear();
-      if (lane.active) slowest_s = std::min(slowest_s, lane.node.time_s());
+      // The fusion may run up to the oldest time any node could still report a DOA for.
+      if (lane.active) slowest_s = std::min(slowest_s, lane.node.settled_time_s());
     }
     if (std::isfinite(slowest_s)) {
       driver.advance_to(slowest_s);
@@ -160,6 +161,7 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   for (const auto& lane : lanes) summary.stream_s = std::max(summary.stream_s, lane.node.time_s());
   driver.finish();
   summary.ticks = driver.ticks_emitted();
+  summary.counters = driver.engine().counters();
   summary.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return summary;
 }

@@ -7,6 +7,7 @@
 
 #include "apps/fusion_observer.hpp"
 #include "config/site_config.hpp"
+#include "fusion/fusion_engine.hpp"
 
 namespace dronetrack::apps {
 
@@ -24,6 +25,7 @@ struct ReplaySummary {
   std::int64_t doas = 0;  // produced by the nodes
   std::int64_t doas_accepted = 0;
   std::int64_t ticks = 0;
+  fusion::FusionCounters counters;  // the engine's, at the end
 };
 
 // Throws on unreadable recordings (one line naming file and problem).

@@ -51,6 +51,14 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
             summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
             " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
+  const fusion::FusionCounters& counters = summary.counters;
+  log::info("fusion: ", counters.accepted,
+            " DOAs accepted; rejected: ", counters.rejected_non_finite, " non-finite, ",
+            counters.rejected_unknown_array, " unknown array, ", counters.rejected_too_late,
+            " too late, ", counters.rejected_duplicate, " duplicate, ",
+            counters.rejected_bad_direction, " bad direction; ", counters.gated_out,
+            " matched no track; tracks started ", counters.tracks_started, ", confirmed ",
+            counters.tracks_confirmed, ", deleted ", counters.tracks_deleted);
   writers.clear();  // flush and close the output files before waiting
   if (server && options.keep_serving && !stop_requested()) {
     log::info("recordings finished; still serving ", server->url(), " (Ctrl-C to stop)");

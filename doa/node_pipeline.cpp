@@ -290,5 +290,9 @@ const NodeDiagnostics& NodePipeline::diagnostics() const { return impl_->diagnos
 const ArrayGeometry& NodePipeline::geometry() const { return impl_->geometry; }
 int NodePipeline::frame_length_samples() const { return impl_->frame_length; }
 int NodePipeline::hop_samples() const { return impl_->hop; }
+double NodePipeline::output_latency_s() const {
+  return (0.5 * impl_->frame_length + 1.0) / impl_->sample_rate_hz +
+         impl_->tracker->output_delay_s();
+}
 
 }  // namespace dronetrack::doa

@@ -42,6 +42,10 @@ class NodePipeline {
   const ArrayGeometry& geometry() const;
   int frame_length_samples() const;
   int hop_samples() const;
+  // How far a DOA's time can trail the last sample fed: half a frame (DOAs carry their frame's
+  // centre time) plus the TDOA tracker's output delay. A consumer that has fed samples up to t
+  // will receive no further DOA older than t - output_latency_s().
+  double output_latency_s() const;
 
  private:
   struct Impl;
