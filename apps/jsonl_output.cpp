@@ -37,20 +37,6 @@ void OutputFile::write_line(const char* text, int length) {
 
 void OutputFile::flush() { std::fflush(file_); }
 
-namespace {
-const char* ambiguity_name(doa::DoaAmbiguity ambiguity) {
-  switch (ambiguity) {
-    case doa::DoaAmbiguity::none:
-      return "none";
-    case doa::DoaAmbiguity::mirror_up_down:
-      return "mirror_up_down";
-    case doa::DoaAmbiguity::cone:
-      return "cone";
-  }
-  return "none";
-}
-}  // namespace
-
 int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size) {
   const Eigen::Vector3d& u = doa.direction;
   return std::snprintf(
@@ -60,7 +46,7 @@ int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t si
       R"("azel_std_deg":[%.5f,%.5f]})",
       doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
       doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
-      ambiguity_name(doa.ambiguity),
+      doa::to_string(doa.ambiguity),
       std::sqrt(std::max(0.0, doa.azel_covariance_rad2(0, 0))) * 180.0 / std::numbers::pi,
       std::sqrt(std::max(0.0, doa.azel_covariance_rad2(1, 1))) * 180.0 / std::numbers::pi);
 }

@@ -19,6 +19,19 @@ enum class DoaAmbiguity : std::uint8_t {
   cone = 2,            // two mics: only the angle to the mic axis is known
 };
 
+// "none", "mirror_up_down", "cone": the names used in JSON outputs and the HTTP API.
+inline const char* to_string(DoaAmbiguity ambiguity) {
+  switch (ambiguity) {
+    case DoaAmbiguity::none:
+      return "none";
+    case DoaAmbiguity::mirror_up_down:
+      return "mirror_up_down";
+    case DoaAmbiguity::cone:
+      return "cone";
+  }
+  return "none";
+}
+
 struct DoaMeasurement {
   std::string array_id;
   int array_index = -1;  // index into the site's arrays

@@ -24,18 +24,6 @@ double compass_heading_deg(const Eigen::Vector3d& velocity_mps) {
   return heading >= 360.0 ? 0.0 : heading;
 }
 
-const char* ambiguity_name(doa::DoaAmbiguity ambiguity) {
-  switch (ambiguity) {
-    case doa::DoaAmbiguity::none:
-      return "none";
-    case doa::DoaAmbiguity::mirror_up_down:
-      return "mirror_up_down";
-    case doa::DoaAmbiguity::cone:
-      return "cone";
-  }
-  return "none";
-}
-
 json track_json(const fusion::TrackReport& track, const SiteLayout& layout) {
   json contributing = json::array();
   for (std::size_t i = 0; i < layout.arrays.size() && i < 64; ++i) {
@@ -74,7 +62,7 @@ json doa_json(const doa::DoaMeasurement& doa) {
       {"azel_std_deg", json::array({az_std, el_std})},
       {"quality", doa.quality},
       {"snr_db", doa.snr_db},
-      {"ambiguity", ambiguity_name(doa.ambiguity)},
+      {"ambiguity", doa::to_string(doa.ambiguity)},
   };
 }
 
