@@ -96,10 +96,15 @@ struct Track {
   std::unique_ptr<TrackFilter> filter;
   double time_s = 0.0;         // the filter's state time
   double last_update_s = 0.0;  // last DOA it took
-  std::uint32_t hits = 0;      // M-of-N history, newest frame in bit 0
+  // M-of-N history per array, newest frame of that array in bit 0. A drone is heard by a
+  // subset of the arrays (the nearest, or the ones a louder drone does not mask), so the hits
+  // are counted per track over the last N frames of each array: one stream of all arrays'
+  // frames would count the frames of the arrays that cannot hear it as misses.
+  std::array<std::uint32_t, kMaxArrays> hits_by_array{};
   bool confirmed = false;
   std::array<double, kMaxArrays> heard_by_array_s{};
-  Innovation innovation;  // of the current frame
+  std::array<int, kMaxArrays> updates_by_array{};  // DOAs taken from each array
+  Innovation innovation;                           // of the current frame
   bool innovation_ok = false;
 };
 
@@ -341,7 +346,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   doa_taken.assign(static_cast<std::size_t>(doa_count), 0);
   for (int t = 0; t < track_count; ++t) {
     Track& track = tracks[t];
-    track.hits <<= 1;
+    track.hits_by_array[array] <<= 1;
     const int j = track_to_doa[t];
     if (j < 0) continue;
     const doa::DoaMeasurement& m = queue[begin + j];
@@ -352,9 +357,10 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
     if (status == FilterStatus::failed) continue;
-    track.hits |= 1u;
+    track.hits_by_array[array] |= 1u;
     track.last_update_s = time_s;
     track.heard_by_array_s[array] = time_s;
+    ++track.updates_by_array[array];
   }
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
@@ -501,12 +507,16 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   track.filter->initialise(mean, covariance);
   track.time_s = time_s;
   track.last_update_s = time_s;
-  track.hits = 1u;
   track.heard_by_array_s.fill(kNeverS);
-  track.heard_by_array_s[array] = time_s;
-  track.heard_by_array_s[best.partner_array] = time_s;
+  const auto seed_support = [&track, time_s](int supporting_array) {
+    track.hits_by_array[supporting_array] = 1u;
+    track.heard_by_array_s[supporting_array] = time_s;
+    track.updates_by_array[supporting_array] = 1;
+  };
+  seed_support(array);
+  seed_support(best.partner_array);
   for (int other = 0; other < array_count; ++other) {
-    if (extra_index[other] >= 0) track.heard_by_array_s[other] = time_s;
+    if (extra_index[other] >= 0) seed_support(other);
   }
   tracks.push_back(std::move(track));  // confirmed by life_cycle
   ++counters.tracks_started;
@@ -526,12 +536,22 @@ void FusionEngine::Impl::life_cycle(double now_s) {
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
   const int min_arrays = std::min<int>(params.confirm_min_arrays, static_cast<int>(arrays.size()));
   for (Track& track : tracks) {
+    if (track.confirmed) continue;
     int arrays_heard = 0;
+    int arrays_repeating = 0;  // arrays that updated it at confirm_hits distinct times
+    int hits = 0;
     for (std::size_t a = 0; a < arrays.size(); ++a) {
       if (track.heard_by_array_s[a] != kNeverS) ++arrays_heard;
+      if (track.updates_by_array[a] >= params.confirm_hits) ++arrays_repeating;
+      hits += std::popcount(track.hits_by_array[a] & window_mask);
     }
-    if (!track.confirmed && arrays_heard >= min_arrays &&
-        std::popcount(track.hits & window_mask) >= params.confirm_hits) {
+    // Ghost rejection (confirm_min_arrays): a crossing of two drones' rays is consistent with the
+    // two arrays that made it at one moment, rarely with a third. A drone only two arrays can hear
+    // (the others masked by a louder drone) gives the same evidence by continuity in time: two
+    // rays in 3-D are skew unless they meet at the drone, so a ghost does not keep taking DOAs of
+    // both arrays while the drones move. Both arrays must have updated it confirm_hits times.
+    const bool supported = arrays_heard >= min_arrays || arrays_repeating >= 2;
+    if (supported && hits >= params.confirm_hits) {
       track.confirmed = true;
       ++counters.tracks_confirmed;
     }

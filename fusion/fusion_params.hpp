@@ -43,6 +43,8 @@ struct FusionParams {
   // Ghost rejection by continuity: a tentative track is confirmed only once this many distinct
   // arrays have updated it (clamped to the number of arrays). A crossing of two drones' rays is
   // consistent with the two arrays that made it, rarely with a third.
+  // Two arrays that each updated it confirm_hits times also suffice (continuity: a ghost does not
+  // keep agreeing with both while the drones move), for a drone the other arrays cannot hear.
   int confirm_min_arrays = 3;
   // A track whose position std (largest axis) grows beyond this is lost, not tracked: deleted.
   double max_position_std_m = 50.0;
