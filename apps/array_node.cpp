@@ -8,9 +8,9 @@
 
 namespace dronetrack::apps {
 
-std::unique_ptr<capture::AudioSource> open_recording(const config::ArrayConfig& array,
-                                                     const std::filesystem::path& recording,
-                                                     double block_s) {
+std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConfig& array,
+                                                         const std::filesystem::path& recording,
+                                                         double block_s) {
   const capture::RecordingInfo info = capture::probe_recording(recording);
   const auto block_frames =
       static_cast<std::size_t>(std::max(1.0, std::round(block_s * info.sample_rate_hz)));

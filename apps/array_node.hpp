@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "capture/audio_source.hpp"
+#include "capture/recording_source.hpp"
 #include "config/site_config.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/node_status.hpp"
@@ -42,8 +43,8 @@ class ArrayNode {
 };
 
 // Opens the array's recording (its channel map applied) in blocks of about block_s seconds.
-std::unique_ptr<capture::AudioSource> open_recording(const config::ArrayConfig& array,
-                                                     const std::filesystem::path& recording,
-                                                     double block_s);
+std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConfig& array,
+                                                         const std::filesystem::path& recording,
+                                                         double block_s);
 
 }  // namespace dronetrack::apps

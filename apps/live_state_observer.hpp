@@ -1,5 +1,7 @@
 #pragma once
 // Feeds the HTTP API's live state from the fusion's outputs (replay, demo and DDS fusion).
+#include <filesystem>
+
 #include "apps/fusion_observer.hpp"
 #include "http_api/live_state.hpp"
 

@@ -8,7 +8,6 @@
 
 #include "apps/array_node.hpp"
 #include "apps/fusion_driver.hpp"
-#include "capture/recording_info.hpp"
 #include "common/log.hpp"
 
 namespace dronetrack::apps {
@@ -102,11 +101,11 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   double total_s = 0.0;
   for (std::size_t i = 0; i < site.arrays.size(); ++i) {
     const auto& array = site.arrays[i];
-    lanes.emplace_back(ArrayNode(site, static_cast<int>(i),
-                                 open_recording(array, array.recording, options.block_s)));
-    // Only for the progress line's denominator; reads the header alone.
-    const capture::RecordingInfo info = capture::probe_recording(array.recording);
-    total_s = std::max(total_s, static_cast<double>(info.frames) / info.sample_rate_hz);
+    auto recording = open_recording(array, array.recording, options.block_s);
+    // Only for the progress line's denominator.
+    total_s = std::max(
+        total_s, static_cast<double>(recording->total_frames()) / recording->sample_rate_hz());
+    lanes.emplace_back(ArrayNode(site, static_cast<int>(i), std::move(recording)));
   }
   if (options.max_duration_s > 0.0) total_s = std::min(total_s, options.max_duration_s);
 

@@ -2,11 +2,7 @@
 
 #include <chrono>
 #include <csignal>
-#include <cstdlib>
-#include <filesystem>
 #include <thread>
-
-#include "apps/live_state_observer.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -24,11 +20,6 @@ bool stop_requested() { return stop_flag.load(); }
 
 void wait_for_stop() {
   while (!stop_flag.load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-}
-
-std::filesystem::path default_web_root() {
-  if (const char* root = std::getenv("DRONETRACK_WEB_ROOT")) return root;
-  return DRONETRACK_WEB_ROOT;
 }
 
 }  // namespace dronetrack::apps
