@@ -67,6 +67,17 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("srp_min_separation_deg", params.srp_min_separation_deg, 1.0, 90.0);
   params.srp_min_relative_power =
       section.number("srp_min_relative_power", params.srp_min_relative_power, 0.0, 1.0);
+  params.static_null = section.boolean("static_null", params.static_null);
+  params.static_null_learn_s =
+      section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);
+  params.static_null_forget_s =
+      section.number("static_null_forget_s", params.static_null_forget_s, 0.1, 600.0);
+  params.static_null_max_elevation_deg = section.number(
+      "static_null_max_elevation_deg", params.static_null_max_elevation_deg, -90.0, 90.0);
+  params.static_null_tolerance_us =
+      section.number("static_null_tolerance_us", params.static_null_tolerance_us, 0.1, 1000.0);
+  params.static_null_max_sources =
+      section.integer("static_null_max_sources", params.static_null_max_sources, 0, 4);
 }
 
 }  // namespace dronetrack::config

@@ -41,6 +41,16 @@ struct DoaParams {
   double srp_grid_deg = 5.0;             // SRP-PHAT direction grid spacing
   double srp_min_separation_deg = 10.0;  // two sources closer than this are one
   double srp_min_relative_power = 0.5;   // a 2nd..Kth source needs this share of the 1st's power
+
+  // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
+  // horizon are learned from their constant TDOAs and their band bins dropped before the
+  // inverse FFTs, so a drone next to a loud ground source is still found.
+  bool static_null = true;
+  double static_null_learn_s = 3.0;            // stays put this long before it is nulled
+  double static_null_forget_s = 2.0;           // not heard this long: forgotten
+  double static_null_max_elevation_deg = 3.0;  // never null anything higher (hovering drones)
+  double static_null_tolerance_us = 20.0;      // per pair: "the same TDOA" from frame to frame
+  int static_null_max_sources = 2;             // nulled at once
 };
 
 }  // namespace dronetrack::doa

@@ -16,6 +16,9 @@ namespace {
 // Below this |X_i X_j*| a bin carries no phase (digital silence): it gets zero weight.
 constexpr double kSilentBin = 1e-30;
 constexpr double kMaxPeakRatio = 100.0;
+// A correlation from fewer kept bins than this share of the band is dominated by its sidelobes
+// (a few scattered frequencies alias into many peaks): such a frame yields no peak.
+constexpr double kMinKeptShare = 0.05;
 }  // namespace
 
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
@@ -112,6 +115,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
   magnitudes_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0);
   magnitude_sums_.assign(pairs_.size(), 0.0);
+  keep_.assign(static_cast<std::size_t>(band_bins_), 1);
+  kept_bins_ = band_bins_;
+  kept_sum_omega2_ = sum_omega2_;
 
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
@@ -137,12 +143,61 @@ std::span<const double> GccPhat::grid(int pair) const {
           static_cast<std::size_t>(2 * half + 1)};
 }
 
+std::span<const std::complex<double>> GccPhat::phasors(int pair) const {
+  return {phasors_.data() + static_cast<std::ptrdiff_t>(pair) * band_bins_,
+          static_cast<std::size_t>(band_bins_)};
+}
+
+std::span<const double> GccPhat::magnitudes(int pair) const {
+  return {magnitudes_.data() + static_cast<std::ptrdiff_t>(pair) * band_bins_,
+          static_cast<std::size_t>(band_bins_)};
+}
+
 void GccPhat::process(const MultichannelFft& spectra) {
-  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
-  const double normalisation = 1.0 / (2.0 * band_bins_);
+  whiten(spectra);
+  correlate();
+}
+
+void GccPhat::whiten(const MultichannelFft& spectra) {
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     const std::complex<double>* x_i = spectra.spectrum(pairs_[p].mic_i);
     const std::complex<double>* x_j = spectra.spectrum(pairs_[p].mic_j);
+    std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
+    double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
+    int index = 0;
+    for (const BandRun& run : runs_) {
+      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+        const std::complex<double> cross = x_i[k] * std::conj(x_j[k]);
+        const double size = std::sqrt(std::norm(cross));
+        phasor[index] = size > kSilentBin ? cross / size : std::complex<double>{0.0, 0.0};
+        magnitude[index] = size > kSilentBin ? size : 0.0;
+      }
+    }
+  }
+  std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
+}
+
+void GccPhat::correlate() {
+  kept_bins_ = 0;
+  kept_sum_omega2_ = 0.0;
+  {
+    int index = 0;
+    for (const BandRun& run : runs_) {
+      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+        if (keep_[static_cast<std::size_t>(index)] == 0) continue;
+        ++kept_bins_;
+        kept_sum_omega2_ += (k * bin_omega_) * (k * bin_omega_);
+      }
+    }
+  }
+  const bool enough_bins = kept_bins_ >= std::max(1.0, kMinKeptShare * band_bins_);
+  if (!enough_bins) {
+    kept_bins_ = std::max(kept_bins_, 1);
+    kept_sum_omega2_ = std::max(kept_sum_omega2_, bin_omega_ * bin_omega_);
+  }
+  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
+  const double normalisation = 1.0 / (2.0 * kept_bins_);
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
     std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
     double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
     double magnitude_sum = 0.0;
@@ -151,17 +206,21 @@ void GccPhat::process(const MultichannelFft& spectra) {
     std::fill_n(inverse_bins, correlation_size_ / 2 + 1, std::complex<double>{0.0, 0.0});
     for (const BandRun& run : runs_) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        const std::complex<double> cross = x_i[k] * std::conj(x_j[k]);
-        const double size = std::sqrt(std::norm(cross));
-        const std::complex<double> weighted =
-            size > kSilentBin ? cross / size : std::complex<double>{0.0, 0.0};
-        phasor[index] = weighted;
-        magnitude[index] = size > kSilentBin ? size : 0.0;
+        // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
+        if (keep_[static_cast<std::size_t>(index)] == 0) {
+          phasor[index] = {0.0, 0.0};
+          magnitude[index] = 0.0;
+        }
         magnitude_sum += magnitude[index];
-        inverse_bins[k] = weighted;
+        inverse_bins[k] = phasor[index];
       }
     }
     magnitude_sums_[p] = magnitude_sum;
+    PairCorrelation& result = results_[p];
+    if (!enough_bins) {
+      result = PairCorrelation{};
+      continue;
+    }
     fftw_execute(inverse_->plan);
     const int half = half_spans_[p];
     double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
@@ -187,7 +246,6 @@ void GccPhat::process(const MultichannelFft& spectra) {
         second_value = value;
       }
     }
-    PairCorrelation& result = results_[p];
     result = PairCorrelation{};
     if (best < 0 || !(best_value > 0.0)) continue;
     const double start_lag = (best - half) * lag_step_s_;
@@ -211,7 +269,7 @@ double GccPhat::tdoa_variance_for_peak(double peak_value) const {
   // variance sigma_phi^2 / sum w_k^2, times the number of bins sharing one independent phase.
   const double rho = std::clamp(peak_value, 0.02, 0.999);
   const double phase_variance = -2.0 * std::log(rho);
-  return bin_correlation_ * phase_variance / sum_omega2_;
+  return bin_correlation_ * phase_variance / kept_sum_omega2_;
 }
 
 double GccPhat::phat_kernel(double offset_s) const {
@@ -235,7 +293,7 @@ double GccPhat::value_at(int pair, double lag_s) const {
       rotation *= step;
     }
   }
-  return sum / band_bins_;
+  return sum / kept_bins_;
 }
 
 double GccPhat::coherence_at(int pair, double lag_s) const {
@@ -328,7 +386,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
     if (std::abs(delta) < kConverged_s || iteration == 5) {
       if (std::abs(lag - grid_lag_s) > 1.5 * lag_step_s_) return false;
       const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-      out = {lag, sum0 / band_bins_, total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0};
+      out = {lag, sum0 / kept_bins_, total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0};
       return true;
     }
   }
@@ -367,7 +425,7 @@ void GccPhat::evaluate(int pair, double lag_s, double& value, double& coherence)
       rotation *= step;
     }
   }
-  value = sum / band_bins_;
+  value = sum / kept_bins_;
   const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
   coherence = total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0;
 }

@@ -13,6 +13,7 @@
 // Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
 // of X_i X_j* peaks there.
 #include <complex>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <vector>
@@ -61,8 +62,28 @@ class GccPhat {
   GccPhat(const GccPhat&) = delete;
   GccPhat& operator=(const GccPhat&) = delete;
 
-  // Cross-spectra and correlations of every pair from the channel spectra of one frame.
+  // Cross-spectra and correlations of every pair from the channel spectra of one frame:
+  // whiten() then correlate() with every band bin kept.
   void process(const MultichannelFft& spectra);
+  // The two halves of process(), for a per-bin mask in between (StaticSourceNull):
+  // whiten() computes every pair's PHAT phasors over the band and keeps every bin;
+  // bin_keep() may then clear bins (for all pairs); correlate() drops them, normalises by the
+  // bins kept and runs the inverse FFTs and peak refinement.
+  void whiten(const MultichannelFft& spectra);
+  void correlate();
+
+  // The band's bins, in the order of phasors()/bin_keep(): runs of FFT bins, ascending.
+  const std::vector<BandRun>& band() const { return runs_; }
+  int band_bin_count() const { return band_bins_; }
+  double bin_omega_rad_per_s() const { return bin_omega_; }
+  // PHAT phasors W_k = G_k/|G_k| of one pair over the band bins (after whiten()).
+  std::span<const std::complex<double>> phasors(int pair) const;
+  // |G_k| of one pair over the band bins (after whiten()).
+  std::span<const double> magnitudes(int pair) const;
+  // 1 = bin used by correlate(), 0 = dropped for every pair. whiten() sets all to 1.
+  std::span<std::uint8_t> bin_keep() { return keep_; }
+  // Band bins kept in the last correlate().
+  int kept_bin_count() const { return kept_bins_; }
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
@@ -105,8 +126,13 @@ class GccPhat {
   double bin_omega_;  // rad/s per bin
   std::vector<BandRun> runs_;
   int band_bins_ = 0;
-  double sum_omega2_ = 0.0;       // sum of w_k^2 over band bins
-  double bin_correlation_ = 1.0;  // how many bins share one independent phase (window, padding)
+  double sum_omega2_ = 0.0;  // sum of w_k^2 over band bins
+  // This frame's kept bins (all band bins unless a mask dropped some): normalisation of the
+  // correlation and the TDOA variance.
+  int kept_bins_ = 0;
+  double kept_sum_omega2_ = 0.0;
+  std::vector<std::uint8_t> keep_;  // per band bin
+  double bin_correlation_ = 1.0;    // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
   std::vector<int> half_spans_;

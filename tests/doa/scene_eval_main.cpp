@@ -1,6 +1,6 @@
-// doa_scene_eval SCENARIO.json [--audible-snr-db DB] [TRACKER ...]: renders a simulated scene in
-// memory, runs every array's NodePipeline with each TDOA tracker (default: all four) and prints the
-// accuracy table (markdown rows) that docs/doa.md quotes.
+// doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] [TRACKER ...]: renders a
+// simulated scene in memory, runs every array's NodePipeline with each TDOA tracker (default: all
+// four) and prints the accuracy table (markdown rows) that docs/doa.md quotes.
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -15,7 +15,7 @@ int main(int argc, char** argv) {
   using namespace dronetrack;
   if (argc < 2) {
     std::fprintf(stderr,
-                 "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] "
+                 "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
                  "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
@@ -25,9 +25,14 @@ int main(int argc, char** argv) {
     const sim::Scenario scenario = sim::load_scenario(argv[1], warnings);
     std::vector<doa::TdoaTracker> trackers;
     doa::testing::EvaluationSettings settings;
+    int static_null = -1;  // -1: as the scene's config says
     for (int i = 2; i < argc; ++i) {
       if (argv[i] == std::string("--audible-snr-db") && i + 1 < argc) {
         settings.audible_snr_db = std::stod(argv[++i]);
+        continue;
+      }
+      if (argv[i] == std::string("--static-null") && i + 1 < argc) {
+        static_null = std::stoi(argv[++i]) != 0 ? 1 : 0;
         continue;
       }
       bool known = false;
@@ -54,6 +59,7 @@ int main(int argc, char** argv) {
     for (const doa::TdoaTracker tracker : trackers) {
       doa::DoaParams params = scenario.site.doa;
       params.tdoa_tracker = tracker;
+      if (static_null >= 0) params.static_null = static_null == 1;
       const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);
       std::printf("%s",
                   doa::testing::format_rows(name, doa::tdoa_tracker_name(tracker), result).c_str());

@@ -1,0 +1,258 @@
+#include "doa/static_source_null.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+
+namespace dronetrack::doa {
+
+namespace {
+// A nulled source is still heard when the bins matching it carry this share of the band's
+// cross-power; noise alone matches ~5 % of the bins at the default threshold.
+constexpr double kPresentShare = 0.15;
+// Of the frames since a tentative source first appeared, this share must have it as the peak.
+constexpr double kMinHitShare = 0.5;
+// A per-pair peak weaker than this is no observation of anything.
+constexpr double kMinPeakValue = 0.1;
+}  // namespace
+
+StaticNullSettings static_null_settings(const DoaParams& params, double hop_s,
+                                        double speed_of_sound_mps) {
+  StaticNullSettings settings;
+  settings.hop_s = hop_s;
+  settings.learn_s = params.static_null_learn_s;
+  settings.forget_s = params.static_null_forget_s;
+  settings.max_elevation_deg = params.static_null_max_elevation_deg;
+  settings.tolerance_s = params.static_null_tolerance_us * 1e-6;
+  settings.max_sources = params.static_null_max_sources;
+  settings.speed_of_sound_mps = speed_of_sound_mps;
+  return settings;
+}
+
+StaticSourceNull::StaticSourceNull(const ArrayGeometry& geometry, const GccPhat& gcc,
+                                   StaticNullSettings settings)
+    : settings_(settings),
+      pair_count_(gcc.pair_count()),
+      band_bins_(gcc.band_bin_count()),
+      band_(gcc.band()),
+      bin_omega_(gcc.bin_omega_rad_per_s()) {
+  if (pair_count_ > kMaxPairs)
+    throw std::invalid_argument("StaticSourceNull: at most 28 mic pairs (8 mics)");
+  if (settings_.max_sources < 0 || settings_.max_sources > kSlots - 2)
+    throw std::invalid_argument("StaticSourceNull: max_sources must be in [0, 4]");
+  if (!(settings_.hop_s > 0.0) || !(settings_.learn_s > 0.0) || !(settings_.forget_s > 0.0) ||
+      !(settings_.tolerance_s > 0.0) || !(settings_.speed_of_sound_mps > 0.0))
+    throw std::invalid_argument("StaticSourceNull: times, tolerance and c must be > 0");
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  for (int p = 0; p < pair_count_; ++p) {
+    const MicPairSpec& pair = gcc.pair_spec(p);
+    const Eigen::Vector3d baseline = geometry.mics_m[static_cast<std::size_t>(pair.mic_i)] -
+                                     geometry.mics_m[static_cast<std::size_t>(pair.mic_j)];
+    pair_baselines_m_.push_back(baseline);
+    normal += baseline * baseline.transpose();
+  }
+  // tau_p = -u . d_p / c: u = -c (D^T D)^+ D^T tau over the directions the geometry resolves.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(normal);
+  const double largest = eigen.eigenvalues().maxCoeff();
+  for (int e = 0; e < 3; ++e) {
+    const double value = eigen.eigenvalues()(e);
+    if (value > 1e-6 * largest) {
+      ++geometry_rank_;
+      normal_inverse_ +=
+          eigen.eigenvectors().col(e) * eigen.eigenvectors().col(e).transpose() / value;
+    } else {
+      plane_normal_ = eigen.eigenvectors().col(e);
+    }
+  }
+  signatures_.assign(static_cast<std::size_t>(settings_.max_sources),
+                     std::vector<std::complex<double>>(
+                         static_cast<std::size_t>(pair_count_) * band_bins_, {0.0, 0.0}));
+  signature_used_.assign(static_cast<std::size_t>(settings_.max_sources), false);
+  scores_.assign(static_cast<std::size_t>(band_bins_), 0.0);
+  bin_power_.assign(static_cast<std::size_t>(band_bins_), 0.0);
+  frame_tdoas_.assign(static_cast<std::size_t>(pair_count_), 0.0);
+}
+
+int StaticSourceNull::nulled_count() const {
+  return static_cast<int>(std::count_if(slots_.begin(), slots_.end(),
+                                        [](const Slot& s) { return s.state == State::nulled; }));
+}
+
+int StaticSourceNull::nulled_tdoas(int nulled_index, std::span<double> tdoas_s) const {
+  int seen = 0;
+  for (const Slot& slot : slots_) {
+    if (slot.state != State::nulled) continue;
+    if (seen++ != nulled_index) continue;
+    const int count = std::min(pair_count_, static_cast<int>(tdoas_s.size()));
+    std::copy_n(slot.tdoa_s.begin(), count, tdoas_s.begin());
+    return count;
+  }
+  return 0;
+}
+
+void StaticSourceNull::mask(double time_s, GccPhat& gcc) {
+  dropped_share_ = 0.0;
+  if (nulled_count() == 0) return;
+  std::fill(bin_power_.begin(), bin_power_.end(), 0.0);
+  for (int p = 0; p < pair_count_; ++p) {
+    const std::span<const double> magnitude = gcc.magnitudes(p);
+    for (int k = 0; k < band_bins_; ++k)
+      bin_power_[static_cast<std::size_t>(k)] += magnitude[static_cast<std::size_t>(k)];
+  }
+  double total_power = 0.0;
+  for (const double power : bin_power_) total_power += power;
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  const double threshold = settings_.match_threshold * pair_count_;
+  for (Slot& slot : slots_) {
+    if (slot.state != State::nulled) continue;
+    const std::vector<std::complex<double>>& signature =
+        signatures_[static_cast<std::size_t>(slot.signature)];
+    std::fill(scores_.begin(), scores_.end(), 0.0);
+    for (int p = 0; p < pair_count_; ++p) {
+      const std::span<const std::complex<double>> phasor = gcc.phasors(p);
+      const std::complex<double>* model =
+          signature.data() + static_cast<std::ptrdiff_t>(p) * band_bins_;
+      for (int k = 0; k < band_bins_; ++k)
+        scores_[static_cast<std::size_t>(k)] +=
+            (phasor[static_cast<std::size_t>(k)] * model[k]).real();
+    }
+    double matched_power = 0.0;
+    for (int k = 0; k < band_bins_; ++k) {
+      if (scores_[static_cast<std::size_t>(k)] < threshold) continue;
+      keep[static_cast<std::size_t>(k)] = 0;
+      matched_power += bin_power_[static_cast<std::size_t>(k)];
+    }
+    if (total_power > 0.0 && matched_power >= kPresentShare * total_power)
+      slot.last_heard_s = time_s;
+    if (time_s - slot.last_heard_s > settings_.forget_s) {
+      signature_used_[static_cast<std::size_t>(slot.signature)] = false;
+      slot = Slot{};
+    }
+  }
+  int dropped = 0;
+  for (const std::uint8_t kept : keep) dropped += kept == 0 ? 1 : 0;
+  dropped_share_ = static_cast<double>(dropped) / band_bins_;
+}
+
+bool StaticSourceNull::matches(const Slot& slot, std::span<const double> tdoas_s) const {
+  for (int p = 0; p < pair_count_; ++p)
+    if (std::abs(tdoas_s[static_cast<std::size_t>(p)] - slot.tdoa_s[static_cast<std::size_t>(p)]) >
+        settings_.tolerance_s)
+      return false;
+  return true;
+}
+
+void StaticSourceNull::observe(double time_s, const GccPhat& gcc, bool usable) {
+  if (!usable) return;
+  bool sharp = true;
+  for (int p = 0; p < pair_count_; ++p) {
+    const PairCorrelation& pair = gcc.pair(p);
+    sharp = sharp && pair.peak.value >= kMinPeakValue;
+    frame_tdoas_[static_cast<std::size_t>(p)] = pair.peak.lag_s;
+  }
+  Slot* matched = nullptr;
+  for (Slot& slot : slots_) {
+    if (slot.state == State::empty) continue;
+    if (slot.state != State::nulled) ++slot.frames;
+    if (sharp && matched == nullptr && matches(slot, frame_tdoas_)) matched = &slot;
+  }
+  if (matched != nullptr && matched->state != State::nulled) {
+    // Running mean over the first frames, then an average over ~learn_s: static sources do
+    // not move, so the mean only sheds the per-frame noise.
+    ++matched->hits;
+    const double max_weight_frames = std::max(1.0, settings_.learn_s / settings_.hop_s);
+    const double weight = 1.0 / std::min<double>(matched->hits, max_weight_frames);
+    for (int p = 0; p < pair_count_; ++p)
+      matched->tdoa_s[static_cast<std::size_t>(p)] +=
+          weight * (frame_tdoas_[static_cast<std::size_t>(p)] -
+                    matched->tdoa_s[static_cast<std::size_t>(p)]);
+    matched->last_heard_s = time_s;
+  } else if (matched == nullptr && sharp) {
+    // A new candidate takes a free slot, else the tentative one heard longest ago.
+    Slot* target = nullptr;
+    for (Slot& slot : slots_) {
+      if (slot.state == State::empty) {
+        target = &slot;
+        break;
+      }
+      if (slot.state == State::tentative &&
+          (target == nullptr || slot.last_heard_s < target->last_heard_s))
+        target = &slot;
+    }
+    if (target != nullptr) {
+      *target = Slot{};
+      target->state = State::tentative;
+      std::copy(frame_tdoas_.begin(), frame_tdoas_.end(), target->tdoa_s.begin());
+      target->first_s = time_s;
+      target->last_heard_s = time_s;
+      target->hits = 1;
+      target->frames = 1;
+    }
+  }
+  for (Slot& slot : slots_) {
+    if (slot.state == State::tentative || slot.state == State::sky) {
+      const bool silent = time_s - slot.last_heard_s > settings_.forget_s;
+      const bool intermittent = slot.state == State::tentative &&
+                                slot.hits < kMinHitShare * slot.frames &&
+                                time_s - slot.first_s >= settings_.learn_s;
+      if (silent || intermittent) {
+        slot = Slot{};
+        continue;
+      }
+    }
+    if (slot.state == State::tentative && time_s - slot.first_s >= settings_.learn_s) decide(slot);
+  }
+}
+
+void StaticSourceNull::decide(Slot& slot) {
+  const std::span<const double> tdoas(slot.tdoa_s.data(), static_cast<std::size_t>(pair_count_));
+  if (highest_elevation_deg(tdoas) > settings_.max_elevation_deg) {
+    slot.state = State::sky;  // stays put, but may be a hovering drone: followed, never nulled
+    return;
+  }
+  if (nulled_count() >= settings_.max_sources) return;  // stays tentative until a null frees
+  make_signature(slot);
+}
+
+void StaticSourceNull::make_signature(Slot& slot) {
+  const auto free = std::find(signature_used_.begin(), signature_used_.end(), false);
+  if (free == signature_used_.end()) return;
+  slot.signature = static_cast<int>(free - signature_used_.begin());
+  *free = true;
+  slot.state = State::nulled;
+  // W_k ~ e^{-j w_k tau} for a source at lag tau: the model is its conjugate, so that
+  // Re(W_k model_k) = 1 on a bin the source owns.
+  std::vector<std::complex<double>>& signature =
+      signatures_[static_cast<std::size_t>(slot.signature)];
+  std::size_t index = 0;
+  for (int p = 0; p < pair_count_; ++p) {
+    const double tau = slot.tdoa_s[static_cast<std::size_t>(p)];
+    for (const BandRun& run : band_)
+      for (int k = run.first_bin; k <= run.last_bin; ++k)
+        signature[index++] = std::polar(1.0, k * bin_omega_ * tau);
+  }
+}
+
+double StaticSourceNull::highest_elevation_deg(std::span<const double> tdoas_s) const {
+  if (geometry_rank_ < 2) return 90.0;
+  Eigen::Vector3d projection = Eigen::Vector3d::Zero();
+  for (int p = 0; p < pair_count_; ++p)
+    projection +=
+        tdoas_s[static_cast<std::size_t>(p)] * pair_baselines_m_[static_cast<std::size_t>(p)];
+  Eigen::Vector3d direction = -settings_.speed_of_sound_mps * normal_inverse_ * projection;
+  if (geometry_rank_ == 2) {
+    // Unresolved along the plane's normal: the two mirror images; the higher one counts.
+    const double along = std::sqrt(std::max(0.0, 1.0 - direction.squaredNorm()));
+    const Eigen::Vector3d up = direction + along * plane_normal_;
+    const Eigen::Vector3d down = direction - along * plane_normal_;
+    direction = up.z() >= down.z() ? up : down;
+  }
+  if (!(direction.norm() > 0.0)) return 90.0;
+  return std::asin(std::clamp(direction.z() / direction.norm(), -1.0, 1.0)) * 180.0 /
+         std::numbers::pi;
+}
+
+}  // namespace dronetrack::doa

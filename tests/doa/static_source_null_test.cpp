@@ -1,0 +1,218 @@
+// Static-source null against known answers: plane waves with exact fractional delays, a loud
+// static broadband "generator" below the horizon and a weaker harmonic "rotor" in the sky.
+#include "doa/static_source_null.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "doa/gcc_phat.hpp"
+#include "doa/spectral_frame.hpp"
+#include "tests/doa/synthetic_audio.hpp"
+
+namespace dronetrack::doa {
+namespace {
+
+constexpr double kRate = 48000.0;
+constexpr double kSpeed = 343.0;
+constexpr double kFrame_s = 0.17;
+constexpr double kHop_s = 0.05;
+
+std::vector<MicPairSpec> all_pairs(const ArrayGeometry& geometry) {
+  std::vector<MicPairSpec> pairs;
+  for (int i = 0; i < static_cast<int>(geometry.mic_count()); ++i)
+    for (int j = i + 1; j < static_cast<int>(geometry.mic_count()); ++j)
+      pairs.push_back({i, j,
+                       (geometry.mics_m[static_cast<std::size_t>(i)] -
+                        geometry.mics_m[static_cast<std::size_t>(j)])
+                               .norm() /
+                           kSpeed});
+  return pairs;
+}
+
+// tau_ij = t_i - t_j of a plane wave from `direction`, per pair.
+std::vector<double> pair_tdoas(const ArrayGeometry& geometry, const std::vector<MicPairSpec>& pairs,
+                               const Eigen::Vector3d& direction) {
+  const std::vector<double> delays = testing::plane_wave_delays(geometry, direction, kSpeed);
+  std::vector<double> tdoas;
+  for (const MicPairSpec& pair : pairs)
+    tdoas.push_back(delays[static_cast<std::size_t>(pair.mic_i)] -
+                    delays[static_cast<std::size_t>(pair.mic_j)]);
+  return tdoas;
+}
+
+// A rotor-like source: harmonics of `fundamental_hz` with random phases, exactly delayed per mic.
+void add_harmonic_source(testing::Recording& recording, const ArrayGeometry& geometry,
+                         const Eigen::Vector3d& direction, double fundamental_hz, double amplitude,
+                         std::size_t first_frame, std::size_t last_frame) {
+  const std::vector<double> delays = testing::plane_wave_delays(geometry, direction, kSpeed);
+  std::vector<double> phases;
+  for (int h = 0; h < 40; ++h)
+    phases.push_back(std::fmod(2.399963 * h * h, 2.0 * std::numbers::pi));
+  for (int mic = 0; mic < recording.channels; ++mic) {
+    std::vector<double> samples(recording.frames(), 0.0);
+    for (std::size_t n = first_frame; n < last_frame && n < samples.size(); ++n) {
+      const double t = static_cast<double>(n) / kRate - delays[static_cast<std::size_t>(mic)];
+      double sum = 0.0;
+      for (int h = 1; h <= 30; ++h)
+        sum += std::cos(2.0 * std::numbers::pi * fundamental_hz * h * t +
+                        phases[static_cast<std::size_t>(h)]);
+      samples[n] = amplitude * sum;
+    }
+    recording.add(mic, samples);
+  }
+}
+
+struct NullRun {
+  int frames_after_learning = 0;
+  int frames_on_weak_source = 0;  // every pair's peak within 25 us of the weak source's TDOA
+  std::vector<int> nulled_per_frame;
+  std::vector<double> time_per_frame;
+  std::vector<double> nulled_tdoas_s;  // of the first nulled source at the end
+};
+
+// Frames -> FFT -> PHAT -> (null) -> correlations, as NodePipeline composes them.
+NullRun run(const testing::Recording& recording, const ArrayGeometry& geometry, bool use_null,
+            const std::vector<double>& weak_tdoas, double learn_s, double forget_s = 1.0) {
+  const int frame_length = static_cast<int>(std::lround(kFrame_s * kRate));
+  const int hop = static_cast<int>(std::lround(kHop_s * kRate));
+  Framer framer(recording.channels, frame_length, hop);
+  MultichannelFft fft(recording.channels, frame_length, fftw_friendly_size(frame_length));
+  const std::vector<MicPairSpec> pairs = all_pairs(geometry);
+  GccPhat gcc(fft.fft_size(), frame_length, kRate, {FrequencyBand{1500.0, 3500.0}}, pairs,
+              LagInterpolation::band_limited, 1);
+  StaticNullSettings settings;
+  settings.hop_s = kHop_s;
+  settings.learn_s = learn_s;
+  settings.forget_s = forget_s;
+  settings.speed_of_sound_mps = kSpeed;
+  StaticSourceNull null(geometry, gcc, settings);
+  NullRun result;
+  framer.push(recording.view(0, recording.frames()), [&](const FrameView& frame) {
+    const double time_s = (static_cast<double>(frame.first_sample) + 0.5 * frame.length) / kRate;
+    fft.process(frame);
+    gcc.whiten(fft);
+    if (use_null) null.mask(time_s, gcc);
+    gcc.correlate();
+    if (use_null) null.observe(time_s, gcc, true);
+    result.nulled_per_frame.push_back(null.nulled_count());
+    result.time_per_frame.push_back(time_s);
+    if (time_s < learn_s + 0.5) return;
+    ++result.frames_after_learning;
+    bool on_weak = true;
+    for (int p = 0; p < gcc.pair_count(); ++p)
+      on_weak = on_weak &&
+                std::abs(gcc.pair(p).peak.lag_s - weak_tdoas[static_cast<std::size_t>(p)]) < 25e-6;
+    if (on_weak) ++result.frames_on_weak_source;
+  });
+  result.nulled_tdoas_s.assign(pairs.size(), 0.0);
+  null.nulled_tdoas(0, result.nulled_tdoas_s);
+  return result;
+}
+
+const Eigen::Vector3d kGround = direction_from_azel_deg(-126.0, -10.0);
+const Eigen::Vector3d kSky = direction_from_azel_deg(30.0, 40.0);
+
+TEST(StaticSourceNull, WeakerHarmonicSourceIsFoundNextToALoudStaticGroundSource) {
+  const ArrayGeometry geometry = testing::tetrahedron();
+  const std::size_t frames = static_cast<std::size_t>(3.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise generator(static_cast<int>(frames), kRate, 100.0, 6000.0, 11);
+  testing::add_source(recording, geometry, kGround, generator, 0.3, kSpeed);
+  // 12 harmonics in the band at 0.05 each: 3 dB below the generator in the band, but each
+  // harmonic 7 dB above it in its own bin.
+  add_harmonic_source(recording, geometry, kSky, 160.0, 0.05, 0, frames);
+  testing::add_sensor_noise(recording, kRate, 100.0, 8000.0, 0.003, 5);
+  const std::vector<MicPairSpec> pairs = all_pairs(geometry);
+  const std::vector<double> weak = pair_tdoas(geometry, pairs, kSky);
+  const std::vector<double> loud = pair_tdoas(geometry, pairs, kGround);
+
+  const NullRun without = run(recording, geometry, false, weak, 1.0);
+  const NullRun with = run(recording, geometry, true, weak, 1.0);
+  std::printf("weak source on every pair: without null %d of %d frames, with null %d of %d\n",
+              without.frames_on_weak_source, without.frames_after_learning,
+              with.frames_on_weak_source, with.frames_after_learning);
+  EXPECT_EQ(without.frames_on_weak_source, 0);
+  EXPECT_GE(with.frames_on_weak_source, 0.9 * with.frames_after_learning);
+  EXPECT_EQ(with.nulled_per_frame.back(), 1);
+  // The learned TDOAs are the loud source's.
+  for (std::size_t p = 0; p < pairs.size(); ++p)
+    EXPECT_NEAR(with.nulled_tdoas_s[p], loud[p], 5e-6) << "pair " << p;
+}
+
+TEST(StaticSourceNull, StaticSourceInTheSkyIsNeverNulled) {
+  const ArrayGeometry geometry = testing::tetrahedron(30.0);
+  const std::size_t frames = static_cast<std::size_t>(3.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  // A hovering drone: loud, broadband, stays put 40 deg up.
+  const testing::BandNoise hover(static_cast<int>(frames), kRate, 100.0, 6000.0, 12);
+  testing::add_source(recording, geometry, kSky, hover, 0.3, kSpeed);
+  testing::add_sensor_noise(recording, kRate, 100.0, 8000.0, 0.003, 6);
+  const std::vector<double> sky = pair_tdoas(geometry, all_pairs(geometry), kSky);
+  const NullRun with = run(recording, geometry, true, sky, 1.0);
+  for (const int nulled : with.nulled_per_frame) ASSERT_EQ(nulled, 0);
+  EXPECT_EQ(with.frames_on_weak_source, with.frames_after_learning);
+}
+
+TEST(StaticSourceNull, ForgetsAStaticSourceThatWentQuiet) {
+  const ArrayGeometry geometry = testing::tetrahedron();
+  const std::size_t frames = static_cast<std::size_t>(4.0 * kRate);
+  const std::size_t stop = static_cast<std::size_t>(2.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  testing::BandNoise generator(static_cast<int>(frames), kRate, 100.0, 6000.0, 13);
+  std::vector<double> delays = testing::plane_wave_delays(geometry, kGround, kSpeed);
+  for (int mic = 0; mic < 4; ++mic) {
+    std::vector<double> samples = generator.delayed(delays[static_cast<std::size_t>(mic)], 0.3);
+    std::fill(samples.begin() + static_cast<std::ptrdiff_t>(stop), samples.end(), 0.0);
+    recording.add(mic, samples);
+  }
+  add_harmonic_source(recording, geometry, kSky, 160.0, 0.05, 0, frames);
+  testing::add_sensor_noise(recording, kRate, 100.0, 8000.0, 0.003, 7);
+  const std::vector<double> weak = pair_tdoas(geometry, all_pairs(geometry), kSky);
+  const NullRun with = run(recording, geometry, true, weak, 1.0, 0.5);
+  int nulled_while_loud = 0;
+  int nulled_long_after_stop = 0;
+  for (std::size_t f = 0; f < with.time_per_frame.size(); ++f) {
+    const double t = with.time_per_frame[f];
+    if (t > 1.5 && t < 1.9) nulled_while_loud += with.nulled_per_frame[f];
+    if (t > 2.0 + 0.5 + kFrame_s + 0.2) nulled_long_after_stop += with.nulled_per_frame[f];
+  }
+  EXPECT_GT(nulled_while_loud, 0);
+  EXPECT_EQ(nulled_long_after_stop, 0);
+  // Once forgotten the weak source is still found (nothing of it was nulled).
+  EXPECT_GE(with.frames_on_weak_source, 0.9 * with.frames_after_learning);
+}
+
+TEST(GccPhat, DroppedBinsLeaveASourceInTheKeptBinsAtFullPeak) {
+  const ArrayGeometry geometry = testing::tetrahedron();
+  const std::size_t frames = static_cast<std::size_t>(0.2 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 21);
+  testing::add_source(recording, geometry, kSky, source, 0.3, kSpeed);
+  const int frame_length = static_cast<int>(std::lround(kFrame_s * kRate));
+  Framer framer(4, frame_length, frame_length);
+  MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
+  const std::vector<MicPairSpec> pairs = all_pairs(geometry);
+  GccPhat gcc(fft.fft_size(), frame_length, kRate, {FrequencyBand{1500.0, 3500.0}}, pairs);
+  const std::vector<double> truth = pair_tdoas(geometry, pairs, kSky);
+  int checked = 0;
+  framer.push(recording.view(0, frames), [&](const FrameView& frame) {
+    fft.process(frame);
+    gcc.whiten(fft);
+    const std::span<std::uint8_t> keep = gcc.bin_keep();
+    for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 3 == 0 ? 1 : 0;
+    gcc.correlate();
+    EXPECT_EQ(gcc.kept_bin_count(), static_cast<int>((keep.size() + 2) / 3));
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      EXPECT_GT(gcc.pair(p).peak.value, 0.99);
+      EXPECT_NEAR(gcc.pair(p).peak.lag_s, truth[static_cast<std::size_t>(p)], 0.2e-6);
+    }
+    ++checked;
+  });
+  EXPECT_EQ(checked, 1);
+}
+
+}  // namespace
+}  // namespace dronetrack::doa
