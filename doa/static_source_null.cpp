@@ -17,6 +17,9 @@ constexpr double kPresentShare = 0.15;
 constexpr double kMinHitShare = 0.5;
 // A per-pair peak weaker than this is no observation of anything.
 constexpr double kMinPeakValue = 0.1;
+// A bin's averaged phasor at least this long is the source's steady phase (adapt()).
+constexpr double kSteadyBin = 0.5;
+constexpr double kMaxBend = 0.5;  // cos(60 deg)
 }  // namespace
 
 StaticNullSettings static_null_settings(const DoaParams& params, double hop_s,
@@ -70,8 +73,11 @@ StaticSourceNull::StaticSourceNull(const ArrayGeometry& geometry, const GccPhat&
   signatures_.assign(static_cast<std::size_t>(settings_.max_sources),
                      std::vector<std::complex<double>>(
                          static_cast<std::size_t>(pair_count_) * band_bins_, {0.0, 0.0}));
+  averages_ = signatures_;
+  models_ = signatures_;
   signature_used_.assign(static_cast<std::size_t>(settings_.max_sources), false);
   scores_.assign(static_cast<std::size_t>(band_bins_), 0.0);
+  model_scores_.assign(static_cast<std::size_t>(band_bins_), 0.0);
   bin_power_.assign(static_cast<std::size_t>(band_bins_), 0.0);
   frame_tdoas_.assign(static_cast<std::size_t>(pair_count_), 0.0);
 }
@@ -108,22 +114,29 @@ void StaticSourceNull::mask(double time_s, GccPhat& gcc) {
   const double threshold = settings_.match_threshold * pair_count_;
   for (Slot& slot : slots_) {
     if (slot.state != State::nulled) continue;
-    const std::vector<std::complex<double>>& signature =
-        signatures_[static_cast<std::size_t>(slot.signature)];
+    const std::size_t which = static_cast<std::size_t>(slot.signature);
     std::fill(scores_.begin(), scores_.end(), 0.0);
+    std::fill(model_scores_.begin(), model_scores_.end(), 0.0);
     for (int p = 0; p < pair_count_; ++p) {
       const std::span<const std::complex<double>> phasor = gcc.phasors(p);
+      const std::complex<double>* signature =
+          signatures_[which].data() + static_cast<std::ptrdiff_t>(p) * band_bins_;
       const std::complex<double>* model =
-          signature.data() + static_cast<std::ptrdiff_t>(p) * band_bins_;
-      for (int k = 0; k < band_bins_; ++k)
-        scores_[static_cast<std::size_t>(k)] +=
-            (phasor[static_cast<std::size_t>(k)] * model[k]).real();
+          models_[which].data() + static_cast<std::ptrdiff_t>(p) * band_bins_;
+      for (int k = 0; k < band_bins_; ++k) {
+        const std::complex<double> w = phasor[static_cast<std::size_t>(k)];
+        scores_[static_cast<std::size_t>(k)] += (w * signature[k]).real();
+        model_scores_[static_cast<std::size_t>(k)] += (w * model[k]).real();
+      }
     }
+    if (settings_.adapt_bins) adapt(slot.signature, gcc);
+    // Whether the source is still there is judged on the pure delay model: the adapted
+    // signature could otherwise keep itself alive on another source's steady bins.
     double matched_power = 0.0;
     for (int k = 0; k < band_bins_; ++k) {
-      if (scores_[static_cast<std::size_t>(k)] < threshold) continue;
-      keep[static_cast<std::size_t>(k)] = 0;
-      matched_power += bin_power_[static_cast<std::size_t>(k)];
+      if (model_scores_[static_cast<std::size_t>(k)] >= threshold)
+        matched_power += bin_power_[static_cast<std::size_t>(k)];
+      if (scores_[static_cast<std::size_t>(k)] >= threshold) keep[static_cast<std::size_t>(k)] = 0;
     }
     if (total_power > 0.0 && matched_power >= kPresentShare * total_power)
       slot.last_heard_s = time_s;
@@ -233,6 +246,39 @@ void StaticSourceNull::make_signature(Slot& slot) {
     for (const BandRun& run : band_)
       for (int k = run.first_bin; k <= run.last_bin; ++k)
         signature[index++] = std::polar(1.0, k * bin_omega_ * tau);
+  }
+  std::copy(signature.begin(), signature.end(),
+            models_[static_cast<std::size_t>(slot.signature)].begin());
+  std::copy(signature.begin(), signature.end(),
+            averages_[static_cast<std::size_t>(slot.signature)].begin());
+}
+
+void StaticSourceNull::adapt(int signature_index, const GccPhat& gcc) {
+  // The source's own ground reflection (and anything else that is as static as the source)
+  // bends each bin's cross-spectrum phase away from the pure delay, by a constant amount: a
+  // per-bin average over ~learn_s follows it. A bin that is not steadily the source's (a
+  // drone's harmonic passing through, noise) averages out and keeps the delay model.
+  const double rate = std::min(1.0, settings_.hop_s / settings_.learn_s);
+  std::vector<std::complex<double>>& signature =
+      signatures_[static_cast<std::size_t>(signature_index)];
+  std::vector<std::complex<double>>& average = averages_[static_cast<std::size_t>(signature_index)];
+  const std::vector<std::complex<double>>& model =
+      models_[static_cast<std::size_t>(signature_index)];
+  for (int p = 0; p < pair_count_; ++p) {
+    const std::span<const std::complex<double>> phasor = gcc.phasors(p);
+    const std::size_t offset = static_cast<std::size_t>(p) * static_cast<std::size_t>(band_bins_);
+    for (int k = 0; k < band_bins_; ++k) {
+      const std::size_t index = offset + static_cast<std::size_t>(k);
+      std::complex<double>& mean = average[index];
+      mean += rate * (std::conj(phasor[static_cast<std::size_t>(k)]) - mean);
+      const double size = std::abs(mean);
+      const std::complex<double> steady = size > 0.0 ? mean / size : model[index];
+      // A reflection half as strong as the direct sound bends a pair's phase by at most
+      // 60 deg: a steadier phase further off is another static source's (a hovering drone's
+      // harmonic in this bin), not this one's.
+      const bool own = size >= kSteadyBin && (steady * std::conj(model[index])).real() >= kMaxBend;
+      signature[index] = own ? steady : model[index];
+    }
   }
 }
 

@@ -37,6 +37,9 @@ struct StaticNullSettings {
   // one dominant source gives ~1, noise or another source's bin ~0 +- 0.3 (4 mics).
   double match_threshold = 0.5;
   double speed_of_sound_mps = 343.0;
+  // Follow each bin's steady phase (the source's ground reflection bends it) instead of the
+  // pure delay model alone.
+  bool adapt_bins = true;
 };
 
 // The settings the "doa" config keys give (static_null_*).
@@ -78,6 +81,7 @@ class StaticSourceNull {
   bool matches(const Slot& slot, std::span<const double> tdoas_s) const;
   void decide(Slot& slot);
   void make_signature(Slot& slot);
+  void adapt(int signature_index, const GccPhat& gcc);
   // Elevation (deg) of the highest direction consistent with the TDOAs (plane wave; planar
   // arrays: the upper mirror image). +90 when the geometry cannot tell (line arrays).
   double highest_elevation_deg(std::span<const double> tdoas_s) const;
@@ -92,12 +96,15 @@ class StaticSourceNull {
   Eigen::Matrix3d normal_inverse_ = Eigen::Matrix3d::Zero();  // pseudo-inverse of D^T D
   Eigen::Vector3d plane_normal_ = Eigen::Vector3d::UnitZ();   // planar arrays
   std::array<Slot, kSlots> slots_{};
-  // Per nulled source: e^{j w_k tau_p}, pair-major over the band bins.
+  // Per nulled source: e^{j w_k tau_p} (or the bin's steady phase), pair-major over the band.
   std::vector<std::vector<std::complex<double>>> signatures_;
+  std::vector<std::vector<std::complex<double>>> averages_;  // per-bin mean of conj(W)
+  std::vector<std::vector<std::complex<double>>> models_;    // the pure delay model
   std::vector<bool> signature_used_;
-  std::vector<double> scores_;       // per band bin: best match over nulled sources
-  std::vector<double> bin_power_;    // per band bin: sum over pairs of |G|
-  std::vector<double> frame_tdoas_;  // per pair
+  std::vector<double> scores_;        // per band bin: match with one source's signature
+  std::vector<double> model_scores_;  // per band bin: match with its pure delay model
+  std::vector<double> bin_power_;     // per band bin: sum over pairs of |G|
+  std::vector<double> frame_tdoas_;   // per pair
   double dropped_share_ = 0.0;
 };
 
