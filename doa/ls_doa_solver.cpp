@@ -1,6 +1,7 @@
 #include "doa/ls_doa_solver.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -31,6 +32,34 @@ Eigen::Matrix2d azel_covariance_from_direction(const Eigen::Vector3d& u,
       -u.x() * u.z() / horizontal, -u.y() * u.z() / horizontal, horizontal;
   return jacobian * covariance * jacobian.transpose();
 }
+
+namespace {
+// Inverse of the leading dimensions x dimensions block (fixed sizes: no allocation per solve);
+// false when that block is rank deficient.
+template <int N>
+bool invert_fixed(const Eigen::Matrix3d& matrix, Eigen::Matrix3d& inverse) {
+  Eigen::FullPivLU<Eigen::Matrix<double, N, N>> lu(N, N);
+  // Eigen's default rank threshold, set explicitly (GCC cannot see it is otherwise unused).
+  lu.setThreshold(Eigen::NumTraits<double>::epsilon() * N);
+  lu.compute(matrix.topLeftCorner<N, N>());
+  if (lu.rank() < N) return false;
+  inverse.topLeftCorner<N, N>() = lu.inverse();
+  return true;
+}
+
+bool invert_leading_block(const Eigen::Matrix3d& matrix, int dimensions, Eigen::Matrix3d& inverse) {
+  switch (dimensions) {
+    case 1:
+      return invert_fixed<1>(matrix, inverse);
+    case 2:
+      return invert_fixed<2>(matrix, inverse);
+    case 3:
+      return invert_fixed<3>(matrix, inverse);
+    default:
+      return false;
+  }
+}
+}  // namespace
 
 LsDoaSolver::LsDoaSolver(const ArrayGeometry& geometry, const LsDoaSettings& settings)
     : settings_(settings), array_to_site_(geometry.array_to_site()) {
@@ -84,16 +113,20 @@ double LsDoaSolver::pair_variance(const PairTdoa& tdoa) const {
          settings_.timing_floor_s * settings_.timing_floor_s;
 }
 
-double LsDoaSolver::arrival_s(const Eigen::Vector3d& u, double kappa, int mic) const {
-  // (|r u - m| - r) / c with r = 1 / kappa, written to stay exact as kappa -> 0.
+LsDoaSolver::Arrival LsDoaSolver::arrival(const Eigen::Vector3d& u, double kappa, int mic) const {
+  // (|r u - m| - r) / c with r = 1 / kappa. With D = sqrt(1 - 2 kappa a + kappa^2 |m|^2),
+  // a = u.m: (D - 1) / kappa = (kappa |m|^2 - 2 a) / (D + 1), exact and smooth through
+  // kappa = 0 (the plane wave, -a / c).
   const Eigen::Vector3d& position = mics_centred_m_[static_cast<std::size_t>(mic)];
   const double along = u.dot(position);
   const double squared = position.squaredNorm();
-  if (std::abs(kappa) < 1e-9)
-    return (-along + 0.5 * kappa * (squared - along * along)) / settings_.speed_of_sound_mps;
   const double root =
       std::sqrt(std::max(1e-12, 1.0 - 2.0 * kappa * along + kappa * kappa * squared));
-  return (root - 1.0) / kappa / settings_.speed_of_sound_mps;
+  const double numerator = kappa * squared - 2.0 * along;
+  const double denominator = (root + 1.0) * settings_.speed_of_sound_mps;
+  const double root_by_kappa = (kappa * squared - along) / root;
+  return {numerator / denominator, -1.0 / (root * settings_.speed_of_sound_mps),
+          (squared * (root + 1.0) - numerator * root_by_kappa) / (denominator * (root + 1.0))};
 }
 
 bool LsDoaSolver::refine_near_field(std::span<const PairTdoa> tdoas, int skip_pair,
@@ -101,37 +134,44 @@ bool LsDoaSolver::refine_near_field(std::span<const PairTdoa> tdoas, int skip_pa
                                     double& chi2) const {
   const double kappa_std = settings_.near_field_kappa_std_per_m;
   const std::size_t count = std::min(pair_vectors_.size(), tdoas.size());
+  const int mics = static_cast<int>(mics_centred_m_.size());
+  // Pair weights once (0: not used), then every iteration reuses them.
+  std::array<double, kMaxPairs> inverse_variance{};
+  for (std::size_t p = 0; p < count; ++p) {
+    const double variance = static_cast<int>(p) == skip_pair ? 0.0 : pair_variance(tdoas[p]);
+    inverse_variance[p] = variance > 0.0 ? 1.0 / variance : 0.0;
+  }
   Eigen::Vector3d u = direction_array;
   double kappa = 0.0;
   Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
   Eigen::Vector3d tangent_1;
   Eigen::Vector3d tangent_2;
-  auto model = [&](const Eigen::Vector3d& direction, double curvature, std::size_t p) {
-    return arrival_s(direction, curvature, pair_mics_[p].first) -
-           arrival_s(direction, curvature, pair_mics_[p].second);
-  };
-  constexpr double kAngleStep = 1e-6;
-  constexpr double kKappaStep = 1e-5;
+  std::array<Arrival, kMaxMics> arrivals{};
+  std::array<double, kMaxMics> along_1{};  // d arrival / d alpha (first tangent), per mic
+  std::array<double, kMaxMics> along_2{};
   for (int iteration = 0; iteration < 4; ++iteration) {
     // Tangent basis at u; parameters (alpha, beta, kappa) with u(alpha, beta) on the sphere.
     tangent_1 = u.unitOrthogonal();
     tangent_2 = u.cross(tangent_1);
+    for (int m = 0; m < mics; ++m) {
+      const auto at = static_cast<std::size_t>(m);
+      arrivals[at] = arrival(u, kappa, m);
+      along_1[at] = arrivals[at].d_along * tangent_1.dot(mics_centred_m_[at]);
+      along_2[at] = arrivals[at].d_along * tangent_2.dot(mics_centred_m_[at]);
+    }
     information = Eigen::Matrix3d::Zero();
     Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
     information(2, 2) = 1.0 / (kappa_std * kappa_std);
     gradient(2) = kappa / (kappa_std * kappa_std);
     for (std::size_t p = 0; p < count; ++p) {
-      if (static_cast<int>(p) == skip_pair) continue;
-      const double variance = pair_variance(tdoas[p]);
-      if (variance <= 0.0) continue;
-      const double value = model(u, kappa, p);
-      const Eigen::Vector3d row(
-          (model((u + kAngleStep * tangent_1).normalized(), kappa, p) - value) / kAngleStep,
-          (model((u + kAngleStep * tangent_2).normalized(), kappa, p) - value) / kAngleStep,
-          (model(u, kappa + kKappaStep, p) - value) / kKappaStep);
-      const double residual = value - tdoas[p].tdoa_s;
-      information += row * row.transpose() / variance;
-      gradient += row * residual / variance;
+      if (!(inverse_variance[p] > 0.0)) continue;
+      const auto i = static_cast<std::size_t>(pair_mics_[p].first);
+      const auto j = static_cast<std::size_t>(pair_mics_[p].second);
+      const Eigen::Vector3d row(along_1[i] - along_1[j], along_2[i] - along_2[j],
+                                arrivals[i].d_kappa - arrivals[j].d_kappa);
+      const double residual = arrivals[i].time_s - arrivals[j].time_s - tdoas[p].tdoa_s;
+      information += row * row.transpose() * inverse_variance[p];
+      gradient += row * residual * inverse_variance[p];
     }
     const Eigen::Vector3d step = -information.ldlt().solve(gradient);
     if (!step.allFinite()) return false;
@@ -149,12 +189,13 @@ bool LsDoaSolver::refine_near_field(std::span<const PairTdoa> tdoas, int skip_pa
   if (!covariance.allFinite()) return false;
   direction_array = u;
   chi2 = (kappa / kappa_std) * (kappa / kappa_std);
+  for (int m = 0; m < mics; ++m) arrivals[static_cast<std::size_t>(m)] = arrival(u, kappa, m);
   for (std::size_t p = 0; p < count; ++p) {
-    if (static_cast<int>(p) == skip_pair) continue;
-    const double variance = pair_variance(tdoas[p]);
-    if (variance <= 0.0) continue;
-    const double residual = model(u, kappa, p) - tdoas[p].tdoa_s;
-    chi2 += residual * residual / variance;
+    if (!(inverse_variance[p] > 0.0)) continue;
+    const double residual = arrivals[static_cast<std::size_t>(pair_mics_[p].first)].time_s -
+                            arrivals[static_cast<std::size_t>(pair_mics_[p].second)].time_s -
+                            tdoas[p].tdoa_s;
+    chi2 += residual * residual * inverse_variance[p];
   }
   return true;
 }
@@ -201,13 +242,8 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
   }
   solution.pairs_used = used;
   if (used < dimensions) return solution;
-  const auto block = normal.topLeftCorner(dimensions, dimensions);
   Eigen::Matrix3d inverse = Eigen::Matrix3d::Zero();
-  {
-    Eigen::FullPivLU<Eigen::MatrixXd> lu(block);
-    if (lu.rank() < dimensions) return solution;
-    inverse.topLeftCorner(dimensions, dimensions) = lu.inverse();
-  }
+  if (!invert_leading_block(normal, dimensions, inverse)) return solution;
   const Eigen::Vector3d v = -inverse * rhs;  // subspace coordinates
   const double norm = v.norm();
   solution.norm = norm;

@@ -17,6 +17,8 @@
 
 namespace dronetrack::doa {
 
+inline constexpr int kMaxMics = 8;  // kMaxPairs = 8 * 7 / 2
+
 struct PairTdoa {
   double tdoa_s = 0.0;
   double variance_s2 = 0.0;  // <= 0 or non-finite: pair not used
@@ -75,7 +77,14 @@ class LsDoaSolver {
   bool refine_near_field(std::span<const PairTdoa> tdoas, int skip_pair,
                          Eigen::Vector3d& direction_array, Eigen::Matrix3d& covariance,
                          double& chi2) const;
-  double arrival_s(const Eigen::Vector3d& direction_array, double kappa, int mic) const;
+  // Arrival time at a mic (relative to the mic centroid) of a spherical wavefront from
+  // direction u with curvature kappa, and its derivatives by u.m and by kappa.
+  struct Arrival {
+    double time_s = 0.0;
+    double d_along = 0.0;  // s per m of u.m
+    double d_kappa = 0.0;  // s per (1/m)
+  };
+  Arrival arrival(const Eigen::Vector3d& direction_array, double kappa, int mic) const;
   double pair_variance(const PairTdoa& tdoa) const;
 
   LsDoaSettings settings_;

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -30,7 +29,7 @@ Framer::Framer(int channels, int frame_length, int hop)
   if (frame_length < 2) throw std::invalid_argument("Framer: frame_length must be >= 2");
   if (hop < 1 || hop > frame_length)
     throw std::invalid_argument("Framer: hop must be in [1, frame_length]");
-  samples_.assign(static_cast<std::size_t>(channels) * static_cast<std::size_t>(length_), 0.0);
+  samples_.assign(static_cast<std::size_t>(channels) * 2 * static_cast<std::size_t>(length_), 0.0);
   flags_.assign(static_cast<std::size_t>(length_), 0);
 }
 
@@ -56,69 +55,102 @@ bool Framer::accept_block(const AudioBlockView& block) {
 }
 
 void Framer::append_run(const AudioBlockView& block, std::size_t first, std::size_t count) {
-  std::uint8_t* flags = flags_.data() + filled_;
-  std::fill_n(flags, count, std::uint8_t{0});
+  std::size_t done = 0;
+  while (done < count) {
+    const int segment =
+        static_cast<int>(std::min(count - done, static_cast<std::size_t>(length_ - head_)));
+    append_segment(block, first + done, segment);
+    head_ = (head_ + segment) % length_;
+    done += static_cast<std::size_t>(segment);
+  }
+  filled_ += static_cast<int>(count);
+}
+
+void Framer::append_segment(const AudioBlockView& block, std::size_t first, int count) {
+  std::uint8_t* flags = flags_.data() + head_;
+  if (flagged_non_finite_ + flagged_clipped_ > 0) {
+    // The samples about to be overwritten leave the ring, and their flags with them.
+    for (int n = 0; n < count; ++n) {
+      flagged_non_finite_ -= (flags[n] & kFlagNonFinite) != 0 ? 1 : 0;
+      flagged_clipped_ -= (flags[n] & kFlagClipped) != 0 ? 1 : 0;
+      flags[n] = 0;
+    }
+  }
   const auto stride = static_cast<std::size_t>(channels_);
+  const std::ptrdiff_t ring = 2 * static_cast<std::ptrdiff_t>(length_);
   for (int c = 0; c < channels_; ++c) {
     const float* source = block.interleaved + first * stride + static_cast<std::size_t>(c);
-    double* target = samples_.data() + static_cast<std::ptrdiff_t>(c) * length_ + filled_;
-    double sum_squares = 0.0;
-    bool odd = false;  // any non-finite or clipped value in this run of this channel
-    for (std::size_t n = 0; n < count; ++n) {
-      const double value = source[n * stride];
-      target[n] = value;
-      sum_squares += value * value;
-      // NaN fails every comparison: one test catches NaN, Inf and clipping.
-      odd = odd || !(std::fabs(value) < kClipLevel);
+    double* target = samples_.data() + c * ring + head_;
+    double* mirror = target + length_;
+    // Four partial sums: one running sum would make every sample wait for the previous add.
+    double sum_squares[4] = {0.0, 0.0, 0.0, 0.0};
+    int odd = 0;  // any non-finite or clipped value in this run of this channel
+    int n = 0;
+    for (; n + 4 <= count; n += 4) {
+      for (int lane = 0; lane < 4; ++lane) {
+        const double value = source[static_cast<std::size_t>(n + lane) * stride];
+        target[n + lane] = value;
+        mirror[n + lane] = value;
+        sum_squares[lane] += value * value;
+        // NaN fails every comparison: one test catches NaN, Inf and clipping.
+        odd |= !(std::fabs(value) < kClipLevel) ? 1 : 0;
+      }
     }
-    if (odd) {
+    for (; n < count; ++n) {
+      const double value = source[static_cast<std::size_t>(n) * stride];
+      target[n] = value;
+      mirror[n] = value;
+      sum_squares[0] += value * value;
+      odd |= !(std::fabs(value) < kClipLevel) ? 1 : 0;
+    }
+    double run_sum = (sum_squares[0] + sum_squares[1]) + (sum_squares[2] + sum_squares[3]);
+    if (odd != 0) {
       // Rare: redo this run sample by sample to replace and count.
-      sum_squares = 0.0;
-      for (std::size_t n = 0; n < count; ++n) {
+      run_sum = 0.0;
+      for (n = 0; n < count; ++n) {
         double value = target[n];
         if (!std::isfinite(value)) {
           value = 0.0;
           target[n] = 0.0;
+          mirror[n] = 0.0;
+          flagged_non_finite_ += (flags[n] & kFlagNonFinite) == 0 ? 1 : 0;
           flags[n] |= kFlagNonFinite;
           ++counters_.non_finite_samples;
         } else if (std::fabs(value) >= kClipLevel) {
+          flagged_clipped_ += (flags[n] & kFlagClipped) == 0 ? 1 : 0;
           flags[n] |= kFlagClipped;
           ++counters_.clipped_samples;
         }
-        sum_squares += value * value;
+        run_sum += value * value;
       }
     }
-    recent_sum_squares_ += sum_squares;
+    recent_sum_squares_ += run_sum;
   }
   recent_values_ += static_cast<std::int64_t>(count) * channels_;
-  filled_ += static_cast<int>(count);
 }
 
 FrameView Framer::emit_and_shift_view() {
+  // The frame is full: the oldest sample sits at head_, the rest follow contiguously in the
+  // mirrored ring.
   FrameView view;
   view.first_sample = buffer_first_sample_;
   view.channels = channels_;
   view.length = length_;
-  view.samples = samples_.data();
+  view.samples = samples_.data() + head_;
+  view.stride = 2 * static_cast<std::ptrdiff_t>(length_);
   view.recent_mean_square =
       recent_values_ > 0 ? recent_sum_squares_ / static_cast<double>(recent_values_) : 0.0;
   recent_sum_squares_ = 0.0;
   recent_values_ = 0;
-  for (const std::uint8_t flag : flags_) {
-    view.non_finite_samples += (flag & kFlagNonFinite) != 0 ? 1 : 0;
-    view.clipped_samples += (flag & kFlagClipped) != 0 ? 1 : 0;
-  }
+  // Every ring index was written since the last restart, so the ring's flags are the frame's.
+  view.non_finite_samples = flagged_non_finite_;
+  view.clipped_samples = flagged_clipped_;
   return view;
 }
 
 void Framer::shift() {
-  const int keep = length_ - hop_;
-  for (int c = 0; c < channels_; ++c) {
-    double* run = samples_.data() + static_cast<std::ptrdiff_t>(c) * length_;
-    std::memmove(run, run + hop_, static_cast<std::size_t>(keep) * sizeof(double));
-  }
-  std::memmove(flags_.data(), flags_.data() + hop_, static_cast<std::size_t>(keep));
-  filled_ = keep;
+  // Nothing moves: the next hop overwrites the oldest samples of the ring.
+  filled_ = length_ - hop_;
   buffer_first_sample_ += hop_;
 }
 

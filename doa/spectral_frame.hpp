@@ -19,11 +19,14 @@ struct FrameView {
   std::int64_t first_sample = 0;
   int channels = 0;
   int length = 0;
-  const double* samples = nullptr;  // channel c at samples + c * length
+  const double* samples = nullptr;  // channel c at samples + c * stride (stride 0: length)
   int non_finite_samples = 0;       // in this frame, all channels (already replaced by 0)
   int clipped_samples = 0;          // in this frame, all channels
   double recent_mean_square = 0.0;  // of the samples new since the previous frame (level meter)
-  const double* channel(int c) const { return samples + static_cast<std::ptrdiff_t>(c) * length; }
+  std::ptrdiff_t stride = 0;        // distance between channels' first samples; 0 means `length`
+  const double* channel(int c) const {
+    return samples + static_cast<std::ptrdiff_t>(c) * (stride > 0 ? stride : length);
+  }
 };
 
 struct FramerCounters {
@@ -33,6 +36,9 @@ struct FramerCounters {
   std::int64_t rejected_blocks = 0;  // wrong channel count or null data
 };
 
+// Each channel lives in a ring of `frame_length` samples stored twice in a row (a mirrored
+// ring): every new sample is written at i and i + frame_length, so the newest frame is always
+// one contiguous run starting at the oldest sample and a hop costs no shifting of the overlap.
 class Framer {
  public:
   Framer(int channels, int frame_length, int hop);
@@ -44,8 +50,10 @@ class Framer {
 
  private:
   bool accept_block(const AudioBlockView& block);
-  // Copies `count` frames of the block (channel by channel) behind what is buffered.
+  // Copies `count` frames of the block (all channels) behind what is buffered.
   void append_run(const AudioBlockView& block, std::size_t first, std::size_t count);
+  // Same, for a run that does not cross the ring's end.
+  void append_segment(const AudioBlockView& block, std::size_t first, int count);
   FrameView emit_and_shift_view();
   void shift();
 
@@ -53,12 +61,15 @@ class Framer {
   int length_;
   int hop_;
   int filled_ = 0;
+  int head_ = 0;  // ring index of the next sample; the oldest one when the frame is full
   std::int64_t buffer_first_sample_ = 0;
   std::int64_t expected_next_sample_ = -1;
-  std::vector<double> samples_;  // channels_ x length_
-  std::vector<std::uint8_t> flags_;
+  std::vector<double> samples_;      // channels_ x (2 * length_): mirrored rings
+  std::vector<std::uint8_t> flags_;  // per ring index: bit0 non-finite, bit1 clipped
+  int flagged_non_finite_ = 0;       // ring indices with bit0 set
+  int flagged_clipped_ = 0;          // ring indices with bit1 set
   double recent_sum_squares_ = 0.0;
-  std::int64_t recent_values_ = 0;  // per time index: bit0 non-finite, bit1 clipped
+  std::int64_t recent_values_ = 0;
   FramerCounters counters_;
 };
 

@@ -1,13 +1,31 @@
 #include "doa/srp_phat.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
 #include <Eigen/Eigenvalues>
 
 namespace dronetrack::doa {
+
+namespace {
+// Directions per patch of the bounded search: small patches have tight bounds, many patches
+// cost more bounds per look; 16 is near the minimum of the sum for a 5 deg grid.
+constexpr int kDirectionsPerPatch = 16;
+// An interpolated value may exceed the larger of its two grid values by a rounding error.
+constexpr double kBoundMargin = 1e-9;
+
+// Fibonacci sphere: `count` nearly uniform unit vectors.
+Eigen::Vector3d fibonacci_direction(int n, int count) {
+  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  const double z = 1.0 - 2.0 * (n + 0.5) / count;
+  const double radius = std::sqrt(std::max(0.0, 1.0 - z * z));
+  return {radius * std::cos(golden_angle * n), radius * std::sin(golden_angle * n), z};
+}
+}  // namespace
 
 SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
     : solver_(&solver), pairs_(gcc.pair_count()) {
@@ -16,7 +34,6 @@ SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
   const double spacing_rad = grid_deg * std::numbers::pi / 180.0;
   const int count =
       static_cast<int>(std::ceil(4.0 * std::numbers::pi / (spacing_rad * spacing_rad)));
-  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
   const bool hemisphere = solver.rank() == 2;
   // For planar arrays, "up" is the array plane's normal (the third principal axis).
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
@@ -34,10 +51,7 @@ SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
   }
   directions_.reserve(static_cast<std::size_t>(count));
   for (int n = 0; n < count; ++n) {
-    const double z = 1.0 - 2.0 * (n + 0.5) / count;
-    const double radius = std::sqrt(std::max(0.0, 1.0 - z * z));
-    const Eigen::Vector3d direction(radius * std::cos(golden_angle * n),
-                                    radius * std::sin(golden_angle * n), z);
+    const Eigen::Vector3d direction = fibonacci_direction(n, count);
     if (hemisphere && direction.dot(normal) < 0.0) continue;
     directions_.push_back(direction);
   }
@@ -57,10 +71,81 @@ SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
   int max_half_span = 0;
   for (int p = 0; p < pairs_; ++p) max_half_span = std::max(max_half_span, gcc.half_span(p));
   grid_stride_ = 2 * max_half_span + 1;
+  for (int p = 0; p < pairs_; ++p) grid_last_.push_back(2 * gcc.half_span(p));
   residual_.assign(static_cast<std::size_t>(grid_stride_) * static_cast<std::size_t>(pairs_), 0.0);
+  range_levels_ = std::bit_width(static_cast<unsigned>(grid_stride_));
+  range_maxima_.assign(residual_.size() * static_cast<std::size_t>(range_levels_), 0.0);
+  group_directions();
+}
+
+void SrpPhat::group_directions() {
+  // Patch centres: a coarser Fibonacci sphere; every direction joins its nearest centre.
+  const int centres = std::max(1, static_cast<int>(directions_.size() / kDirectionsPerPatch) *
+                                      (solver_->rank() == 2 ? 2 : 1));
+  std::vector<std::vector<std::int32_t>> members(static_cast<std::size_t>(centres));
+  for (std::size_t d = 0; d < directions_.size(); ++d) {
+    int nearest = 0;
+    double nearest_cosine = -2.0;
+    for (int c = 0; c < centres; ++c) {
+      const double cosine = directions_[d].dot(fibonacci_direction(c, centres));
+      if (cosine > nearest_cosine) {
+        nearest_cosine = cosine;
+        nearest = c;
+      }
+    }
+    members[static_cast<std::size_t>(nearest)].push_back(static_cast<std::int32_t>(d));
+  }
+  patch_offsets_.assign(1, 0);
+  for (const std::vector<std::int32_t>& patch : members) {
+    if (patch.empty()) continue;
+    patch_members_.insert(patch_members_.end(), patch.begin(), patch.end());
+    patch_offsets_.push_back(static_cast<std::int32_t>(patch_members_.size()));
+    for (int p = 0; p < pairs_; ++p) {
+      std::int32_t first = std::numeric_limits<std::int32_t>::max();
+      std::int32_t last = 0;
+      for (const std::int32_t d : patch) {
+        const std::int32_t below =
+            lag_index_[static_cast<std::size_t>(d) * static_cast<std::size_t>(pairs_) +
+                       static_cast<std::size_t>(p)];
+        first = std::min(first, below);
+        last = std::max(last, below + 1);
+      }
+      patch_first_.push_back(first);
+      patch_last_.push_back(last);
+    }
+  }
+  patch_bounds_.assign(patch_offsets_.size() - 1, 0.0);
+}
+
+void SrpPhat::build_range_maxima() const {
+  const auto stride = static_cast<std::size_t>(grid_stride_);
+  for (int p = 0; p < pairs_; ++p) {
+    double* level = range_maxima_.data() +
+                    static_cast<std::size_t>(p) * static_cast<std::size_t>(range_levels_) * stride;
+    std::copy_n(residual_.data() + static_cast<std::size_t>(p) * stride, stride, level);
+    for (int l = 1; l < range_levels_; ++l) {
+      const double* previous = level;
+      level += stride;
+      const std::size_t half = std::size_t{1} << (l - 1);
+      for (std::size_t m = 0; m + 2 * half <= stride; ++m)
+        level[m] = std::max(previous[m], previous[m + half]);
+    }
+  }
+  range_maxima_stale_ = false;
+}
+
+double SrpPhat::range_maximum(int pair, int first, int last) const {
+  const auto stride = static_cast<std::size_t>(grid_stride_);
+  const int l = std::bit_width(static_cast<unsigned>(last - first + 1)) - 1;
+  const double* level = range_maxima_.data() +
+                        (static_cast<std::size_t>(pair) * static_cast<std::size_t>(range_levels_) +
+                         static_cast<std::size_t>(l)) *
+                            stride;
+  return std::max(level[first], level[last - (1 << l) + 1]);
 }
 
 void SrpPhat::begin_frame(const GccPhat& gcc) {
+  range_maxima_stale_ = true;
   for (int p = 0; p < pairs_; ++p) {
     const std::span<const double> grid = gcc.grid(p);
     std::copy(grid.begin(), grid.end(),
@@ -69,6 +154,7 @@ void SrpPhat::begin_frame(const GccPhat& gcc) {
 }
 
 void SrpPhat::subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas) {
+  range_maxima_stale_ = true;
   const double step = gcc.lag_step_s();
   for (int p = 0; p < pairs_; ++p) {
     const PairTdoa& tdoa = tdoas[static_cast<std::size_t>(p)];
@@ -81,6 +167,7 @@ void SrpPhat::subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas) {
 }
 
 void SrpPhat::subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array) {
+  range_maxima_stale_ = true;
   const double step = gcc.lag_step_s();
   for (int p = 0; p < pairs_; ++p) {
     const int half = gcc.half_span(p);
@@ -96,24 +183,77 @@ void SrpPhat::subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& dire
   }
 }
 
-bool SrpPhat::strongest(SrpPeak& out) const {
+double SrpPhat::power_sum(std::size_t direction) const {
+  double sum = 0.0;
+  for (int p = 0; p < pairs_; ++p) {
+    const std::size_t at =
+        direction * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
+    const double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    const double fraction = lag_fraction_[at];
+    const auto below = static_cast<std::size_t>(lag_index_[at]);
+    sum += residual[below] * (1.0 - fraction) + residual[below + 1] * fraction;
+  }
+  return sum;
+}
+
+bool SrpPhat::strongest_exhaustive(SrpPeak& out) const {
   std::size_t best = directions_.size();
   double best_power = 0.0;
   for (std::size_t d = 0; d < directions_.size(); ++d) {
-    double sum = 0.0;
-    for (int p = 0; p < pairs_; ++p) {
-      const std::size_t at = d * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
-      const double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
-      const double fraction = lag_fraction_[at];
-      const auto below = static_cast<std::size_t>(lag_index_[at]);
-      sum += residual[below] * (1.0 - fraction) + residual[below + 1] * fraction;
-    }
+    const double sum = power_sum(d);
     if (sum > best_power) {
       best_power = sum;
       best = d;
     }
   }
   if (best == directions_.size()) return false;
+  out = {directions_[best], best_power / pairs_};
+  return true;
+}
+
+bool SrpPhat::strongest(SrpPeak& out) const { return strongest(out, 0.0); }
+
+bool SrpPhat::strongest(SrpPeak& out, double min_power) const {
+  if (range_maxima_stale_) build_range_maxima();
+  // Sums over pairs below this cannot reach min_power (the margin covers rounding).
+  const double floor_sum = min_power * pairs_ - kBoundMargin;
+  double everywhere_bound = kBoundMargin;
+  for (int p = 0; p < pairs_; ++p)
+    everywhere_bound += range_maximum(p, 0, grid_last_[static_cast<std::size_t>(p)]);
+  if (everywhere_bound < floor_sum || !(everywhere_bound > 0.0)) return false;
+  const std::size_t patches = patch_bounds_.size();
+  std::size_t most_promising = 0;
+  for (std::size_t g = 0; g < patches; ++g) {
+    double bound = kBoundMargin;
+    for (int p = 0; p < pairs_; ++p) {
+      const std::size_t at = g * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
+      bound += range_maximum(p, patch_first_[at], patch_last_[at]);
+    }
+    patch_bounds_[g] = bound;
+    if (bound > patch_bounds_[most_promising]) most_promising = g;
+  }
+  if (patch_bounds_[most_promising] < floor_sum) return false;
+  // Same answer as visiting every direction in order: the highest power, and among equal
+  // powers the lowest direction index.
+  std::size_t best = directions_.size();
+  double best_power = 0.0;
+  auto visit = [&](std::size_t g) {
+    for (auto m = patch_offsets_[g]; m < patch_offsets_[g + 1]; ++m) {
+      const auto d = static_cast<std::size_t>(patch_members_[static_cast<std::size_t>(m)]);
+      const double sum = power_sum(d);
+      if (sum > best_power || (sum == best_power && best < directions_.size() && d < best)) {
+        best_power = sum;
+        best = d;
+      }
+    }
+  };
+  // The most promising patch first: its best power then rules out most others.
+  visit(most_promising);
+  for (std::size_t g = 0; g < patches; ++g) {
+    if (g == most_promising || patch_bounds_[g] < std::max(best_power, floor_sum)) continue;
+    visit(g);
+  }
+  if (best == directions_.size() || best_power / pairs_ < min_power) return false;
   out = {directions_[best], best_power / pairs_};
   return true;
 }

@@ -4,6 +4,11 @@
 // looked up once at construction (index + fraction into the correlation grid). Several sources
 // show as several maxima; each is then refined by the LS solver on the TDOAs of the correlation
 // maxima nearest its lags, so a second drone gets the same precision as the first.
+//
+// The search is exact but does not visit every direction: directions are grouped into small
+// patches, and a patch whose upper bound (per pair, the highest correlation over the lags its
+// directions touch, summed over pairs) is below the best power found so far is skipped. The
+// correlation of a source is a narrow peak, so a look visits a few patches of ~16 directions.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -36,12 +41,23 @@ class SrpPhat {
   void subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array);
   // The strongest direction of what is left; false if nothing positive is left.
   bool strongest(SrpPeak& out) const;
+  // The same when its power reaches `min_power` (mean over pairs), else false. The floor only
+  // lets the search skip what cannot reach it (after a strong source is cancelled, usually
+  // everything): the direction returned is the one strongest(out) returns.
+  bool strongest(SrpPeak& out, double min_power) const;
+  // The same by visiting every direction (reference for the bounded search; tests, benchmarks).
+  bool strongest_exhaustive(SrpPeak& out) const;
   // TDOAs of the correlation maxima nearest a direction's lags: input for LsDoaSolver.
   void tdoas_near(const GccPhat& gcc, const Eigen::Vector3d& direction_array,
                   std::span<PairTdoa> out) const;
   int direction_count() const { return static_cast<int>(directions_.size()); }
 
  private:
+  void group_directions();
+  double power_sum(std::size_t direction) const;  // sum over pairs of the interpolated residual
+  void build_range_maxima() const;
+  double range_maximum(int pair, int first, int last) const;  // over grid indices [first, last]
+
   const LsDoaSolver* solver_;
   int pairs_;
   std::vector<Eigen::Vector3d> directions_;
@@ -49,6 +65,19 @@ class SrpPhat {
   std::vector<float> lag_fraction_;      // directions x pairs
   std::vector<double> residual_;         // pairs x grid_stride_
   int grid_stride_ = 0;
+  std::vector<int> grid_last_;  // per pair: the last grid index (2 * half span)
+  // Patches of neighbouring directions: members (ascending direction index) of patch g at
+  // patch_members_[patch_offsets_[g] .. patch_offsets_[g + 1]); per patch and pair the grid
+  // index range [first, last] its directions' interpolations read.
+  std::vector<std::int32_t> patch_offsets_;
+  std::vector<std::int32_t> patch_members_;
+  std::vector<std::int32_t> patch_first_;  // patches x pairs
+  std::vector<std::int32_t> patch_last_;   // patches x pairs
+  // Sparse table of range maxima of the residual: level l holds max over [m, m + 2^l).
+  int range_levels_ = 0;
+  mutable std::vector<double> range_maxima_;  // pairs x levels x grid_stride_
+  mutable std::vector<double> patch_bounds_;  // patches
+  mutable bool range_maxima_stale_ = true;
 };
 
 }  // namespace dronetrack::doa
