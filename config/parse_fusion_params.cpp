@@ -57,6 +57,22 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
       section.integer("confirm_min_arrays", params.confirm_min_arrays, 1, 64);
   params.max_position_std_m =
       section.number("max_position_std_m", params.max_position_std_m, 0.1, 1e5);
+  if (auto levels = section.numbers("imm_jerk_std_mps3", 0, false)) {
+    bool ok = levels->size() <= 8;
+    if (!ok) section.diagnostics().error(section.path_of("imm_jerk_std_mps3"), "at most 8 levels");
+    for (std::size_t i = 0; i < levels->size() && ok; ++i) {
+      if (!((*levels)[i] > 0.0 && (*levels)[i] <= 1e4)) {
+        section.diagnostics().error(
+            section.path_of("imm_jerk_std_mps3") + "[" + std::to_string(i) + "]",
+            "must be in (0, 10000]");
+        ok = false;
+      }
+    }
+    if (ok) params.imm_jerk_std_mps3 = *levels;
+  }
+  params.imm_sojourn_s = section.number("imm_sojourn_s", params.imm_sojourn_s, 0.01, 1e4);
+  params.doa_error_correlation_s =
+      section.number("doa_error_correlation_s", params.doa_error_correlation_s, 0.0, 60.0);
 }
 
 }  // namespace dronetrack::config

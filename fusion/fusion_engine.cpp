@@ -106,6 +106,7 @@ struct Track {
   std::array<int, kMaxArrays> updates_by_array{};  // DOAs taken from each array
   Innovation innovation;                           // of the current frame
   bool innovation_ok = false;
+  double inflation = 1.0;  // of this frame's DOA covariance (correlated errors)
 };
 
 }  // namespace
@@ -145,6 +146,13 @@ struct FusionEngine::Impl {
   MeasurementCovariance noise_of(const doa::DoaMeasurement& m) const {
     return m.azel_covariance_rad2 + MeasurementCovariance::Identity() * floor_variance_rad2;
   }
+  // Effective sample size: DOAs of one array closer together than the span their errors are
+  // correlated over carry less than independent ones; scale their covariance by span / spacing.
+  double correlation_inflation(const Track& track, int array, double time_s) const {
+    const double since_s = time_s - track.heard_by_array_s[array];
+    if (!(params.doa_error_correlation_s > 0.0) || !(since_s > 0.0)) return 1.0;
+    return std::max(1.0, params.doa_error_correlation_s / since_s);
+  }
 };
 
 FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeometry> arrays,
@@ -175,6 +183,11 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(params.max_tracks >= 1, "max_tracks", "must be >= 1");
   check(params.confirm_min_arrays >= 1, "confirm_min_arrays", "must be >= 1");
   check(params.max_position_std_m > 0.0, "max_position_std_m", "must be > 0");
+  for (double level : params.imm_jerk_std_mps3) {
+    check(level > 0.0 && std::isfinite(level), "imm_jerk_std_mps3", "levels must be > 0");
+  }
+  check(params.imm_sojourn_s > 0.0, "imm_sojourn_s", "must be > 0");
+  check(params.doa_error_correlation_s >= 0.0, "doa_error_correlation_s", "must be >= 0");
   if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
     throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
   }
@@ -195,6 +208,11 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.ukf_beta = params.ukf_beta;
   s.filter_settings.ukf_kappa = params.ukf_kappa;
   s.filter_settings.particle_count = params.particle_count;
+  s.filter_settings.imm_jerk_std_mps3 = params.imm_jerk_std_mps3;
+  if (params.imm_jerk_std_mps3.size() == 1) {  // one level: a single model at that level
+    s.filter_settings.motion.jerk_variance_m2ps6 = std::pow(params.imm_jerk_std_mps3[0], 2);
+  }
+  s.filter_settings.imm_sojourn_s = params.imm_sojourn_s;
   s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
@@ -326,14 +344,16 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     Track& track = tracks[t];
     track.filter->predict(time_s - track.time_s);
     track.time_s = time_s;
-    const FilterStatus status = track.filter->innovation(model, floor, track.innovation);
+    track.inflation = correlation_inflation(track, array, time_s);
+    const FilterStatus status =
+        track.filter->innovation(model, floor * track.inflation, track.innovation);
     note(status);
     track.innovation_ok = status != FilterStatus::failed;
     if (!track.innovation_ok) continue;
     for (int j = 0; j < doa_count; ++j) {
       const doa::DoaMeasurement& m = queue[begin + j];
       Innovation candidate = track.innovation;
-      candidate.covariance += m.azel_covariance_rad2;
+      candidate.covariance += track.inflation * m.azel_covariance_rad2;
       const double d2 = candidate.mahalanobis2(azel_of(m.direction));
       if (d2 <= gate_chi2) {
         cost[static_cast<std::size_t>(t) * doa_count + j] =
@@ -351,8 +371,8 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     if (j < 0) continue;
     const doa::DoaMeasurement& m = queue[begin + j];
     Innovation innovation = track.innovation;
-    innovation.covariance += m.azel_covariance_rad2;
-    innovation.noise = noise_of(m);
+    innovation.covariance += track.inflation * m.azel_covariance_rad2;
+    innovation.noise = track.inflation * noise_of(m);
     const FilterStatus status = track.filter->update(innovation, azel_of(m.direction));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused

@@ -13,13 +13,15 @@ enum class TriangulationMethod { least_squares_3d, seed_xy_projection };
 
 struct FusionParams {
   FilterKind filter = FilterKind::ukf;
-  double jerk_noise_std_mps3 = 5.0;  // sqrt(q) of the constant-jerk model (SPEC 4.5)
-  double output_rate_hz = 10.0;      // track reports per second
-  double reorder_window_s = 0.3;     // DOAs are fed oldest first after this delay
-  double gate_probability = 0.999;   // chi-square gate on the DOA innovation
-  int confirm_hits = 5;              // M of N: M
-  int confirm_window = 8;            //         N
-  double coast_timeout_s = 3.0;      // a track unheard this long is deleted
+  // sqrt(q) of the constant-jerk model (SPEC 4.5) when imm_jerk_std_mps3 has fewer than two
+  // levels, and of the particle filter.
+  double jerk_noise_std_mps3 = 5.0;
+  double output_rate_hz = 10.0;     // track reports per second
+  double reorder_window_s = 0.3;    // DOAs are fed oldest first after this delay
+  double gate_probability = 0.999;  // chi-square gate on the DOA innovation
+  int confirm_hits = 5;             // M of N: M
+  int confirm_window = 8;           //         N
+  double coast_timeout_s = 3.0;     // a track unheard this long is deleted
 
   // Scaled unscented transform (filter = ukf). alpha = 1, kappa = 0 keeps every weight >= 0.
   double ukf_alpha = 1.0;
@@ -29,8 +31,10 @@ struct FusionParams {
   // Point h(x) at the emission time (sound takes r / c to arrive). Off only for comparison.
   bool model_propagation_delay = true;
   TriangulationMethod triangulation = TriangulationMethod::least_squares_3d;
-  // Added in quadrature to each DOA's own angular std: model error (array pose, wind, refraction).
-  double doa_noise_floor_deg = 0.3;
+  // Added in quadrature to each DOA's own angular std: model error (array pose, wind, refraction,
+  // ground echo). 0.15 deg makes the DOAs' normalised errors chi-square(2) on the bundled scenes'
+  // DOAs (mean z^2 1.2-1.5 at 0.15, 4-5 without a floor).
+  double doa_noise_floor_deg = 0.15;
   double coast_after_s = 0.5;        // a confirmed track unheard this long reports "coasting"
   double tentative_timeout_s = 1.5;  // a tentative track unheard this long is deleted
   // Initiation: DOAs of different arrays this close in time are paired and triangulated.
@@ -48,6 +52,20 @@ struct FusionParams {
   int confirm_min_arrays = 3;
   // A track whose position std (largest axis) grows beyond this is lost, not tracked: deleted.
   double max_position_std_m = 50.0;
+  // Interacting multiple model over jerk levels (m/s^3): cruising in gusts (acceleration drifting
+  // ~0.2 m/s^2 per second), gentle manoeuvres, and a turn entry (6 m/s^2 of centripetal
+  // acceleration within 0.2 s). Two or more levels: the Gaussian filters mix one constant-jerk
+  // model per level and jerk_noise_std_mps3 is unused (the particle filter keeps it). One level: a
+  // single model at that level.
+  std::vector<double> imm_jerk_std_mps3{0.2, 3.0, 30.0};
+  double imm_sojourn_s = 20.0;  // mean time a motion mode lasts (Markov switching)
+  // DOA errors are correlated over this span (the nodes smooth TDOAs over a sliding window, and
+  // their frames overlap): the DOA errors' autocorrelation on the bundled scenes falls to 0.5 after
+  // 0.2 s and to 0 after 0.4 s, an integrated correlation time of ~0.3 s. DOAs of one array
+  // within it carry about one DOA's information, so a DOA taken dt after the track's previous one
+  // from that array has its covariance scaled by max(1, doa_error_correlation_s / dt).
+  // 0: every DOA independent (overconfident at 20 DOAs/s).
+  double doa_error_correlation_s = 0.3;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)

@@ -1,7 +1,10 @@
 #include "fusion/track_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -287,6 +290,203 @@ class ParticleFilter final : public TrackFilter {
   std::normal_distribution<double> normal_{0.0, 1.0};
 };
 
+// Interacting multiple model (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan ch. 11.6):
+// one Gaussian filter per jerk level on the same 9-state model. A drone cruising in gusts has a
+// jerk of a fraction of a m/s^3, one entering a tight turn tens of m/s^3: one fixed q either
+// follows every wiggle of correlated DOA noise on the straight or lags in the turn. Each predict
+// mixes the models' estimates through a Markov chain whose switching probability grows with the
+// step (mean sojourn imm_sojourn_s); each update re-weights the modes by their innovation
+// likelihood. The tracker sees the moment-matched mixture, for gating and for reports.
+class InteractingFilter final : public TrackFilter {
+ public:
+  using Factory = std::unique_ptr<TrackFilter> (*)(FilterKind, const FilterSettings&);
+  InteractingFilter(FilterKind kind, const FilterSettings& settings, Factory make)
+      : sojourn_s_(settings.imm_sojourn_s) {
+    const std::size_t count = settings.imm_jerk_std_mps3.size();
+    for (double jerk_std : settings.imm_jerk_std_mps3) {
+      FilterSettings single = settings;
+      single.imm_jerk_std_mps3.clear();
+      single.motion.jerk_variance_m2ps6 = jerk_std * jerk_std;
+      models_.push_back(make(kind, single));
+    }
+    probability_.assign(count, 1.0 / static_cast<double>(count));
+    predicted_probability_ = probability_;
+    log_likelihood_.assign(count, 0.0);
+    mixing_.assign(count * count, 0.0);
+    mixed_mean_.resize(count);
+    mixed_covariance_.resize(count);
+    innovations_.resize(count);
+    innovation_ok_.assign(count, 0);
+  }
+
+  void initialise(const StateVector& mean, const StateCovariance& covariance) override {
+    for (auto& model : models_) model->initialise(mean, covariance);
+    combine();
+  }
+
+  void predict(double dt_s) override {
+    if (dt_s == 0.0) return;
+    const std::size_t count = models_.size();
+    // Markov chain over dt: stay with probability exp(-dt / sojourn), else move to another mode.
+    const double stay = std::exp(-std::abs(dt_s) / sojourn_s_);
+    const double move = count > 1 ? (1.0 - stay) / static_cast<double>(count - 1) : 0.0;
+    for (std::size_t j = 0; j < count; ++j) {
+      double total = 0.0;
+      for (std::size_t i = 0; i < count; ++i) {
+        const double w = (i == j ? stay : move) * probability_[i];
+        mixing_[i * count + j] = w;
+        total += w;
+      }
+      predicted_probability_[j] = total;
+      for (std::size_t i = 0; i < count; ++i) {
+        mixing_[i * count + j] = total > 0.0 ? mixing_[i * count + j] / total : 0.0;
+      }
+    }
+    for (std::size_t j = 0; j < count; ++j) {
+      StateVector mean = StateVector::Zero();
+      for (std::size_t i = 0; i < count; ++i) mean += mixing_[i * count + j] * models_[i]->mean();
+      StateCovariance covariance = StateCovariance::Zero();
+      for (std::size_t i = 0; i < count; ++i) {
+        const StateVector d = models_[i]->mean() - mean;
+        covariance += mixing_[i * count + j] * (models_[i]->covariance() + d * d.transpose());
+      }
+      mixed_mean_[j] = mean;
+      mixed_covariance_[j] = covariance;
+    }
+    for (std::size_t j = 0; j < count; ++j) {
+      models_[j]->initialise(mixed_mean_[j], mixed_covariance_[j]);
+      models_[j]->predict(dt_s);
+    }
+    probability_ = predicted_probability_;
+    combine();
+  }
+
+  FilterStatus innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                          Innovation& out) override {
+    FilterStatus worst = FilterStatus::ok;
+    bool any = false;
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      const FilterStatus status = models_[j]->innovation(model, noise, innovations_[j]);
+      innovation_ok_[j] = status != FilterStatus::failed;
+      if (status == FilterStatus::repaired) worst = FilterStatus::repaired;
+      any = any || innovation_ok_[j] != 0;
+    }
+    if (!any) return FilterStatus::failed;
+    noise_ = noise;
+    // Mixture moments, angles as wrapped offsets from the most probable mode's prediction.
+    std::size_t reference = 0;
+    double weight_sum = 0.0;
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      if (!innovation_ok_[j]) continue;
+      if (!innovation_ok_[reference] || probability_[j] > probability_[reference]) reference = j;
+      weight_sum += probability_[j];
+    }
+    if (!(weight_sum > 0.0)) return FilterStatus::failed;
+    const Measurement centre = innovations_[reference].predicted;
+    Measurement offset = Measurement::Zero();
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      if (innovation_ok_[j]) {
+        offset += probability_[j] / weight_sum * azel_residual(innovations_[j].predicted, centre);
+      }
+    }
+    const Measurement z_hat = azel_residual(centre + offset, Measurement::Zero());
+    MeasurementCovariance s = MeasurementCovariance::Zero();
+    CrossCovariance cross = CrossCovariance::Zero();
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      if (!innovation_ok_[j]) continue;
+      const double w = probability_[j] / weight_sum;
+      const Measurement dz = azel_residual(innovations_[j].predicted, z_hat);
+      s += w * (innovations_[j].covariance + dz * dz.transpose());
+      cross += w * (innovations_[j].cross + (models_[j]->mean() - mean_) * dz.transpose());
+    }
+    s = 0.5 * (s + s.transpose()).eval();
+    if (!valid_innovation_covariance(s)) return FilterStatus::failed;
+    out = {z_hat, s, cross, noise, &model};
+    return worst;
+  }
+
+  FilterStatus update(const Innovation& innovation, const Measurement& z) override {
+    if (!z.allFinite()) return FilterStatus::failed;
+    // The tracker may have added the DOA's own covariance to S and R after innovation(): add the
+    // same to every mode.
+    const MeasurementCovariance extra = innovation.noise - noise_;
+    FilterStatus worst = FilterStatus::ok;
+    double best_log = -std::numeric_limits<double>::infinity();
+    bool any = false;
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      log_likelihood_[j] = -std::numeric_limits<double>::infinity();
+      if (!innovation_ok_[j]) continue;
+      Innovation own = innovations_[j];
+      own.covariance += extra;
+      own.noise = innovation.noise;
+      if (!valid_innovation_covariance(own.covariance)) continue;
+      const Measurement residual = azel_residual(z, own.predicted);
+      const double d2 = residual.dot(own.covariance.ldlt().solve(residual));
+      const FilterStatus status = models_[j]->update(own, z);
+      if (status == FilterStatus::failed) continue;
+      if (status == FilterStatus::repaired) worst = FilterStatus::repaired;
+      log_likelihood_[j] = -0.5 * d2 - 0.5 * std::log(own.covariance.determinant());
+      best_log = std::max(best_log, log_likelihood_[j]);
+      any = true;
+    }
+    if (!any) return FilterStatus::failed;
+    double total = 0.0;
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      const double w = std::isfinite(log_likelihood_[j])
+                           ? probability_[j] * std::exp(log_likelihood_[j] - best_log)
+                           : 0.0;
+      probability_[j] = w;
+      total += w;
+    }
+    if (!(total > 0.0) || !std::isfinite(total)) {
+      probability_.assign(models_.size(), 1.0 / static_cast<double>(models_.size()));
+    } else {
+      // A floor keeps every mode alive: one that reaches exactly zero can never come back.
+      for (double& p : probability_) p = std::max(p / total, kModeFloor);
+      double renormalise = 0.0;
+      for (double p : probability_) renormalise += p;
+      for (double& p : probability_) p /= renormalise;
+    }
+    combine();
+    return worst;
+  }
+
+  const StateVector& mean() const override { return mean_; }
+  const StateCovariance& covariance() const override { return covariance_; }
+  int mode_count() const override { return static_cast<int>(models_.size()); }
+  double mode_probability(int mode) const override {
+    return probability_[static_cast<std::size_t>(mode)];
+  }
+
+ private:
+  static constexpr double kModeFloor = 1e-6;
+
+  void combine() {
+    mean_.setZero();
+    for (std::size_t j = 0; j < models_.size(); ++j) mean_ += probability_[j] * models_[j]->mean();
+    covariance_.setZero();
+    for (std::size_t j = 0; j < models_.size(); ++j) {
+      const StateVector d = models_[j]->mean() - mean_;
+      covariance_ += probability_[j] * (models_[j]->covariance() + d * d.transpose());
+    }
+    symmetrise(covariance_);
+  }
+
+  double sojourn_s_;
+  std::vector<std::unique_ptr<TrackFilter>> models_;
+  std::vector<double> probability_;
+  std::vector<double> predicted_probability_;
+  std::vector<double> log_likelihood_;
+  std::vector<double> mixing_;  // [i * count + j]: P(mode i before | mode j after)
+  std::vector<StateVector> mixed_mean_;
+  std::vector<StateCovariance> mixed_covariance_;
+  std::vector<Innovation> innovations_;
+  std::vector<char> innovation_ok_;
+  MeasurementCovariance noise_ = MeasurementCovariance::Zero();
+  StateVector mean_ = StateVector::Zero();
+  StateCovariance covariance_ = StateCovariance::Identity();
+};
+
 }  // namespace
 
 double Innovation::mahalanobis2(const Measurement& z) const {
@@ -324,7 +524,8 @@ FilterStatus robust_cholesky(StateCovariance& covariance, StateCovariance& lower
   return FilterStatus::repaired;
 }
 
-std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
+namespace {
+std::unique_ptr<TrackFilter> make_single_filter(FilterKind kind, const FilterSettings& settings) {
   switch (kind) {
     case FilterKind::ukf:
       return std::make_unique<UnscentedFilter>(settings, settings.ukf_alpha, settings.ukf_beta,
@@ -337,6 +538,15 @@ std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSett
       return std::make_unique<ParticleFilter>(settings);
   }
   return nullptr;
+}
+}  // namespace
+
+std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
+  // The particle filter samples one jerk level; the IMM mixes Gaussian filters only.
+  if (settings.imm_jerk_std_mps3.size() >= 2 && kind != FilterKind::particle) {
+    return std::make_unique<InteractingFilter>(kind, settings, &make_single_filter);
+  }
+  return make_single_filter(kind, settings);
 }
 
 }  // namespace dronetrack::fusion

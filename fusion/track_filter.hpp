@@ -10,6 +10,7 @@
 // per measurement (fixed-size Eigen; particles are allocated once, at construction).
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "fusion/fusion_params.hpp"
 #include "fusion/measurement_model.hpp"
@@ -41,6 +42,11 @@ struct FilterSettings {
   double ukf_kappa = 0.0;
   int particle_count = 1000;
   std::uint64_t random_seed = 1;
+  // Interacting multiple model (IMM) over jerk levels: with two or more levels, the Gaussian
+  // filters (ukf, ukf_seed002, ekf) run one constant-jerk model per level and mix them
+  // (Blom & Bar-Shalom); `motion` is then unused. A mode is kept for imm_sojourn_s on average.
+  std::vector<double> imm_jerk_std_mps3;
+  double imm_sojourn_s = 2.0;
 };
 
 class TrackFilter {
@@ -55,6 +61,9 @@ class TrackFilter {
   virtual FilterStatus update(const Innovation& innovation, const Measurement& z) = 0;
   virtual const StateVector& mean() const = 0;
   virtual const StateCovariance& covariance() const = 0;
+  // Probability of each motion mode (one entry for a single-model filter).
+  virtual int mode_count() const { return 1; }
+  virtual double mode_probability(int /*mode*/) const { return 1.0; }
 };
 
 std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings);
