@@ -570,7 +570,10 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     // (the others masked by a louder drone) gives the same evidence by continuity in time: two
     // rays in 3-D are skew unless they meet at the drone, so a ghost does not keep taking DOAs of
     // both arrays while the drones move. Both arrays must have updated it confirm_hits times.
-    const bool supported = arrays_heard >= min_arrays || arrays_repeating >= 2;
+    // The initiating pair agrees by construction, so two distinct arrays are no evidence: on a
+    // two-array site (min_arrays clamped to 2) continuity decides, not the pair's first fix.
+    const bool supported = (arrays_heard >= min_arrays && (arrays_heard > 2 || min_arrays <= 1)) ||
+                           arrays_repeating >= 2;
     if (supported && hits >= params.confirm_hits) {
       track.confirmed = true;
       ++counters.tracks_confirmed;

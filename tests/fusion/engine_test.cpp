@@ -280,6 +280,33 @@ TEST(FusionEngine, QuietDroneHeardIntermittentlyByTwoArraysIsConfirmed) {
   EXPECT_EQ(drone_of_track.size(), 2u);
 }
 
+// Two arrays: the pair that starts a track agrees with itself by construction. When the second
+// array hears the drone once and then not for seconds, the range is unobservable and the track is
+// not reported as confirmed until both arrays have repeatedly agreed (continuity).
+TEST(FusionEngine, TwoArraySiteConfirmsOnlyWhenBothArraysKeepAgreeing) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A1", {0, 0, 1.5}),
+                                               testing::tetrahedron("A2", {40, 0, 1.5})};
+  const std::vector<Trajectory> drones{line({-80, 150, 50}, {8, 0, 0})};
+  const Audibility heard = [](int array, int, double t, std::mt19937_64&) {
+    return array == 0 || t < 0.07 || t >= 4.0;  // A2: two frames, then silent until 4 s
+  };
+  const RunResult result = run(FusionParams{}, arrays, drones, 8.0, {0.2, true}, 4, heard);
+  bool confirmed_early = false;
+  bool confirmed_late = false;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    for (const TrackReport& track : result.reports[i]) {
+      if (track.status == TrackStatus::tentative) continue;
+      if (result.times[i] < 4.0) confirmed_early = true;
+      if (result.times[i] > 5.0) {
+        confirmed_late = true;
+        EXPECT_LT((track.position_m - drones[0](result.times[i])).norm(), 5.0);
+      }
+    }
+  }
+  EXPECT_FALSE(confirmed_early);
+  EXPECT_TRUE(confirmed_late);
+}
+
 TEST(FusionEngine, MalformedDoasAreRejectedAndCountedWithoutHarm) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = circle({0, 0, 40}, 50.0, 8.0);
