@@ -1,6 +1,8 @@
 // NodePipeline: the composition of the node's stages, one frame at a time:
 //   Framer -> MultichannelFft -> GccPhat -> DetectionGate -> TdoaEstimator -> LsDoaSolver
 //                                        \-> SrpPhat (further sources) -> LsDoaSolver
+// With robust_regression the frame's sources are found per frame (per-frame peaks, then SRP),
+// and SourceTracks smooths each source's TDOAs over time on one time base before the final solve.
 // Everything is sized in the constructor; process() only appends to the caller's vector.
 #include "doa/node_pipeline.hpp"
 
@@ -14,8 +16,11 @@
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ls_doa_solver.hpp"
+#include "doa/multi_source_refiner.hpp"
+#include "doa/source_tracks.hpp"
 #include "doa/spectral_frame.hpp"
 #include "doa/srp_phat.hpp"
+#include "doa/static_source_null.hpp"
 #include "doa/tdoa_tracker.hpp"
 
 namespace dronetrack::doa {
@@ -63,6 +68,18 @@ LsDoaSettings solver_settings(const DoaParams& params, double speed_of_sound_mps
   return settings;
 }
 
+// Standard deviation of the SRP power (mean over pairs of the PHAT correlation at one lag) of
+// incoherent noise: each band bin adds a unit phasor of random phase, Re of which has variance
+// 1/2; the Hann window makes ~1.5 neighbouring bins share one phase, zero padding more.
+double srp_noise_sigma(const std::vector<BandRun>& band, int frame_length, int fft_size,
+                       int pair_count) {
+  double bins = 0.0;
+  for (const BandRun& run : band) bins += run.last_bin - run.first_bin + 1;
+  const double independent_bins =
+      std::max(1.0, bins * frame_length / (1.5 * static_cast<double>(fft_size)));
+  return std::sqrt(1.0 / (2.0 * independent_bins * pair_count));
+}
+
 }  // namespace
 
 struct NodePipeline::Impl {
@@ -88,8 +105,22 @@ struct NodePipeline::Impl {
     tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
     tracker_settings.regression_window_frames = params.regression_window_frames;
     tracker_settings.regression_delay_frames = params.regression_delay_frames;
-    tracker = make_tdoa_estimator(params.tdoa_tracker, gcc, tracker_settings);
+    // The regression smooths each source found per frame (SourceTracks); the grid trackers
+    // follow the strongest source on the correlations themselves.
+    if (params.tdoa_tracker == TdoaTracker::robust_regression) {
+      tracker = make_tdoa_estimator(TdoaTracker::per_frame, gcc, tracker_settings);
+      source_tracks = std::make_unique<SourceTracks>(
+          solver.pair_count(), std::min(kMaxSources, 2 * params.max_sources), tracker_settings,
+          0.5 * params.srp_min_separation_deg);
+    } else {
+      tracker = make_tdoa_estimator(params.tdoa_tracker, gcc, tracker_settings);
+    }
     tdoas.resize(static_cast<std::size_t>(solver.pair_count()));
+    srp_noise_floor = params.srp_min_power_sigmas *
+                      srp_noise_sigma(band, frame_length, fft.fft_size(), solver.pair_count());
+    if (params.static_null && params.static_null_max_sources > 0)
+      static_null = std::make_unique<StaticSourceNull>(
+          geometry, gcc, static_null_settings(params, tracker_settings.hop_s, speed_of_sound_mps));
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
@@ -104,6 +135,12 @@ struct NodePipeline::Impl {
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
+  void separate_candidates();
+  void smooth_candidates(double time_s);
+  bool was_detecting(double time_s) const;
+  double output_delay_s() const {
+    return source_tracks ? source_tracks->output_delay_s() : tracker->output_delay_s();
+  }
   double mean_coherence(std::span<const PairTdoa> used) const;
   double inband_power() const;
   bool publish(const DoaSolution& solution, double time_s, std::span<const PairTdoa> used,
@@ -123,6 +160,19 @@ struct NodePipeline::Impl {
   std::vector<BandRun> band;
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
+  double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
+  MultiSourceLagRefiner lag_refiner;
+  std::array<std::array<PairTdoa, kMaxPairs>, kMaxSources> separated{};  // lags before refining
+  std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
+  std::unique_ptr<SourceTracks> source_tracks;
+  std::array<SourceObservation, kMaxSources> observations{};
+  std::array<SourceEstimate, kMaxSources> estimates{};
+  struct FrameDetection {
+    double time_s = -1e300;
+    bool detecting = false;
+  };
+  std::array<FrameDetection, 64> recent_detections{};  // ring: was the gate open at that frame
+  std::size_t next_detection = 0;
   std::vector<PairTdoa> tdoas;
   std::array<Candidate, kMaxSources> candidates{};
   int candidate_count = 0;
@@ -200,7 +250,7 @@ void NodePipeline::Impl::find_candidates() {
     if (!srp->strongest(peak)) break;
     if (reference_power <= 0.0) reference_power = peak.power;
     if (peak.power < params.srp_min_relative_power * reference_power ||
-        peak.power < params.min_gcc_peak)
+        peak.power < srp_noise_floor)
       break;
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
@@ -220,6 +270,72 @@ void NodePipeline::Impl::find_candidates() {
     srp->subtract(gcc, candidate_tdoas);
     ++candidate_count;
   }
+  if (candidate_count >= 2) separate_candidates();
+}
+
+// Each source's lags re-found without the others' sidelobes, then solved again; a source whose
+// refined lags no longer fit keeps its first solution.
+void NodePipeline::Impl::separate_candidates() {
+  std::array<PairTdoa*, kMaxSources> sources{};
+  for (int s = 0; s < candidate_count; ++s)
+    sources[static_cast<std::size_t>(s)] = candidates[static_cast<std::size_t>(s)].tdoas.data();
+  for (int s = 0; s < candidate_count; ++s)
+    std::copy_n(candidates[static_cast<std::size_t>(s)].tdoas.begin(), tdoas.size(),
+                separated[static_cast<std::size_t>(s)].begin());
+  lag_refiner.refine(gcc, std::span<PairTdoa* const>(sources.data(), candidate_count));
+  for (int s = 0; s < candidate_count; ++s) {
+    Candidate& candidate = candidates[static_cast<std::size_t>(s)];
+    const std::span<const PairTdoa> refined(candidate.tdoas.data(), tdoas.size());
+    const DoaSolution solution = solver.solve(refined);
+    if (solution.accepted) {
+      candidate.solution = solution;
+      candidate.coherence = mean_coherence(refined);
+    } else {
+      std::copy_n(separated[static_cast<std::size_t>(s)].begin(), tdoas.size(),
+                  candidate.tdoas.begin());
+    }
+  }
+}
+
+// Replaces this frame's per-frame candidates by every tracked source's smoothed estimate for
+// the frame output_delay_s() back.
+void NodePipeline::Impl::smooth_candidates(double time_s) {
+  for (int s = 0; s < candidate_count; ++s) {
+    const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
+    observations[static_cast<std::size_t>(s)] = {
+        candidate.solution.direction_site,
+        std::span<const PairTdoa>(candidate.tdoas.data(), tdoas.size())};
+  }
+  const int estimate_count = source_tracks->update(
+      time_s, std::span<const SourceObservation>(observations.data(), candidate_count), estimates);
+  const double separation_cosine =
+      std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
+  candidate_count = 0;
+  for (int e = 0; e < estimate_count && candidate_count < params.max_sources; ++e) {
+    const SourceEstimate& estimate = estimates[static_cast<std::size_t>(e)];
+    const std::span<const PairTdoa> smoothed(estimate.tdoas.data(), tdoas.size());
+    Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+    candidate.solution = solver.solve(smoothed);
+    if (!candidate.solution.accepted) continue;
+    // Two tracks that followed one source: the stronger speaks for it.
+    bool duplicate = false;
+    for (int s = 0; s < candidate_count && !duplicate; ++s)
+      duplicate =
+          candidate.solution.direction_site.dot(
+              candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
+    if (duplicate) continue;
+    std::copy(smoothed.begin(), smoothed.end(), candidate.tdoas.begin());
+    candidate.coherence = mean_coherence(smoothed);
+    candidate.time_offset_s = source_tracks->output_delay_s();
+    ++candidate_count;
+  }
+}
+
+bool NodePipeline::Impl::was_detecting(double time_s) const {
+  const double half_hop_s = 0.5 * hop / sample_rate_hz;
+  for (const FrameDetection& frame : recent_detections)
+    if (std::abs(frame.time_s - time_s) < half_hop_s) return frame.detecting;
+  return false;
 }
 
 void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurement>& out) {
@@ -229,7 +345,9 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   diagnostics.level_dbfs = 10.0 * std::log10(std::max(frame.recent_mean_square, 1e-20));
 
   fft.process(frame);
-  gcc.process(fft);
+  gcc.whiten(fft);
+  if (static_null) static_null->mask(time_s, gcc);
+  gcc.correlate();
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
   for (int p = 0; p < gcc.pair_count(); ++p) {
@@ -247,6 +365,10 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   // source found, so the gate comes after the candidates.
   const bool sharp = detection.frame_clean && detection.mean_peak_value >= params.min_gcc_peak &&
                      detection.inband_power > 0.0;
+  if (static_null) {
+    static_null->observe(time_s, gcc, sharp);
+    diagnostics.static_sources_nulled = static_null->nulled_count();
+  }
   tracker->update(time_s, gcc, sharp, tdoas);
   candidate_count = 0;
   if (sharp) find_candidates();
@@ -259,7 +381,15 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   diagnostics.noise_floor_dbfs = gate.noise_floor_dbfs();
   diagnostics.snr_db = gate.snr_db();
   diagnostics.detecting = detecting;
-  if (!detecting) return;
+  recent_detections[next_detection] = {time_s, detecting};
+  next_detection = (next_detection + 1) % recent_detections.size();
+  if (source_tracks) {
+    smooth_candidates(time_s);
+    // The estimates are for an earlier frame: that frame's gate decides.
+    if (candidate_count > 0 && !was_detecting(time_s - source_tracks->output_delay_s())) return;
+  } else if (!detecting) {
+    return;
+  }
   for (int s = 0; s < candidate_count; ++s) {
     const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
     publish(candidate.solution, time_s - candidate.time_offset_s, candidate.tdoas, s, out);
@@ -291,8 +421,7 @@ const ArrayGeometry& NodePipeline::geometry() const { return impl_->geometry; }
 int NodePipeline::frame_length_samples() const { return impl_->frame_length; }
 int NodePipeline::hop_samples() const { return impl_->hop; }
 double NodePipeline::output_latency_s() const {
-  return (0.5 * impl_->frame_length + 1.0) / impl_->sample_rate_hz +
-         impl_->tracker->output_delay_s();
+  return (0.5 * impl_->frame_length + 1.0) / impl_->sample_rate_hz + impl_->output_delay_s();
 }
 
 }  // namespace dronetrack::doa

@@ -158,161 +158,160 @@ class GridEstimator final : public TdoaEstimator {
 class RegressionEstimator final : public TdoaEstimator {
  public:
   RegressionEstimator(const GccPhat& gcc, const TdoaTrackerSettings& settings)
-      : settings_(settings),
-        window_(static_cast<std::size_t>(std::max(4, settings.regression_window_frames))) {
-    delay_s_ = std::max(0, settings.regression_delay_frames) * settings.hop_s;
-    histories_.resize(static_cast<std::size_t>(gcc.pair_count()));
-    for (History& history : histories_) history.points.resize(window_);
-    residuals_.resize(window_);
-    sorted_.resize(window_);
-    weights_.resize(window_);
-  }
+      : regression_(gcc.pair_count(), settings) {}
 
   void update(double time_s, const GccPhat& gcc, bool signal_present,
               std::span<PairTdoa> out) override {
-    const double max_age_s = (static_cast<double>(window_) + 0.5) * settings_.hop_s;
     for (int p = 0; p < gcc.pair_count(); ++p) {
-      History& history = histories_[static_cast<std::size_t>(p)];
       out[static_cast<std::size_t>(p)] = PairTdoa{};
       const PairCorrelation& pair = gcc.pair(p);
       if (!signal_present || !(pair.peak.value > 0.0)) continue;
-      history.points[history.next] = {time_s, pair.peak.lag_s, pair.tdoa_variance_s2,
-                                      pair.peak.value};
-      history.next = (history.next + 1) % window_;
-      history.count = std::min(history.count + 1, window_);
-      out[static_cast<std::size_t>(p)] = fit(history, time_s, max_age_s, pair);
+      const PairTdoa current{pair.peak.lag_s, pair.tdoa_variance_s2, pair.peak.value,
+                             pair.coherence};
+      regression_.add(p, time_s, current);
+      out[static_cast<std::size_t>(p)] = regression_.estimate(p, time_s, current);
     }
   }
+
+  double output_delay_s() const override { return regression_.output_delay_s(); }
 
  private:
-  struct Point {
-    double time_s = 0.0;
-    double tdoa_s = 0.0;
-    double variance_s2 = 0.0;
-    double peak_value = 0.0;
-  };
-  struct History {
-    std::vector<Point> points;
-    std::size_t next = 0;
-    std::size_t count = 0;
-  };
-
-  // Weighted quadratic in (t - now); returns the fit at now and its variance.
-  bool weighted_fit(const History& history, double now, Eigen::Vector3d& coefficients,
-                    Eigen::Matrix3d& covariance) const {
-    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-    int used = 0;
-    for (std::size_t i = 0; i < window_; ++i) {
-      if (weights_[i] <= 0.0) continue;
-      const double dt = history.points[i].time_s - now;
-      const Eigen::Vector3d row(1.0, dt, dt * dt);
-      normal += weights_[i] * row * row.transpose();
-      rhs += weights_[i] * history.points[i].tdoa_s * row;
-      ++used;
-    }
-    if (used < 4) return false;
-    const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
-    if (lu.rank() < 3) return false;
-    covariance = lu.inverse();
-    coefficients = covariance * rhs;
-    return true;
-  }
-
-  // Zero weight for points whose residual exceeds the gate times the robust spread.
-  void gate_residuals(const History& history) {
-    int count = 0;
-    for (std::size_t i = 0; i < window_; ++i)
-      if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = std::abs(residuals_[i]);
-    if (count == 0) return;
-    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
-    const double mad = sorted_[static_cast<std::size_t>(count / 2)];
-    for (std::size_t i = 0; i < window_; ++i) {
-      if (weights_[i] <= 0.0) continue;
-      const double scale = std::max(1.4826 * mad, std::sqrt(history.points[i].variance_s2));
-      if (std::abs(residuals_[i]) > settings_.regression_mad_gate * scale) weights_[i] = 0.0;
-    }
-  }
-
-  PairTdoa fit(const History& history, double now, double max_age_s,
-               const PairCorrelation& current) {
-    int candidates = 0;
-    for (std::size_t i = 0; i < window_; ++i) {
-      const Point& point = history.points[i];
-      const bool fresh =
-          i < history.count && now - point.time_s <= max_age_s && point.variance_s2 > 0.0;
-      weights_[i] = fresh ? 1.0 / point.variance_s2 : 0.0;
-      candidates += fresh ? 1 : 0;
-    }
-    const PairTdoa per_frame{current.peak.lag_s, current.tdoa_variance_s2, current.peak.value,
-                             current.coherence};
-    // With a delay, the newest frame's own value is not a substitute for the earlier frame's.
-    const PairTdoa fallback = delay_s_ > 0.0 ? PairTdoa{} : per_frame;
-    if (candidates < 5) return fallback;
-    // Only frames that themselves had signal get an estimate (no DOA stamped on a dropout).
-    bool target_present = delay_s_ <= 0.0;
-    for (std::size_t i = 0; i < window_ && !target_present; ++i)
-      target_present = weights_[i] > 0.0 && std::abs(history.points[i].time_s - (now - delay_s_)) <
-                                                0.5 * settings_.hop_s;
-    if (!target_present) return fallback;
-    // Start from the median (robust to a minority of outliers, which a least-squares quadratic
-    // is not: an outlier at the window's end pulls the curve onto itself), gate on the median
-    // absolute deviation, fit, gate again on the fit's residuals, refit.
-    int count = 0;
-    for (std::size_t i = 0; i < window_; ++i)
-      if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = history.points[i].tdoa_s;
-    std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
-    const double level = sorted_[static_cast<std::size_t>(count / 2)];
-    for (std::size_t i = 0; i < window_; ++i)
-      residuals_[i] = weights_[i] > 0.0 ? history.points[i].tdoa_s - level : 0.0;
-    gate_residuals(history);
-    Eigen::Vector3d coefficients;
-    Eigen::Matrix3d covariance;
-    if (!weighted_fit(history, now, coefficients, covariance)) return fallback;
-    for (std::size_t i = 0; i < window_; ++i) {
-      // Re-admit every fresh point, then gate on the residuals of the fit.
-      const Point& point = history.points[i];
-      const bool fresh =
-          i < history.count && now - point.time_s <= max_age_s && point.variance_s2 > 0.0;
-      weights_[i] = fresh ? 1.0 / point.variance_s2 : 0.0;
-      const double dt = point.time_s - now;
-      residuals_[i] =
-          fresh
-              ? point.tdoa_s - (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt)
-              : 0.0;
-    }
-    gate_residuals(history);
-    if (!weighted_fit(history, now, coefficients, covariance)) return fallback;
-    double chi2 = 0.0;
-    int used = 0;
-    double peak_sum = 0.0;
-    for (std::size_t i = 0; i < window_; ++i) {
-      if (weights_[i] <= 0.0) continue;
-      const double dt = history.points[i].time_s - now;
-      const double residual = history.points[i].tdoa_s -
-                              (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt);
-      chi2 += residual * residual * weights_[i];
-      peak_sum += history.points[i].peak_value;
-      ++used;
-    }
-    const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
-    const Eigen::Vector3d at(1.0, -delay_s_, delay_s_ * delay_s_);
-    return {coefficients.dot(at), at.dot(covariance * at) * inflation, peak_sum / used,
-            current.coherence};
-  }
-
-  double output_delay_s() const override { return delay_s_; }
-
-  TdoaTrackerSettings settings_;
-  double delay_s_ = 0.0;
-  std::size_t window_;
-  std::vector<History> histories_;
-  std::vector<double> residuals_;
-  std::vector<double> sorted_;
-  std::vector<double> weights_;
+  TdoaRegression regression_;
 };
 
 }  // namespace
+
+TdoaRegression::TdoaRegression(int pair_count, const TdoaTrackerSettings& settings)
+    : settings_(settings),
+      window_(static_cast<std::size_t>(std::max(4, settings.regression_window_frames))) {
+  delay_s_ = std::max(0, settings.regression_delay_frames) * settings.hop_s;
+  max_age_s_ = (static_cast<double>(window_) + 0.5) * settings.hop_s;
+  histories_.resize(static_cast<std::size_t>(pair_count));
+  for (History& history : histories_) history.points.resize(window_);
+  residuals_.resize(window_);
+  sorted_.resize(window_);
+  weights_.resize(window_);
+}
+
+void TdoaRegression::clear() {
+  for (History& history : histories_) {
+    history.next = 0;
+    history.count = 0;
+  }
+}
+
+void TdoaRegression::add(int pair, double time_s, const PairTdoa& tdoa) {
+  if (!(tdoa.variance_s2 > 0.0) || !std::isfinite(tdoa.tdoa_s)) return;
+  History& history = histories_[static_cast<std::size_t>(pair)];
+  history.points[history.next] = {time_s, tdoa.tdoa_s, tdoa.variance_s2, tdoa.peak_value};
+  history.next = (history.next + 1) % window_;
+  history.count = std::min(history.count + 1, window_);
+}
+
+bool TdoaRegression::fresh(const History& history, std::size_t i, double now_s) const {
+  const Point& point = history.points[i];
+  return i < history.count && now_s - point.time_s <= max_age_s_ && now_s >= point.time_s &&
+         point.variance_s2 > 0.0;
+}
+
+// Weighted quadratic in (t - now); returns the coefficients and their covariance.
+bool TdoaRegression::weighted_fit(const History& history, double now_s,
+                                  Eigen::Vector3d& coefficients,
+                                  Eigen::Matrix3d& covariance) const {
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  int used = 0;
+  for (std::size_t i = 0; i < window_; ++i) {
+    if (weights_[i] <= 0.0) continue;
+    const double dt = history.points[i].time_s - now_s;
+    const Eigen::Vector3d row(1.0, dt, dt * dt);
+    normal += weights_[i] * row * row.transpose();
+    rhs += weights_[i] * history.points[i].tdoa_s * row;
+    ++used;
+  }
+  if (used < 4) return false;
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
+  if (lu.rank() < 3) return false;
+  covariance = lu.inverse();
+  coefficients = covariance * rhs;
+  return true;
+}
+
+// Zero weight for points whose residual exceeds the gate times the robust spread.
+void TdoaRegression::gate_residuals(const History& history) {
+  int count = 0;
+  for (std::size_t i = 0; i < window_; ++i)
+    if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = std::abs(residuals_[i]);
+  if (count == 0) return;
+  std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
+  const double mad = sorted_[static_cast<std::size_t>(count / 2)];
+  for (std::size_t i = 0; i < window_; ++i) {
+    if (weights_[i] <= 0.0) continue;
+    const double scale = std::max(1.4826 * mad, std::sqrt(history.points[i].variance_s2));
+    if (std::abs(residuals_[i]) > settings_.regression_mad_gate * scale) weights_[i] = 0.0;
+  }
+}
+
+PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& current) {
+  const History& history = histories_[static_cast<std::size_t>(pair)];
+  int candidates = 0;
+  for (std::size_t i = 0; i < window_; ++i) {
+    const bool use = fresh(history, i, now_s);
+    weights_[i] = use ? 1.0 / history.points[i].variance_s2 : 0.0;
+    candidates += use ? 1 : 0;
+  }
+  // With a delay, the newest frame's own value is not a substitute for the earlier frame's.
+  const PairTdoa fallback = delay_s_ > 0.0 ? PairTdoa{} : current;
+  if (candidates < 5) return fallback;
+  // Only frames that themselves had signal get an estimate (no DOA stamped on a dropout).
+  bool target_present = delay_s_ <= 0.0;
+  for (std::size_t i = 0; i < window_ && !target_present; ++i)
+    target_present = weights_[i] > 0.0 && std::abs(history.points[i].time_s - (now_s - delay_s_)) <
+                                              0.5 * settings_.hop_s;
+  if (!target_present) return fallback;
+  // Start from the median (robust to a minority of outliers, which a least-squares quadratic
+  // is not: an outlier at the window's end pulls the curve onto itself), gate on the median
+  // absolute deviation, fit, gate again on the fit's residuals, refit.
+  int count = 0;
+  for (std::size_t i = 0; i < window_; ++i)
+    if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = history.points[i].tdoa_s;
+  std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
+  const double level = sorted_[static_cast<std::size_t>(count / 2)];
+  for (std::size_t i = 0; i < window_; ++i)
+    residuals_[i] = weights_[i] > 0.0 ? history.points[i].tdoa_s - level : 0.0;
+  gate_residuals(history);
+  Eigen::Vector3d coefficients;
+  Eigen::Matrix3d covariance;
+  if (!weighted_fit(history, now_s, coefficients, covariance)) return fallback;
+  for (std::size_t i = 0; i < window_; ++i) {
+    // Re-admit every fresh point, then gate on the residuals of the fit.
+    const Point& point = history.points[i];
+    const bool use = fresh(history, i, now_s);
+    weights_[i] = use ? 1.0 / point.variance_s2 : 0.0;
+    const double dt = point.time_s - now_s;
+    residuals_[i] =
+        use ? point.tdoa_s - (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt)
+            : 0.0;
+  }
+  gate_residuals(history);
+  if (!weighted_fit(history, now_s, coefficients, covariance)) return fallback;
+  double chi2 = 0.0;
+  int used = 0;
+  double peak_sum = 0.0;
+  for (std::size_t i = 0; i < window_; ++i) {
+    if (weights_[i] <= 0.0) continue;
+    const double dt = history.points[i].time_s - now_s;
+    const double residual = history.points[i].tdoa_s -
+                            (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt);
+    chi2 += residual * residual * weights_[i];
+    peak_sum += history.points[i].peak_value;
+    ++used;
+  }
+  const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
+  const Eigen::Vector3d at(1.0, -delay_s_, delay_s_ * delay_s_);
+  return {coefficients.dot(at), at.dot(covariance * at) * inflation, peak_sum / used,
+          current.coherence};
+}
 
 std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPhat& gcc,
                                                    const TdoaTrackerSettings& settings) {

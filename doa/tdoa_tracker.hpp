@@ -11,6 +11,9 @@
 // The diffusion s_m comes from the largest plausible angular rate of the source.
 #include <memory>
 #include <span>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "doa/doa_params.hpp"
 #include "doa/gcc_phat.hpp"
@@ -41,6 +44,49 @@ class TdoaEstimator {
                       std::span<PairTdoa> out) = 0;
   // How far before the frame's own time the estimates refer to (their DOA's time offset).
   virtual double output_delay_s() const { return 0.0; }
+};
+
+// Seed 002's robust regression of one source's TDOAs, pair by pair: a weighted quadratic in time
+// over the last `regression_window_frames` points, started from the median, points beyond
+// `regression_mad_gate` x MAD given zero weight, evaluated `regression_delay_frames` hops back.
+// Fed per-frame TDOAs of one source (from the GCC peaks, or from one SRP source's lags).
+class TdoaRegression {
+ public:
+  TdoaRegression(int pair_count, const TdoaTrackerSettings& settings);
+  // Appends one frame's point for a pair (a pair with variance <= 0 is absent this frame).
+  void add(int pair, double time_s, const PairTdoa& tdoa);
+  // The fit for time now_s - output_delay_s(); unused (variance 0) unless the window has >= 5
+  // fresh points and the frame at that time had a point. With no delay, `current` is the
+  // fallback while the window fills.
+  PairTdoa estimate(int pair, double now_s, const PairTdoa& current);
+  void clear();
+  double output_delay_s() const { return delay_s_; }
+
+ private:
+  struct Point {
+    double time_s = 0.0;
+    double tdoa_s = 0.0;
+    double variance_s2 = 0.0;
+    double peak_value = 0.0;
+  };
+  struct History {
+    std::vector<Point> points;
+    std::size_t next = 0;
+    std::size_t count = 0;
+  };
+  bool fresh(const History& history, std::size_t i, double now_s) const;
+  bool weighted_fit(const History& history, double now_s, Eigen::Vector3d& coefficients,
+                    Eigen::Matrix3d& covariance) const;
+  void gate_residuals(const History& history);
+
+  TdoaTrackerSettings settings_;
+  double delay_s_ = 0.0;
+  double max_age_s_ = 0.0;
+  std::size_t window_;
+  std::vector<History> histories_;
+  std::vector<double> residuals_;
+  std::vector<double> sorted_;
+  std::vector<double> weights_;
 };
 
 std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPhat& gcc,

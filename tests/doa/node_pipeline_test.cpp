@@ -189,7 +189,9 @@ TEST(NodePipeline, DropoutInsideASourceGivesNoDoaForSilentFrames) {
     EXPECT_TRUE(frame < 10 || frame > 12) << doa.time_s;
     EXPECT_LT(angle_between_deg(doa.direction, truth), 1.0);
   }
-  EXPECT_GE(doas.size(), 14U);
+  // 20 frames, 3 silent, and the default robust_regression reports each frame 6 frames later,
+  // so the last 6 are still in its window when the recording ends.
+  EXPECT_GE(doas.size(), static_cast<std::size_t>(20 - 3 - params.regression_delay_frames));
 }
 
 TEST(NodePipeline, SeedFrameAndHopWork) {
@@ -202,7 +204,8 @@ TEST(NodePipeline, SeedFrameAndHopWork) {
   const Eigen::Vector3d truth = direction_from_azel_deg(179.5, 40.0);
   const std::vector<DoaMeasurement> doas =
       run(pipeline, plane_wave(geometry, truth, 3.0, 0.05, 0.02, 8));
-  ASSERT_GE(doas.size(), 12U);
+  // 15 frames; robust_regression's last regression_delay_frames are still in its window.
+  ASSERT_GE(doas.size(), static_cast<std::size_t>(15 - params.regression_delay_frames));
   for (const DoaMeasurement& doa : doas) EXPECT_LT(angle_between_deg(doa.direction, truth), 0.5);
 }
 

@@ -1,0 +1,139 @@
+// Several sources on one array: per-source tracks on one time base (SourceTracks), and lags
+// refined without the other sources' sidelobes (MultiSourceLagRefiner, through NodePipeline).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "doa/array_geometry.hpp"
+#include "doa/node_pipeline.hpp"
+#include "doa/source_tracks.hpp"
+#include "tests/doa/synthetic_audio.hpp"
+
+namespace dronetrack::doa {
+namespace {
+
+constexpr double kRate = 48000.0;
+
+// Source k's TDOA on pair p at time t: a different slow line per source and pair.
+double true_tdoa_s(int source, int pair, double time_s) {
+  return (source == 0 ? 100e-6 : -200e-6) + 10e-6 * pair + (source == 0 ? 20e-6 : -15e-6) * time_s;
+}
+
+TEST(SourceTracks, EachSourceKeepsItsOwnTdoasOnOneTimeBase) {
+  TdoaTrackerSettings settings;
+  settings.hop_s = 0.05;
+  settings.regression_window_frames = 13;
+  settings.regression_delay_frames = 6;
+  constexpr int kPairs = 6;
+  SourceTracks tracks(kPairs, 4, settings, 5.0);
+  const Eigen::Vector3d directions[2] = {direction_from_azel_deg(30.0, 20.0),
+                                         direction_from_azel_deg(-100.0, 40.0)};
+  std::vector<PairTdoa> tdoas[2];
+  for (auto& list : tdoas) list.resize(kPairs);
+  std::array<SourceEstimate, 4> estimates{};
+  int checked = 0;
+  for (int frame = 0; frame < 80; ++frame) {
+    const double time_s = frame * settings.hop_s;
+    SourceObservation observations[2];
+    int count = 0;
+    // Source 1 is louder on odd frames (observation order swaps) and silent on every 7th frame.
+    for (int k = 0; k < 2; ++k) {
+      const int source = frame % 2 == 0 ? k : 1 - k;
+      if (source == 1 && frame % 7 == 3) continue;
+      for (int p = 0; p < kPairs; ++p)
+        tdoas[source][static_cast<std::size_t>(p)] = {
+            true_tdoa_s(source, p, time_s) + ((frame * 7 + p * 3) % 5 - 2) * 1e-6, 1e-12, 0.6, 0.5};
+      observations[count++] = {directions[source], tdoas[source]};
+    }
+    const int out = tracks.update(time_s, std::span(observations, count), estimates);
+    const double estimate_time_s = time_s - tracks.output_delay_s();
+    for (int e = 0; e < out; ++e) {
+      const SourceEstimate& estimate = estimates[static_cast<std::size_t>(e)];
+      // Which source is it? The one whose TDOAs it matches at the estimate's (earlier) time.
+      const double to_0 = std::abs(estimate.tdoas[0].tdoa_s - true_tdoa_s(0, 0, estimate_time_s));
+      const double to_1 = std::abs(estimate.tdoas[0].tdoa_s - true_tdoa_s(1, 0, estimate_time_s));
+      const int source = to_0 < to_1 ? 0 : 1;
+      for (int p = 0; p < kPairs; ++p) {
+        ASSERT_GT(estimate.tdoas[static_cast<std::size_t>(p)].variance_s2, 0.0);
+        EXPECT_NEAR(estimate.tdoas[static_cast<std::size_t>(p)].tdoa_s,
+                    true_tdoa_s(source, p, estimate_time_s), 2e-6)
+            << "frame " << frame << " source " << source << " pair " << p;
+      }
+      // A frame where source 1 was silent gets no estimate of it, 6 frames later.
+      if (source == 1) {
+        EXPECT_NE((frame - 6) % 7, 3) << "frame " << frame;
+      }
+      ++checked;
+    }
+    if (frame >= 20) {
+      EXPECT_GE(out, 1);
+    }
+  }
+  EXPECT_EQ(tracks.live_tracks(), 2);
+  EXPECT_GT(checked, 100);
+}
+
+TEST(SourceTracks, AnUnheardSourceIsDroppedAfterItsWindow) {
+  TdoaTrackerSettings settings;
+  settings.hop_s = 0.05;
+  SourceTracks tracks(3, 2, settings, 5.0);
+  std::vector<PairTdoa> tdoas(3, PairTdoa{50e-6, 1e-12, 0.5, 0.5});
+  const SourceObservation observation{direction_from_azel_deg(10.0, 10.0), tdoas};
+  std::array<SourceEstimate, 2> estimates{};
+  for (int frame = 0; frame < 20; ++frame)
+    tracks.update(frame * 0.05, std::span(&observation, 1), estimates);
+  EXPECT_EQ(tracks.live_tracks(), 1);
+  for (int frame = 20; frame < 40; ++frame)
+    tracks.update(frame * 0.05, std::span<const SourceObservation>(), estimates);
+  EXPECT_EQ(tracks.live_tracks(), 0);
+}
+
+// Two sources 25 deg apart, the second 6 dB weaker: the louder one's correlation lobes sit on
+// the weaker one's lags. Measured: weak median 0.88 deg with SRP's lags as found, 0.31 deg once
+// refined against the louder source's kernel (two alternating passes).
+TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
+  const ArrayGeometry geometry = testing::tetrahedron(0.0);
+  const Eigen::Vector3d loud = direction_from_azel_deg(30.0, 20.0);
+  const Eigen::Vector3d weak = direction_from_azel_deg(55.0, 30.0);
+  const auto frames = static_cast<std::size_t>(4.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise loud_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 5);
+  const testing::BandNoise weak_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 6);
+  testing::add_source(recording, geometry, loud, loud_source, 0.05);
+  testing::add_source(recording, geometry, weak, weak_source, 0.025);
+  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, 7);
+  DoaParams params;
+  params.tdoa_tracker = TdoaTracker::per_frame;
+  params.max_sources = 2;
+  params.srp_min_relative_power = 0.15;
+  NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
+  std::vector<DoaMeasurement> doas;
+  for (std::size_t first = 0; first < frames; first += 4800)
+    pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+  std::vector<double> loud_errors;
+  std::vector<double> weak_errors;
+  for (const DoaMeasurement& doa : doas) {
+    const double to_loud = angle_between_deg(doa.direction, loud);
+    const double to_weak = angle_between_deg(doa.direction, weak);
+    (to_loud < to_weak ? loud_errors : weak_errors).push_back(std::min(to_loud, to_weak));
+  }
+  auto median = [](std::vector<double> values) {
+    if (values.empty()) return 180.0;
+    std::nth_element(values.begin(),
+                     values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+    return values[values.size() / 2];
+  };
+  const int frame_count = static_cast<int>(pipeline.diagnostics().frames_processed);
+  std::printf("loud %zu DOAs median %.3f deg, weak %zu DOAs median %.3f deg (%d frames)\n",
+              loud_errors.size(), median(loud_errors), weak_errors.size(), median(weak_errors),
+              frame_count);
+  EXPECT_GT(static_cast<int>(weak_errors.size()), frame_count * 3 / 4);
+  EXPECT_LT(median(loud_errors), 0.15);
+  EXPECT_LT(median(weak_errors), 0.45);
+}
+
+}  // namespace
+}  // namespace dronetrack::doa
