@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -21,21 +22,74 @@ namespace {
 constexpr double kClipLevel = 0.999;
 constexpr std::uint8_t kFlagNonFinite = 1;
 constexpr std::uint8_t kFlagClipped = 2;
+
+// Deinterleaves `count` frames into each channel's run (channel c at target + c * stride);
+// returns their sum of squares and sets `odd` on any non-finite or clipped value.
+// kChannels > 0: the channel count at compile time (frame by frame, one partial sum per
+// channel); 0: any count (channel by channel, four partial sums). Several partial sums: one
+// running sum would make every sample wait for the previous addition. A float squared cannot
+// overflow a double, so the sum is finite exactly when every sample is: no per-sample test.
+template <int kChannels>
+double deinterleave(const float* source, int channels, int count, double* target,
+                    std::ptrdiff_t stride, bool& odd) {
+  double sums[4] = {0.0, 0.0, 0.0, 0.0};
+  double peaks[4] = {0.0, 0.0, 0.0, 0.0};
+  if constexpr (kChannels > 0) {
+    static_assert(kChannels <= 4);
+    for (int n = 0; n < count; ++n) {
+      for (int c = 0; c < kChannels; ++c) {
+        const double value = source[n * kChannels + c];
+        target[c * stride + n] = value;
+        sums[c] += value * value;
+        peaks[c] = std::max(peaks[c], std::fabs(value));
+      }
+    }
+  } else {
+    for (int c = 0; c < channels; ++c) {
+      double* run = target + c * stride;
+      int n = 0;
+      for (; n + 4 <= count; n += 4) {
+        for (int lane = 0; lane < 4; ++lane) {
+          const double value = source[(n + lane) * channels + c];
+          run[n + lane] = value;
+          sums[lane] += value * value;
+          peaks[lane] = std::max(peaks[lane], std::fabs(value));
+        }
+      }
+      for (; n < count; ++n) {
+        const double value = source[n * channels + c];
+        run[n] = value;
+        sums[0] += value * value;
+        peaks[0] = std::max(peaks[0], std::fabs(value));
+      }
+    }
+  }
+  const double sum = (sums[0] + sums[1]) + (sums[2] + sums[3]);
+  const double peak = std::max(std::max(peaks[0], peaks[1]), std::max(peaks[2], peaks[3]));
+  odd = !std::isfinite(sum) || !(peak < kClipLevel);
+  return sum;
+}
 }  // namespace
 
 Framer::Framer(int channels, int frame_length, int hop)
-    : channels_(channels), length_(frame_length), hop_(hop) {
+    : channels_(channels), length_(frame_length), hop_(hop), capacity_(2 * frame_length) {
   if (channels < 1) throw std::invalid_argument("Framer: channels must be >= 1");
   if (frame_length < 2) throw std::invalid_argument("Framer: frame_length must be >= 2");
   if (hop < 1 || hop > frame_length)
     throw std::invalid_argument("Framer: hop must be in [1, frame_length]");
-  samples_.assign(static_cast<std::size_t>(channels) * 2 * static_cast<std::size_t>(length_), 0.0);
-  flags_.assign(static_cast<std::size_t>(length_), 0);
+  samples_.assign(static_cast<std::size_t>(channels) * static_cast<std::size_t>(capacity_), 0.0);
+  flags_.assign(static_cast<std::size_t>(capacity_), 0);
 }
 
 void Framer::reset() {
-  filled_ = 0;
+  restart();
   expected_next_sample_ = -1;
+}
+
+void Framer::restart() {
+  filled_ = 0;
+  flagged_non_finite_ = 0;
+  flagged_clipped_ = 0;
 }
 
 bool Framer::accept_block(const AudioBlockView& block) {
@@ -47,72 +101,45 @@ bool Framer::accept_block(const AudioBlockView& block) {
   if (expected_next_sample_ >= 0 && block.first_sample != expected_next_sample_) {
     // A gap or a rewind: samples on both sides do not belong to one frame. Start over.
     ++counters_.stream_gaps;
-    filled_ = 0;
+    restart();
   }
   if (filled_ == 0) buffer_first_sample_ = block.first_sample;
   expected_next_sample_ = block.first_sample + static_cast<std::int64_t>(block.frames);
   return true;
 }
 
-void Framer::append_run(const AudioBlockView& block, std::size_t first, std::size_t count) {
-  std::size_t done = 0;
-  while (done < count) {
-    const int segment =
-        static_cast<int>(std::min(count - done, static_cast<std::size_t>(length_ - head_)));
-    append_segment(block, first + done, segment);
-    head_ = (head_ + segment) % length_;
-    done += static_cast<std::size_t>(segment);
+void Framer::compact() {
+  for (int c = 0; c < channels_; ++c) {
+    double* run = samples_.data() + static_cast<std::ptrdiff_t>(c) * capacity_;
+    std::memmove(run, run + start_, static_cast<std::size_t>(filled_) * sizeof(double));
   }
-  filled_ += static_cast<int>(count);
+  std::memmove(flags_.data(), flags_.data() + start_, static_cast<std::size_t>(filled_));
+  start_ = 0;
 }
 
-void Framer::append_segment(const AudioBlockView& block, std::size_t first, int count) {
-  std::uint8_t* flags = flags_.data() + head_;
-  if (flagged_non_finite_ + flagged_clipped_ > 0) {
-    // The samples about to be overwritten leave the ring, and their flags with them.
-    for (int n = 0; n < count; ++n) {
-      flagged_non_finite_ -= (flags[n] & kFlagNonFinite) != 0 ? 1 : 0;
-      flagged_clipped_ -= (flags[n] & kFlagClipped) != 0 ? 1 : 0;
-      flags[n] = 0;
-    }
-  }
-  const auto stride = static_cast<std::size_t>(channels_);
-  const std::ptrdiff_t ring = 2 * static_cast<std::ptrdiff_t>(length_);
-  for (int c = 0; c < channels_; ++c) {
-    const float* source = block.interleaved + first * stride + static_cast<std::size_t>(c);
-    double* target = samples_.data() + c * ring + head_;
-    double* mirror = target + length_;
-    // Four partial sums: one running sum would make every sample wait for the previous add.
-    double sum_squares[4] = {0.0, 0.0, 0.0, 0.0};
-    int odd = 0;  // any non-finite or clipped value in this run of this channel
-    int n = 0;
-    for (; n + 4 <= count; n += 4) {
-      for (int lane = 0; lane < 4; ++lane) {
-        const double value = source[static_cast<std::size_t>(n + lane) * stride];
-        target[n + lane] = value;
-        mirror[n + lane] = value;
-        sum_squares[lane] += value * value;
-        // NaN fails every comparison: one test catches NaN, Inf and clipping.
-        odd |= !(std::fabs(value) < kClipLevel) ? 1 : 0;
-      }
-    }
-    for (; n < count; ++n) {
-      const double value = source[static_cast<std::size_t>(n) * stride];
-      target[n] = value;
-      mirror[n] = value;
-      sum_squares[0] += value * value;
-      odd |= !(std::fabs(value) < kClipLevel) ? 1 : 0;
-    }
-    double run_sum = (sum_squares[0] + sum_squares[1]) + (sum_squares[2] + sum_squares[3]);
-    if (odd != 0) {
-      // Rare: redo this run sample by sample to replace and count.
-      run_sum = 0.0;
-      for (n = 0; n < count; ++n) {
-        double value = target[n];
+void Framer::append_run(const AudioBlockView& block, std::size_t first, std::size_t count) {
+  const int frames = static_cast<int>(count);
+  if (filled_ == 0) start_ = 0;
+  if (start_ + filled_ + frames > capacity_) compact();
+  const int position = start_ + filled_;
+  std::uint8_t* flags = flags_.data() + position;
+  std::fill_n(flags, frames, std::uint8_t{0});
+  const float* source = block.interleaved + first * static_cast<std::size_t>(channels_);
+  double* target = samples_.data() + position;
+  bool odd = false;
+  double sum_squares = channels_ == 4
+                           ? deinterleave<4>(source, 4, frames, target, capacity_, odd)
+                           : deinterleave<0>(source, channels_, frames, target, capacity_, odd);
+  if (odd) {
+    // Rare: redo the run sample by sample to replace and count.
+    sum_squares = 0.0;
+    for (int c = 0; c < channels_; ++c) {
+      double* run = target + static_cast<std::ptrdiff_t>(c) * capacity_;
+      for (int n = 0; n < frames; ++n) {
+        double value = run[n];
         if (!std::isfinite(value)) {
           value = 0.0;
-          target[n] = 0.0;
-          mirror[n] = 0.0;
+          run[n] = 0.0;
           flagged_non_finite_ += (flags[n] & kFlagNonFinite) == 0 ? 1 : 0;
           flags[n] |= kFlagNonFinite;
           ++counters_.non_finite_samples;
@@ -121,35 +148,40 @@ void Framer::append_segment(const AudioBlockView& block, std::size_t first, int 
           flags[n] |= kFlagClipped;
           ++counters_.clipped_samples;
         }
-        run_sum += value * value;
+        sum_squares += value * value;
       }
     }
-    recent_sum_squares_ += run_sum;
   }
+  recent_sum_squares_ += sum_squares;
   recent_values_ += static_cast<std::int64_t>(count) * channels_;
+  filled_ += frames;
 }
 
 FrameView Framer::emit_and_shift_view() {
-  // The frame is full: the oldest sample sits at head_, the rest follow contiguously in the
-  // mirrored ring.
   FrameView view;
   view.first_sample = buffer_first_sample_;
   view.channels = channels_;
   view.length = length_;
-  view.samples = samples_.data() + head_;
-  view.stride = 2 * static_cast<std::ptrdiff_t>(length_);
+  view.samples = samples_.data() + start_;
+  view.stride = capacity_;
   view.recent_mean_square =
       recent_values_ > 0 ? recent_sum_squares_ / static_cast<double>(recent_values_) : 0.0;
   recent_sum_squares_ = 0.0;
   recent_values_ = 0;
-  // Every ring index was written since the last restart, so the ring's flags are the frame's.
   view.non_finite_samples = flagged_non_finite_;
   view.clipped_samples = flagged_clipped_;
   return view;
 }
 
 void Framer::shift() {
-  // Nothing moves: the next hop overwrites the oldest samples of the ring.
+  // The oldest hop leaves the frame, and its flags with it; nothing moves.
+  if (flagged_non_finite_ + flagged_clipped_ > 0) {
+    for (int n = start_; n < start_ + hop_; ++n) {
+      flagged_non_finite_ -= (flags_[static_cast<std::size_t>(n)] & kFlagNonFinite) != 0 ? 1 : 0;
+      flagged_clipped_ -= (flags_[static_cast<std::size_t>(n)] & kFlagClipped) != 0 ? 1 : 0;
+    }
+  }
+  start_ += hop_;
   filled_ = length_ - hop_;
   buffer_first_sample_ += hop_;
 }

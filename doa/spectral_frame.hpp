@@ -36,9 +36,9 @@ struct FramerCounters {
   std::int64_t rejected_blocks = 0;  // wrong channel count or null data
 };
 
-// Each channel lives in a ring of `frame_length` samples stored twice in a row (a mirrored
-// ring): every new sample is written at i and i + frame_length, so the newest frame is always
-// one contiguous run starting at the oldest sample and a hop costs no shifting of the overlap.
+// Each channel's samples sit in a buffer of two frame lengths; a frame is a window into it that
+// moves by a hop, so the overlap is not shifted per hop. Only when the next block would run past
+// the end are the buffered samples moved back to the start (every few frames).
 class Framer {
  public:
   Framer(int channels, int frame_length, int hop);
@@ -50,24 +50,25 @@ class Framer {
 
  private:
   bool accept_block(const AudioBlockView& block);
+  void restart();
   // Copies `count` frames of the block (all channels) behind what is buffered.
   void append_run(const AudioBlockView& block, std::size_t first, std::size_t count);
-  // Same, for a run that does not cross the ring's end.
-  void append_segment(const AudioBlockView& block, std::size_t first, int count);
+  void compact();
   FrameView emit_and_shift_view();
   void shift();
 
   int channels_;
   int length_;
   int hop_;
+  int capacity_;   // samples per channel in the buffer
+  int start_ = 0;  // buffer index of the oldest buffered sample
   int filled_ = 0;
-  int head_ = 0;  // ring index of the next sample; the oldest one when the frame is full
   std::int64_t buffer_first_sample_ = 0;
   std::int64_t expected_next_sample_ = -1;
-  std::vector<double> samples_;      // channels_ x (2 * length_): mirrored rings
-  std::vector<std::uint8_t> flags_;  // per ring index: bit0 non-finite, bit1 clipped
-  int flagged_non_finite_ = 0;       // ring indices with bit0 set
-  int flagged_clipped_ = 0;          // ring indices with bit1 set
+  std::vector<double> samples_;      // channels_ x capacity_
+  std::vector<std::uint8_t> flags_;  // per buffer index: bit0 non-finite, bit1 clipped
+  int flagged_non_finite_ = 0;       // buffered time indices with bit0 set
+  int flagged_clipped_ = 0;          // buffered time indices with bit1 set
   double recent_sum_squares_ = 0.0;
   std::int64_t recent_values_ = 0;
   FramerCounters counters_;
