@@ -17,6 +17,8 @@ constexpr double kPresentShare = 0.15;
 constexpr double kMinHitShare = 0.5;
 // A per-pair peak weaker than this is no observation of anything.
 constexpr double kMinPeakValue = 0.1;
+// ... and a slot's peak at least this share of the pair's strongest to count as heard.
+constexpr double kMinRelativePeak = 0.3;
 // A bin's averaged phasor at least this long is the source's steady phase (adapt()).
 constexpr double kSteadyBin = 0.5;
 constexpr double kMaxBend = 0.5;  // cos(60 deg)
@@ -80,6 +82,7 @@ StaticSourceNull::StaticSourceNull(const ArrayGeometry& geometry, const GccPhat&
   model_scores_.assign(static_cast<std::size_t>(band_bins_), 0.0);
   bin_power_.assign(static_cast<std::size_t>(band_bins_), 0.0);
   frame_tdoas_.assign(static_cast<std::size_t>(pair_count_), 0.0);
+  slot_tdoas_.assign(static_cast<std::size_t>(pair_count_), 0.0);
 }
 
 int StaticSourceNull::nulled_count() const {
@@ -150,6 +153,25 @@ void StaticSourceNull::mask(double time_s, GccPhat& gcc) {
   dropped_share_ = static_cast<double>(dropped) / band_bins_;
 }
 
+bool StaticSourceNull::heard(const GccPhat& gcc, const Slot& slot) {
+  // Heard when every pair's correlation has a clear local peak at the slot's TDOAs, even if
+  // another source is the strongest in this frame (a drone passing, at an array where it and
+  // the static source are about as loud). The grid look-up rules most slots out cheaply.
+  for (int p = 0; p < pair_count_; ++p) {
+    const double floor = std::max(kMinPeakValue, kMinRelativePeak * gcc.pair(p).peak.value);
+    if (gcc.grid_value(p, slot.tdoa_s[static_cast<std::size_t>(p)]) < 0.5 * floor) return false;
+  }
+  for (int p = 0; p < pair_count_; ++p) {
+    GccPeak peak;
+    const double tau = slot.tdoa_s[static_cast<std::size_t>(p)];
+    if (!gcc.refine(p, tau, peak) || std::abs(peak.lag_s - tau) > settings_.tolerance_s ||
+        peak.value < std::max(kMinPeakValue, kMinRelativePeak * gcc.pair(p).peak.value))
+      return false;
+    slot_tdoas_[static_cast<std::size_t>(p)] = peak.lag_s;
+  }
+  return true;
+}
+
 bool StaticSourceNull::matches(const Slot& slot, std::span<const double> tdoas_s) const {
   for (int p = 0; p < pair_count_; ++p)
     if (std::abs(tdoas_s[static_cast<std::size_t>(p)] - slot.tdoa_s[static_cast<std::size_t>(p)]) >
@@ -166,24 +188,25 @@ void StaticSourceNull::observe(double time_s, const GccPhat& gcc, bool usable) {
     sharp = sharp && pair.peak.value >= kMinPeakValue;
     frame_tdoas_[static_cast<std::size_t>(p)] = pair.peak.lag_s;
   }
-  Slot* matched = nullptr;
+  Slot* matched = nullptr;  // the slot the frame's strongest peaks belong to
   for (Slot& slot : slots_) {
     if (slot.state == State::empty) continue;
-    if (slot.state != State::nulled) ++slot.frames;
     if (sharp && matched == nullptr && matches(slot, frame_tdoas_)) matched = &slot;
-  }
-  if (matched != nullptr && matched->state != State::nulled) {
+    if (slot.state == State::nulled) continue;
+    ++slot.frames;
+    if (!heard(gcc, slot)) continue;
     // Running mean over the first frames, then an average over ~learn_s: static sources do
     // not move, so the mean only sheds the per-frame noise.
-    ++matched->hits;
+    ++slot.hits;
     const double max_weight_frames = std::max(1.0, settings_.learn_s / settings_.hop_s);
-    const double weight = 1.0 / std::min<double>(matched->hits, max_weight_frames);
+    const double weight = 1.0 / std::min<double>(slot.hits, max_weight_frames);
     for (int p = 0; p < pair_count_; ++p)
-      matched->tdoa_s[static_cast<std::size_t>(p)] +=
-          weight * (frame_tdoas_[static_cast<std::size_t>(p)] -
-                    matched->tdoa_s[static_cast<std::size_t>(p)]);
-    matched->last_heard_s = time_s;
-  } else if (matched == nullptr && sharp) {
+      slot.tdoa_s[static_cast<std::size_t>(p)] +=
+          weight *
+          (slot_tdoas_[static_cast<std::size_t>(p)] - slot.tdoa_s[static_cast<std::size_t>(p)]);
+    slot.last_heard_s = time_s;
+  }
+  if (matched == nullptr && sharp) {
     // A new candidate takes a free slot, else the tentative one heard longest ago.
     Slot* target = nullptr;
     for (Slot& slot : slots_) {

@@ -79,6 +79,7 @@ class StaticSourceNull {
   };
 
   bool matches(const Slot& slot, std::span<const double> tdoas_s) const;
+  bool heard(const GccPhat& gcc, const Slot& slot);
   void decide(Slot& slot);
   void make_signature(Slot& slot);
   void adapt(int signature_index, const GccPhat& gcc);
@@ -105,6 +106,7 @@ class StaticSourceNull {
   std::vector<double> model_scores_;  // per band bin: match with its pure delay model
   std::vector<double> bin_power_;     // per band bin: sum over pairs of |G|
   std::vector<double> frame_tdoas_;   // per pair
+  std::vector<double> slot_tdoas_;    // per pair: a slot's refined peaks in this frame
   double dropped_share_ = 0.0;
 };
 
