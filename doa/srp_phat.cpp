@@ -82,12 +82,14 @@ void SrpPhat::group_directions() {
   // Patch centres: a coarser Fibonacci sphere; every direction joins its nearest centre.
   const int centres = std::max(1, static_cast<int>(directions_.size() / kDirectionsPerPatch) *
                                       (solver_->rank() == 2 ? 2 : 1));
+  std::vector<Eigen::Vector3d> centre_directions;
+  for (int c = 0; c < centres; ++c) centre_directions.push_back(fibonacci_direction(c, centres));
   std::vector<std::vector<std::int32_t>> members(static_cast<std::size_t>(centres));
   for (std::size_t d = 0; d < directions_.size(); ++d) {
     int nearest = 0;
     double nearest_cosine = -2.0;
     for (int c = 0; c < centres; ++c) {
-      const double cosine = directions_[d].dot(fibonacci_direction(c, centres));
+      const double cosine = directions_[d].dot(centre_directions[static_cast<std::size_t>(c)]);
       if (cosine > nearest_cosine) {
         nearest_cosine = cosine;
         nearest = c;
