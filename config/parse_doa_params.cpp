@@ -65,8 +65,6 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.srp_grid_deg = section.number("srp_grid_deg", params.srp_grid_deg, 0.5, 30.0);
   params.srp_min_separation_deg =
       section.number("srp_min_separation_deg", params.srp_min_separation_deg, 1.0, 90.0);
-  params.srp_min_relative_power =
-      section.number("srp_min_relative_power", params.srp_min_relative_power, 0.0, 1.0);
   params.srp_min_power_sigmas =
       section.number("srp_min_power_sigmas", params.srp_min_power_sigmas, 0.0, 100.0);
   params.static_null = section.boolean("static_null", params.static_null);

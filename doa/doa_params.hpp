@@ -40,9 +40,8 @@ struct DoaParams {
   double max_chi2_per_dof = 30.0;        // LS: reject when the TDOA fit residual exceeds this
   double srp_grid_deg = 5.0;             // SRP-PHAT direction grid spacing
   double srp_min_separation_deg = 10.0;  // two sources closer than this are one
-  double srp_min_relative_power = 0.15;  // a 2nd..Kth source needs this share of the 1st's power
-  // ... and an SRP power this many standard deviations above that of incoherent noise (the
-  // deviation follows from the band's bin count and the frame; ~0.02 at the defaults).
+  // A further source (after the louder ones' bins are dropped) needs an SRP power this many
+  // standard deviations above that of incoherent noise (which follows from the bins and frame).
   double srp_min_power_sigmas = 4.0;
 
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the

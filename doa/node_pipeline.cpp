@@ -16,7 +16,7 @@
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ls_doa_solver.hpp"
-#include "doa/multi_source_refiner.hpp"
+#include "doa/source_bin_mask.hpp"
 #include "doa/source_tracks.hpp"
 #include "doa/spectral_frame.hpp"
 #include "doa/srp_phat.hpp"
@@ -135,7 +135,7 @@ struct NodePipeline::Impl {
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
-  void separate_candidates();
+  void mask_source(std::span<const PairTdoa> source_tdoas);
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
   double output_delay_s() const {
@@ -161,8 +161,7 @@ struct NodePipeline::Impl {
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
-  MultiSourceLagRefiner lag_refiner;
-  std::array<std::array<PairTdoa, kMaxPairs>, kMaxSources> separated{};  // lags before refining
+  SourceBinMask bin_mask{gcc};
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
@@ -234,13 +233,11 @@ void NodePipeline::Impl::find_candidates() {
     ++candidate_count;
   }
   if (!srp) return;
+  // Each source found takes its bins out of the correlations before the next look: what is
+  // left is normalised over the bins the louder sources do not own, so a weaker drone's peak
+  // is neither buried under the louder one's lobes nor pulled by them.
+  if (candidate_count > 0) mask_source(tdoas);
   srp->begin_frame(gcc);
-  double reference_power = 0.0;  // the strongest source's mean correlation value
-  if (candidate_count > 0) {
-    srp->subtract(gcc, tdoas);
-    for (const PairTdoa& tdoa : tdoas) reference_power += tdoa.peak_value;
-    reference_power /= static_cast<double>(tdoas.size());
-  }
   const double separation_cosine =
       std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
@@ -248,10 +245,10 @@ void NodePipeline::Impl::find_candidates() {
        ++look) {
     SrpPeak peak;
     if (!srp->strongest(peak)) break;
-    if (reference_power <= 0.0) reference_power = peak.power;
-    if (peak.power < params.srp_min_relative_power * reference_power ||
-        peak.power < srp_noise_floor)
-      break;
+    // Incoherent noise over fewer bins correlates more by chance.
+    const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
+                                                     std::max(1, gcc.kept_bin_count()));
+    if (peak.power < floor) break;
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
@@ -267,34 +264,19 @@ void NodePipeline::Impl::find_candidates() {
     }
     candidate.coherence = mean_coherence(candidate_tdoas);
     candidate.time_offset_s = 0.0;
-    srp->subtract(gcc, candidate_tdoas);
     ++candidate_count;
-  }
-  if (candidate_count >= 2) separate_candidates();
-}
-
-// Each source's lags re-found without the others' sidelobes, then solved again; a source whose
-// refined lags no longer fit keeps its first solution.
-void NodePipeline::Impl::separate_candidates() {
-  std::array<PairTdoa*, kMaxSources> sources{};
-  for (int s = 0; s < candidate_count; ++s)
-    sources[static_cast<std::size_t>(s)] = candidates[static_cast<std::size_t>(s)].tdoas.data();
-  for (int s = 0; s < candidate_count; ++s)
-    std::copy_n(candidates[static_cast<std::size_t>(s)].tdoas.begin(), tdoas.size(),
-                separated[static_cast<std::size_t>(s)].begin());
-  lag_refiner.refine(gcc, std::span<PairTdoa* const>(sources.data(), candidate_count));
-  for (int s = 0; s < candidate_count; ++s) {
-    Candidate& candidate = candidates[static_cast<std::size_t>(s)];
-    const std::span<const PairTdoa> refined(candidate.tdoas.data(), tdoas.size());
-    const DoaSolution solution = solver.solve(refined);
-    if (solution.accepted) {
-      candidate.solution = solution;
-      candidate.coherence = mean_coherence(refined);
-    } else {
-      std::copy_n(separated[static_cast<std::size_t>(s)].begin(), tdoas.size(),
-                  candidate.tdoas.begin());
+    if (candidate_count < params.max_sources) {
+      mask_source(candidate_tdoas);
+      srp->begin_frame(gcc);
     }
   }
+}
+
+// Drops the bins a found source owns and correlates what is left (the frame's earlier
+// correlation values, already used, are overwritten).
+void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas) {
+  bin_mask.drop(gcc, source_tdoas);
+  gcc.correlate();
 }
 
 // Replaces this frame's per-frame candidates by every tracked source's smoothed estimate for

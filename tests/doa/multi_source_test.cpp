@@ -1,5 +1,5 @@
 // Several sources on one array: per-source tracks on one time base (SourceTracks), and lags
-// refined without the other sources' sidelobes (MultiSourceLagRefiner, through NodePipeline).
+// found on the bins the louder sources do not own (SourceBinMask, through NodePipeline).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -91,9 +91,11 @@ TEST(SourceTracks, AnUnheardSourceIsDroppedAfterItsWindow) {
   EXPECT_EQ(tracks.live_tracks(), 0);
 }
 
-// Two sources 25 deg apart, the second 6 dB weaker: the louder one's correlation lobes sit on
-// the weaker one's lags. Measured: weak median 0.88 deg with SRP's lags as found, 0.31 deg once
-// refined against the louder source's kernel (two alternating passes).
+// Two broadband sources 25 deg apart, the second 6 dB weaker: the louder one's correlation lobes
+// sit on the weaker one's lags. Measured: with the louder source subtracted from the
+// correlations (CLEAN) the weak one was found in 59 of 77 frames, median 0.88 deg; with its
+// lags then refined against the louder one's kernel 0.31 deg; with the louder source's bins
+// dropped (SourceBinMask) 77 of 77 frames, 0.24 deg.
 TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
   const ArrayGeometry geometry = testing::tetrahedron(0.0);
   const Eigen::Vector3d loud = direction_from_azel_deg(30.0, 20.0);
@@ -108,7 +110,6 @@ TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
   DoaParams params;
   params.tdoa_tracker = TdoaTracker::per_frame;
   params.max_sources = 2;
-  params.srp_min_relative_power = 0.15;
   NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
   std::vector<DoaMeasurement> doas;
   for (std::size_t first = 0; first < frames; first += 4800)
@@ -130,9 +131,9 @@ TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
   std::printf("loud %zu DOAs median %.3f deg, weak %zu DOAs median %.3f deg (%d frames)\n",
               loud_errors.size(), median(loud_errors), weak_errors.size(), median(weak_errors),
               frame_count);
-  EXPECT_GT(static_cast<int>(weak_errors.size()), frame_count * 3 / 4);
+  EXPECT_GT(static_cast<int>(weak_errors.size()), frame_count * 9 / 10);
   EXPECT_LT(median(loud_errors), 0.15);
-  EXPECT_LT(median(weak_errors), 0.45);
+  EXPECT_LT(median(weak_errors), 0.35);
 }
 
 }  // namespace
