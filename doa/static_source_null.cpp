@@ -52,8 +52,12 @@ StaticSourceNull::StaticSourceNull(const ArrayGeometry& geometry, const GccPhat&
       !(settings_.tolerance_s > 0.0) || !(settings_.speed_of_sound_mps > 0.0))
     throw std::invalid_argument("StaticSourceNull: times, tolerance and c must be > 0");
   Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  pair_index_.fill(-1);
+  mic_count_ = static_cast<int>(geometry.mic_count());
+  if (mic_count_ > kMaxMics) throw std::invalid_argument("StaticSourceNull: at most 8 mics");
   for (int p = 0; p < pair_count_; ++p) {
     const MicPairSpec& pair = gcc.pair_spec(p);
+    pair_index_[static_cast<std::size_t>(pair.mic_i * kMaxMics + pair.mic_j)] = p;
     const Eigen::Vector3d baseline = geometry.mics_m[static_cast<std::size_t>(pair.mic_i)] -
                                      geometry.mics_m[static_cast<std::size_t>(pair.mic_j)];
     pair_baselines_m_.push_back(baseline);
@@ -206,7 +210,7 @@ void StaticSourceNull::observe(double time_s, const GccPhat& gcc, bool usable) {
           (slot_tdoas_[static_cast<std::size_t>(p)] - slot.tdoa_s[static_cast<std::size_t>(p)]);
     slot.last_heard_s = time_s;
   }
-  if (matched == nullptr && sharp) {
+  if (matched == nullptr && sharp && consistent(frame_tdoas_)) {
     // A new candidate takes a free slot, else the tentative one heard longest ago.
     Slot* target = nullptr;
     for (Slot& slot : slots_) {
@@ -243,8 +247,35 @@ void StaticSourceNull::observe(double time_s, const GccPhat& gcc, bool usable) {
   }
 }
 
+bool StaticSourceNull::consistent(std::span<const double> tdoas_s) const {
+  // One source, any range: t_i - t_k = (t_i - t_j) + (t_j - t_k) for every mic triple. Peaks
+  // of two sources mixed across pairs break it (by hundreds of microseconds, typically).
+  // tau(a, b) = t_a - t_b from whichever of (a, b) / (b, a) is a pair; false if neither.
+  const auto tau = [&](int a, int b, double& out) {
+    const int forward = pair_index_[static_cast<std::size_t>(a * kMaxMics + b)];
+    const int backward = pair_index_[static_cast<std::size_t>(b * kMaxMics + a)];
+    if (forward >= 0) out = tdoas_s[static_cast<std::size_t>(forward)];
+    if (forward < 0 && backward >= 0) out = -tdoas_s[static_cast<std::size_t>(backward)];
+    return forward >= 0 || backward >= 0;
+  };
+  for (int i = 0; i < mic_count_; ++i)
+    for (int j = i + 1; j < mic_count_; ++j)
+      for (int k = j + 1; k < mic_count_; ++k) {
+        double ij = 0.0;
+        double jk = 0.0;
+        double ik = 0.0;
+        if (!tau(i, j, ij) || !tau(j, k, jk) || !tau(i, k, ik)) continue;
+        if (std::abs(ij + jk - ik) > 2.0 * settings_.tolerance_s) return false;
+      }
+  return true;
+}
+
 void StaticSourceNull::decide(Slot& slot) {
   const std::span<const double> tdoas(slot.tdoa_s.data(), static_cast<std::size_t>(pair_count_));
+  if (!consistent(tdoas)) {
+    slot = Slot{};
+    return;
+  }
   if (highest_elevation_deg(tdoas) > settings_.max_elevation_deg) {
     slot.state = State::sky;  // stays put, but may be a hovering drone: followed, never nulled
     return;

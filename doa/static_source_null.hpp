@@ -67,6 +67,7 @@ class StaticSourceNull {
  private:
   static constexpr int kSlots = 6;  // tentative + nulled + sky sources followed at once
   static constexpr int kMaxPairs = 28;
+  static constexpr int kMaxMics = 8;
   enum class State { empty, tentative, nulled, sky };
   struct Slot {
     State state = State::empty;
@@ -80,6 +81,9 @@ class StaticSourceNull {
 
   bool matches(const Slot& slot, std::span<const double> tdoas_s) const;
   bool heard(const GccPhat& gcc, const Slot& slot);
+  // The TDOAs close around every mic triple (one source, not peaks of two mixed across pairs).
+  // Needs every pair of the triples; pairs the GccPhat does not have are skipped.
+  bool consistent(std::span<const double> tdoas_s) const;
   void decide(Slot& slot);
   void make_signature(Slot& slot);
   void adapt(int signature_index, const GccPhat& gcc);
@@ -93,7 +97,9 @@ class StaticSourceNull {
   std::vector<BandRun> band_;
   double bin_omega_ = 0.0;  // rad/s per FFT bin
   int geometry_rank_ = 0;
-  std::vector<Eigen::Vector3d> pair_baselines_m_;  // p_i - p_j, array frame (z is site z)
+  int mic_count_ = 0;
+  std::array<int, kMaxMics * kMaxMics> pair_index_{};  // [i * 8 + j] -> pair (i, j), or -1
+  std::vector<Eigen::Vector3d> pair_baselines_m_;      // p_i - p_j, array frame (z is site z)
   Eigen::Matrix3d normal_inverse_ = Eigen::Matrix3d::Zero();  // pseudo-inverse of D^T D
   Eigen::Vector3d plane_normal_ = Eigen::Vector3d::UnitZ();   // planar arrays
   std::array<Slot, kSlots> slots_{};
