@@ -67,6 +67,8 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("srp_min_separation_deg", params.srp_min_separation_deg, 1.0, 90.0);
   params.srp_min_power_sigmas =
       section.number("srp_min_power_sigmas", params.srp_min_power_sigmas, 0.0, 100.0);
+  params.min_elevation_deg =
+      section.number("min_elevation_deg", params.min_elevation_deg, -90.0, 90.0);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

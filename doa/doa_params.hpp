@@ -43,6 +43,10 @@ struct DoaParams {
   // A further source (after the louder ones' bins are dropped) needs an SRP power this many
   // standard deviations above that of incoherent noise (which follows from the bins and frame).
   double srp_min_power_sigmas = 4.0;
+  // Horizon mask (site frame, from the array): anything lower is a ground source or the
+  // ground's mirror image of a drone, never reported. A drone below the array's own height at
+  // close range (rare) is lower; lower it for arrays on masts or roofs.
+  double min_elevation_deg = -3.0;
 
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
   // horizon are learned from their constant TDOAs and their band bins dropped before the

@@ -136,6 +136,7 @@ struct NodePipeline::Impl {
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
   void mask_source(std::span<const PairTdoa> source_tdoas);
+  bool below_horizon(const DoaSolution& solution);
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
   double output_delay_s() const {
@@ -162,6 +163,7 @@ struct NodePipeline::Impl {
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
   SourceBinMask bin_mask{gcc};
+  double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
@@ -222,11 +224,22 @@ double NodePipeline::Impl::mean_coherence(std::span<const PairTdoa> used) const 
   return count > 0 ? sum / count : 0.0;
 }
 
+// Below the horizon mask a source is on the ground (a generator, a road) or is the ground's
+// reflection of a drone (its mirror image, as loud as -6 dB): not a target, and left out of
+// the next look's bins. Only a 3-D array knows up from down.
+bool NodePipeline::Impl::below_horizon(const DoaSolution& solution) {
+  if (solver.rank() < 3 || solution.direction_site.z() >= min_elevation_sine) return false;
+  ++diagnostics.below_horizon_rejected;
+  return true;
+}
+
 void NodePipeline::Impl::find_candidates() {
   candidate_count = 0;
   Candidate& primary = candidates[0];
   primary.solution = solver.solve(tdoas);
-  if (primary.solution.accepted) {
+  const bool primary_below_horizon = primary.solution.accepted && below_horizon(primary.solution);
+  if (primary_below_horizon) mask_source(tdoas);
+  if (primary.solution.accepted && !primary_below_horizon) {
     std::copy(tdoas.begin(), tdoas.end(), primary.tdoas.begin());
     primary.coherence = mean_coherence(tdoas);
     primary.time_offset_s = tracker->output_delay_s();
@@ -258,6 +271,11 @@ void NodePipeline::Impl::find_candidates() {
       duplicate =
           candidate.solution.direction_site.dot(
               candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
+    if (!duplicate && below_horizon(candidate.solution)) {
+      mask_source(candidate_tdoas);
+      srp->begin_frame(gcc);
+      continue;
+    }
     if (duplicate) {
       srp->subtract_direction(gcc, peak.direction_array);
       continue;

@@ -23,7 +23,8 @@ struct NodeDiagnostics {
   bool detecting = false;
   std::int64_t stream_gaps = 0;      // blocks whose first_sample did not follow on (reframed)
   std::int64_t rejected_blocks = 0;  // blocks with the wrong channel count or no data
-  int static_sources_nulled = 0;     // ground sources whose bins are dropped (static_null)
+  std::int64_t below_horizon_rejected = 0;  // sources below min_elevation_deg (not reported)
+  int static_sources_nulled = 0;            // ground sources whose bins are dropped (static_null)
 };
 
 class NodePipeline {
