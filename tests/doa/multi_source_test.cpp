@@ -136,5 +136,35 @@ TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
   EXPECT_LT(median(weak_errors), 0.35);
 }
 
+// A loud source below the horizon (a generator beside the array, or a drone's ground image) is
+// never reported, and the drone above it is still found on the bins it leaves.
+TEST(NodePipeline, SourcesBelowTheHorizonMaskAreNotReported) {
+  const ArrayGeometry geometry = testing::tetrahedron(0.0);
+  const Eigen::Vector3d ground = direction_from_azel_deg(-40.0, -12.0);
+  const Eigen::Vector3d drone = direction_from_azel_deg(100.0, 25.0);
+  const auto frames = static_cast<std::size_t>(3.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise ground_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 8);
+  const testing::BandNoise drone_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 9);
+  testing::add_source(recording, geometry, ground, ground_source, 0.05);
+  testing::add_source(recording, geometry, drone, drone_source, 0.03);
+  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, 10);
+  DoaParams params;
+  params.tdoa_tracker = TdoaTracker::per_frame;
+  params.static_null = false;  // the horizon mask alone
+  NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
+  std::vector<DoaMeasurement> doas;
+  for (std::size_t first = 0; first < frames; first += 4800)
+    pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+  int drone_doas = 0;
+  for (const DoaMeasurement& doa : doas) {
+    EXPECT_GE(elevation_deg(doa.direction), params.min_elevation_deg);
+    drone_doas += angle_between_deg(doa.direction, drone) < 1.0 ? 1 : 0;
+  }
+  const auto frame_count = pipeline.diagnostics().frames_processed;
+  EXPECT_GT(drone_doas, frame_count * 3 / 4);
+  EXPECT_GT(pipeline.diagnostics().below_horizon_rejected, frame_count / 2);
+}
+
 }  // namespace
 }  // namespace dronetrack::doa

@@ -51,23 +51,21 @@ TEST(SceneAccuracy, PerimeterTwoDronesBothFoundWhereBothAreHeard) {
   std::printf("%s", format_rows("perimeter-two-drones",
                                 tdoa_tracker_name(scene.scenario.site.doa.tdoa_tracker), result)
                         .c_str());
-  // Issue 4 asks for both drones at every array that hears both. Measured (docs/doa.md): N1 and
-  // N3 find both; N2 and N4 hear D2 (SNR 12 dB at best) but find it in < 10 % of those frames.
-  // Asserted: what holds now, so a regression shows; the gap is documented.
+  // Issue 4 asks for both drones at every array that hears both. Each found source's bins are
+  // dropped before the next look (SourceBinMask), so the quieter drone shows at all four.
+  // Measured (docs/doa.md): coverage 63-96 %, medians 0.17-0.30 deg.
   int arrays_hearing_both = 0;
-  int arrays_finding_both = 0;
   for (const char* array : {"N1", "N2", "N3", "N4"}) {
     const DroneAtArray& first = cell(result, array, "D1");
     const DroneAtArray& second = cell(result, array, "D2");
     if (first.audible_frames < 40 || second.audible_frames < 40) continue;
     ++arrays_hearing_both;
-    const bool both = first.coverage() >= 0.3 && second.coverage() >= 0.3 &&
-                      first.median_deg() <= 0.5 && second.median_deg() <= 0.5;
-    arrays_finding_both += both ? 1 : 0;
-    std::printf("%s hears both; finds both: %s\n", array, both ? "yes" : "no");
+    for (const DroneAtArray* drone : {&first, &second}) {
+      EXPECT_GE(drone->coverage(), 0.5) << array << " " << drone->drone_id;
+      EXPECT_LE(drone->median_deg(), 0.35) << array << " " << drone->drone_id;
+    }
   }
-  EXPECT_GE(arrays_hearing_both, 2);
-  EXPECT_GE(arrays_finding_both, 2);
+  EXPECT_EQ(arrays_hearing_both, 4);
   EXPECT_LT(result.stray_doas, result.doas / 20);
 }
 
