@@ -73,6 +73,8 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.imm_sojourn_s = section.number("imm_sojourn_s", params.imm_sojourn_s, 0.01, 1e4);
   params.doa_error_correlation_s =
       section.number("doa_error_correlation_s", params.doa_error_correlation_s, 0.0, 60.0);
+  params.ground_altitude_m =
+      section.number("ground_altitude_m", params.ground_altitude_m, -1e4, 1e4);
 }
 
 }  // namespace dronetrack::config

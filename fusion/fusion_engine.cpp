@@ -138,6 +138,11 @@ struct FusionEngine::Impl {
   void feed_until(double cutoff_s);
   void process_frame(std::size_t begin, std::size_t end);
   bool try_initiate(int array, std::size_t recent_index, double time_s);
+  // A ground-reflection image: more than 3 sigma under the ground.
+  bool below_ground(const Triangulation& fix) const {
+    const double z_std = std::sqrt(std::max(fix.covariance_m2(2, 2), 0.0));
+    return fix.position_m.z() + 3.0 * z_std < params.ground_altitude_m;
+  }
   void life_cycle(double now_s);
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;
@@ -188,6 +193,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   }
   check(params.imm_sojourn_s > 0.0, "imm_sojourn_s", "must be > 0");
   check(params.doa_error_correlation_s >= 0.0, "doa_error_correlation_s", "must be >= 0");
+  check(std::isfinite(params.ground_altitude_m), "ground_altitude_m", "must be finite");
   if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
     throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
   }
@@ -442,6 +448,10 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
       if (!fix || !fix->in_front) continue;
       const Eigen::Vector3d p = fix->position_m;
       if ((p - models[array].centre_m).norm() > params.init_max_range_m) continue;
+      if (below_ground(*fix)) {
+        ++counters.below_ground_rejected;
+        continue;
+      }
       const double reference = emission_of(p);
       const double chi2 =
           chi2_against(seed, array, p, reference) + chi2_against(partner, other, p, reference);
@@ -492,6 +502,11 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   Triangulation fix = best.fix;
   if (rays.size() > 2) {
     if (auto refined = triangulate_least_squares(rays)) fix = *refined;
+  }
+
+  if (below_ground(fix)) {  // the further arrays moved it under the ground
+    ++counters.below_ground_rejected;
+    return false;
   }
 
   // Not a new drone if an existing track already explains the point.

@@ -33,9 +33,10 @@ struct FusionCounters {
   std::int64_t tracks_started = 0;
   std::int64_t tracks_deleted = 0;
   std::int64_t tracks_confirmed = 0;
-  std::int64_t ghosts_rejected = 0;  // triangulated candidates another array contradicted
-  std::int64_t filter_repairs = 0;   // covariances repaired (eigenvalue clamp)
-  std::int64_t filter_failures = 0;  // updates refused as non-finite/unrepairable
+  std::int64_t ghosts_rejected = 0;        // triangulated candidates another array contradicted
+  std::int64_t below_ground_rejected = 0;  // candidate points under the ground (echo images)
+  std::int64_t filter_repairs = 0;         // covariances repaired (eigenvalue clamp)
+  std::int64_t filter_failures = 0;        // updates refused as non-finite/unrepairable
 };
 
 class FusionEngine {

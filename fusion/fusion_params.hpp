@@ -66,6 +66,11 @@ struct FusionParams {
   // from that array has its covariance scaled by max(1, doa_error_correlation_s / dt).
   // 0: every DOA independent (overconfident at 20 DOAs/s).
   double doa_error_correlation_s = 0.3;
+  // Ground height in the site frame (z up; the bundled sites and the simulator put the ground at
+  // z = 0 with the arrays 1.5-2 m above it). A triangulated point more than 3 sigma below it is a
+  // ground-reflection image (a node reports the echo as a second source), never a drone: no track
+  // starts there.
+  double ground_altitude_m = 0.0;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)

@@ -307,6 +307,38 @@ TEST(FusionEngine, TwoArraySiteConfirmsOnlyWhenBothArraysKeepAgreeing) {
   EXPECT_TRUE(confirmed_late);
 }
 
+// The ground echo of a drone comes from its image under the ground; a node that reports it as a
+// second source gives every array a consistent ray to (x, y, -z). No track may start there.
+TEST(FusionEngine, GroundReflectionImagesStartNoTrack) {
+  const auto arrays = square_site(100.0);
+  const Trajectory drone = line({-60, -30, 35}, {8, 3, 0.5});
+  const Trajectory image = [drone](double t) {
+    const Eigen::Vector3d p = drone(t);
+    return Eigen::Vector3d(p.x(), p.y(), -p.z());
+  };
+  const auto below_ground_tracks = [&](const FusionParams& params, FusionCounters* counters) {
+    const RunResult result = run(params, arrays, {drone, image}, 10.0, {0.2, true}, 6);
+    if (counters != nullptr) *counters = result.counters;
+    int below = 0;
+    int drone_ticks = 0;
+    for (std::size_t i = 0; i < result.reports.size(); ++i) {
+      for (const TrackReport& track : result.reports[i]) {
+        if (track.status == TrackStatus::tentative) continue;
+        if (track.position_m.z() < 0.0) ++below;
+        if ((track.position_m - drone(result.times[i])).norm() < 2.0) ++drone_ticks;
+      }
+    }
+    EXPECT_GT(drone_ticks, 80);  // the drone itself is tracked (10 s at 10 Hz)
+    return below;
+  };
+  FusionCounters counters;
+  EXPECT_EQ(below_ground_tracks(FusionParams{}, &counters), 0);
+  EXPECT_GT(counters.below_ground_rejected, 0);
+  FusionParams no_ground;  // the contrast: without the ground, the image is a "drone"
+  no_ground.ground_altitude_m = -1e4;
+  EXPECT_GT(below_ground_tracks(no_ground, nullptr), 50);
+}
+
 TEST(FusionEngine, MalformedDoasAreRejectedAndCountedWithoutHarm) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = circle({0, 0, 40}, 50.0, 8.0);
