@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "doa/gcc_phat.hpp"
+#include "doa/node_pipeline.hpp"
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
@@ -183,6 +184,59 @@ TEST(StaticSourceNull, ForgetsAStaticSourceThatWentQuiet) {
   EXPECT_EQ(nulled_long_after_stop, 0);
   // Once forgotten the weak source is still found (nothing of it was nulled).
   EXPECT_GE(with.frames_on_weak_source, 0.9 * with.frames_after_learning);
+}
+
+// The whole node: the generator is nulled (NodeDiagnostics says so), no longer reported, and the
+// rotor's DOA is published in its place.
+TEST(StaticSourceNull, NodePipelineFindsTheRotorNextToTheGenerator) {
+  const ArrayGeometry geometry = testing::tetrahedron(20.0);
+  const std::size_t frames = static_cast<std::size_t>(4.0 * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise generator(static_cast<int>(frames), kRate, 100.0, 6000.0, 41);
+  // The same mix as above at a third of the level: the node counts clipped frames as unusable.
+  testing::add_source(recording, geometry, kGround, generator, 0.1, kSpeed);
+  add_harmonic_source(recording, geometry, kSky, 160.0, 0.05 / 3.0, 0, frames);
+  testing::add_sensor_noise(recording, kRate, 100.0, 8000.0, 0.001, 9);
+  for (const bool use_null : {false, true}) {
+    DoaParams params;
+    params.tdoa_tracker = TdoaTracker::per_frame;
+    params.static_null = use_null;
+    params.static_null_learn_s = 1.0;
+    // One source per frame: without the null that is the generator, with it the rotor (with
+    // more sources the multi-source stage also finds the rotor beside an unnulled generator).
+    params.max_sources = 1;
+    NodePipeline pipeline(geometry, 0, params, kRate, kSpeed);
+    std::vector<DoaMeasurement> doas;
+    for (std::size_t first = 0; first < frames; first += 4800)
+      pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+    std::vector<bool> found(static_cast<std::size_t>(pipeline.diagnostics().frames_processed),
+                            false);
+    int late_frames = 0;
+    int late_found = 0;
+    int late_generator = 0;
+    for (const DoaMeasurement& doa : doas) {
+      if (doa.time_s >= 2.0 && angle_between_deg(doa.direction, kGround) < 3.0) ++late_generator;
+      if (doa.time_s < 2.0 || angle_between_deg(doa.direction, kSky) > 1.0) continue;
+      const auto frame = static_cast<std::size_t>(std::lround(doa.time_s / kHop_s));
+      if (frame < found.size()) found[frame] = true;
+    }
+    for (std::size_t f = 0; f < found.size(); ++f) {
+      if (static_cast<double>(f) * kHop_s < 2.0 || static_cast<double>(f) * kHop_s > 3.8) continue;
+      ++late_frames;
+      late_found += found[f] ? 1 : 0;
+    }
+    std::printf("static_null %d: rotor within 1 deg in %d of %d frames after 2 s, nulled %d\n",
+                use_null ? 1 : 0, late_found, late_frames,
+                pipeline.diagnostics().static_sources_nulled);
+    if (use_null) {
+      EXPECT_EQ(pipeline.diagnostics().static_sources_nulled, 1);
+      EXPECT_GE(late_found, late_frames * 8 / 10);
+      EXPECT_EQ(late_generator, 0);
+    } else {
+      EXPECT_EQ(pipeline.diagnostics().static_sources_nulled, 0);
+      EXPECT_LE(late_found, late_frames / 10);
+    }
+  }
 }
 
 TEST(GccPhat, DroppedBinsLeaveASourceInTheKeptBinsAtFullPeak) {
