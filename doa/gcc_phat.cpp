@@ -117,7 +117,10 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
   magnitudes_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0);
   magnitude_sums_.assign(pairs_.size(), 0.0);
+  saved_phasors_.assign(phasors_.size(), {0.0, 0.0});
+  saved_magnitudes_.assign(magnitudes_.size(), 0.0);
   keep_.assign(static_cast<std::size_t>(band_bins_), 1);
+  saved_keep_.assign(keep_.size(), 1);
   kept_bins_ = band_bins_;
   kept_sum_omega2_ = sum_omega2_;
 
@@ -153,6 +156,18 @@ std::span<const std::complex<double>> GccPhat::phasors(int pair) const {
 std::span<const double> GccPhat::magnitudes(int pair) const {
   return {magnitudes_.data() + static_cast<std::ptrdiff_t>(pair) * band_bins_,
           static_cast<std::size_t>(band_bins_)};
+}
+
+void GccPhat::save_whitened() {
+  std::copy(phasors_.begin(), phasors_.end(), saved_phasors_.begin());
+  std::copy(magnitudes_.begin(), magnitudes_.end(), saved_magnitudes_.begin());
+  std::copy(keep_.begin(), keep_.end(), saved_keep_.begin());
+}
+
+void GccPhat::restore_whitened() {
+  std::copy(saved_phasors_.begin(), saved_phasors_.end(), phasors_.begin());
+  std::copy(saved_magnitudes_.begin(), saved_magnitudes_.end(), magnitudes_.begin());
+  std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {

@@ -84,6 +84,11 @@ class GccPhat {
   std::span<std::uint8_t> bin_keep() { return keep_; }
   // Band bins kept in the last correlate().
   int kept_bin_count() const { return kept_bins_; }
+  // correlate() drops masked bins from the phasors themselves; these keep a copy of the
+  // phasors, magnitudes and mask to correlate the same frame again under another mask
+  // (several sources: each measured without the others' bins).
+  void save_whitened();
+  void restore_whitened();
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
@@ -143,6 +148,9 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
+  std::vector<std::complex<double>> saved_phasors_;  // save_whitened()
+  std::vector<double> saved_magnitudes_;
+  std::vector<std::uint8_t> saved_keep_;
   std::vector<double> kernel_table_;  // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1

@@ -137,6 +137,7 @@ struct NodePipeline::Impl {
   void find_candidates();
   void mask_source(std::span<const PairTdoa> source_tdoas);
   bool below_horizon(const DoaSolution& solution);
+  void remeasure_primary();
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
   double output_delay_s() const {
@@ -249,6 +250,7 @@ void NodePipeline::Impl::find_candidates() {
   // Each source found takes its bins out of the correlations before the next look: what is
   // left is normalised over the bins the louder sources do not own, so a weaker drone's peak
   // is neither buried under the louder one's lobes nor pulled by them.
+  gcc.save_whitened();
   if (candidate_count > 0) mask_source(tdoas);
   srp->begin_frame(gcc);
   const double separation_cosine =
@@ -288,6 +290,31 @@ void NodePipeline::Impl::find_candidates() {
       srp->begin_frame(gcc);
     }
   }
+  if (candidate_count >= 2) remeasure_primary();
+}
+
+// The first source was measured with every other source's bins in its correlation: measured
+// again without them (the quieter sources' lobes no longer pull its peaks).
+void NodePipeline::Impl::remeasure_primary() {
+  gcc.restore_whitened();
+  for (int s = 1; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  gcc.correlate();
+  Candidate& primary = candidates[0];
+  std::array<PairTdoa, kMaxPairs> remeasured{};
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& before = primary.tdoas[static_cast<std::size_t>(p)];
+    GccPeak peak;
+    if (before.variance_s2 > 0.0 && gcc.refine(p, before.tdoa_s, peak) && peak.value > 0.0)
+      remeasured[static_cast<std::size_t>(p)] = {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value),
+                                                 peak.value, peak.coherence};
+  }
+  const std::span<const PairTdoa> again(remeasured.data(), tdoas.size());
+  const DoaSolution solution = solver.solve(again);
+  if (!solution.accepted) return;
+  primary.solution = solution;
+  std::copy(again.begin(), again.end(), primary.tdoas.begin());
 }
 
 // Drops the bins a found source owns and correlates what is left (the frame's earlier
