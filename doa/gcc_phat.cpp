@@ -183,18 +183,29 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
     int index = 0;
     for (const BandRun& run : runs_) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        const std::complex<double> cross = x_i[k] * std::conj(x_j[k]);
-        const double size = std::sqrt(std::norm(cross));
-        phasor[index] = size > kSilentBin ? cross / size : std::complex<double>{0.0, 0.0};
-        magnitude[index] = size > kSilentBin ? size : 0.0;
+      // Real arithmetic, one division per bin: no complex NaN checks, vectorisable.
+      const double* a = reinterpret_cast<const double*>(x_i + run.first_bin);
+      const double* b = reinterpret_cast<const double*>(x_j + run.first_bin);
+      double* out = reinterpret_cast<double*>(phasor + index);
+      double* size_out = magnitude + index;
+      const int bins = run.last_bin - run.first_bin + 1;
+      for (int n = 0; n < bins; ++n) {
+        const double re = a[2 * n] * b[2 * n] + a[2 * n + 1] * b[2 * n + 1];
+        const double im = a[2 * n + 1] * b[2 * n] - a[2 * n] * b[2 * n + 1];
+        const double size = std::sqrt(re * re + im * im);
+        const bool live = size > kSilentBin;
+        const double inverse = live ? 1.0 / size : 0.0;
+        out[2 * n] = re * inverse;
+        out[2 * n + 1] = im * inverse;
+        size_out[n] = live ? size : 0.0;
       }
+      index += bins;
     }
   }
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
 }
 
-void GccPhat::correlate() {
+void GccPhat::correlate(bool refine_peaks) {
   kept_bins_ = 0;
   kept_sum_omega2_ = 0.0;
   {
@@ -246,6 +257,8 @@ void GccPhat::correlate() {
       grid_values[m + half] = inverse_->correlation[index_circular] * normalisation;
     }
 
+    result = PairCorrelation{};
+    if (!refine_peaks) continue;
     // Highest and second-highest local maxima on the grid.
     int best = -1;
     double best_value = -2.0;
@@ -378,25 +391,63 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   // kConverged_s, where R changes by ~R'' step^2, far below anything that matters.
   constexpr double kConverged_s = 1e-8;
   for (int iteration = 0; iteration < 6; ++iteration) {
-    double sum0 = 0.0;
-    double weighted = 0.0;
-    double sum1 = 0.0;
-    double sum2 = 0.0;
+    // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic:
+    // half the latency chain through the complex product, no complex-multiply NaN checks.
+    double sum0_a = 0.0, sum0_b = 0.0, weighted_a = 0.0, weighted_b = 0.0;
+    double sum1_a = 0.0, sum1_b = 0.0, sum2_a = 0.0, sum2_b = 0.0;
     int index = 0;
     const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
+    const std::complex<double> step2 = step * step;
+    const double step2_re = step2.real();
+    const double step2_im = step2.imag();
     for (const BandRun& run : runs_) {
-      std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag);
-      double omega = run.first_bin * bin_omega_;
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        const std::complex<double> term = phasor[index] * rotation;
-        sum0 += term.real();
-        weighted += magnitude[index] * term.real();
-        sum1 -= omega * term.imag();
-        sum2 -= omega * omega * term.real();
-        rotation *= step;
-        omega += bin_omega_;
+      const std::complex<double> first = std::polar(1.0, bin_omega_ * run.first_bin * lag);
+      const std::complex<double> second = first * step;
+      double a_re = first.real(), a_im = first.imag(), b_re = second.real(), b_im = second.imag();
+      double omega_a = run.first_bin * bin_omega_;
+      double omega_b = omega_a + bin_omega_;
+      const double omega_step = 2.0 * bin_omega_;
+      const int bins = run.last_bin - run.first_bin + 1;
+      int k = 0;
+      for (; k + 2 <= bins; k += 2, index += 2) {
+        const double wa_re = phasor[index].real(), wa_im = phasor[index].imag();
+        const double wb_re = phasor[index + 1].real(), wb_im = phasor[index + 1].imag();
+        const double ta_re = wa_re * a_re - wa_im * a_im;
+        const double ta_im = wa_re * a_im + wa_im * a_re;
+        const double tb_re = wb_re * b_re - wb_im * b_im;
+        const double tb_im = wb_re * b_im + wb_im * b_re;
+        sum0_a += ta_re;
+        sum0_b += tb_re;
+        weighted_a += magnitude[index] * ta_re;
+        weighted_b += magnitude[index + 1] * tb_re;
+        sum1_a -= omega_a * ta_im;
+        sum1_b -= omega_b * tb_im;
+        sum2_a -= omega_a * omega_a * ta_re;
+        sum2_b -= omega_b * omega_b * tb_re;
+        const double na_re = a_re * step2_re - a_im * step2_im;
+        a_im = a_re * step2_im + a_im * step2_re;
+        a_re = na_re;
+        const double nb_re = b_re * step2_re - b_im * step2_im;
+        b_im = b_re * step2_im + b_im * step2_re;
+        b_re = nb_re;
+        omega_a += omega_step;
+        omega_b += omega_step;
+      }
+      if (k < bins) {
+        const double wa_re = phasor[index].real(), wa_im = phasor[index].imag();
+        const double ta_re = wa_re * a_re - wa_im * a_im;
+        const double ta_im = wa_re * a_im + wa_im * a_re;
+        sum0_a += ta_re;
+        weighted_a += magnitude[index] * ta_re;
+        sum1_a -= omega_a * ta_im;
+        sum2_a -= omega_a * omega_a * ta_re;
+        ++index;
       }
     }
+    const double sum0 = sum0_a + sum0_b;
+    const double weighted = weighted_a + weighted_b;
+    const double sum1 = sum1_a + sum1_b;
+    const double sum2 = sum2_a + sum2_b;
     if (!(sum2 < 0.0)) return refine_parabolic(pair, m, out);
     const double delta = std::clamp(-sum1 / sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
     lag += delta;

@@ -70,7 +70,9 @@ class GccPhat {
   // bin_keep() may then clear bins (for all pairs); correlate() drops them, normalises by the
   // bins kept and runs the inverse FFTs and peak refinement.
   void whiten(const MultichannelFft& spectra);
-  void correlate();
+  // refine_peaks false: the lag grid only (pair() results left empty), for a correlation that
+  // is only searched (SRP) and refined where asked (refine()).
+  void correlate(bool refine_peaks = true);
 
   // The band's bins, in the order of phasors()/bin_keep(): runs of FFT bins, ascending.
   const std::vector<BandRun>& band() const { return runs_; }

@@ -258,12 +258,12 @@ void NodePipeline::Impl::find_candidates() {
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
        ++look) {
-    SrpPeak peak;
-    if (!srp->strongest(peak)) break;
-    // Incoherent noise over fewer bins correlates more by chance.
+    // Incoherent noise over fewer bins correlates more by chance. Nothing under the floor is
+    // used: the search may skip what cannot reach it.
     const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
                                                      std::max(1, gcc.kept_bin_count()));
-    if (peak.power < floor) break;
+    SrpPeak peak;
+    if (!srp->strongest(peak, floor)) break;
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
@@ -300,7 +300,7 @@ void NodePipeline::Impl::remeasure_primary() {
   for (int s = 1; s < candidate_count; ++s)
     bin_mask.drop(gcc, std::span<const PairTdoa>(
                            candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
-  gcc.correlate();
+  gcc.correlate(false);
   Candidate& primary = candidates[0];
   std::array<PairTdoa, kMaxPairs> remeasured{};
   for (int p = 0; p < gcc.pair_count(); ++p) {
@@ -321,7 +321,7 @@ void NodePipeline::Impl::remeasure_primary() {
 // correlation values, already used, are overwritten).
 void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas) {
   bin_mask.drop(gcc, source_tdoas);
-  gcc.correlate();
+  gcc.correlate(false);
 }
 
 // Replaces this frame's per-frame candidates by every tracked source's smoothed estimate for
