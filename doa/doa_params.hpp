@@ -39,7 +39,7 @@ struct DoaParams {
   double max_norm_error = 0.1;           // LS: reject when ||A^-1 b| - 1| exceeds this
   double max_chi2_per_dof = 30.0;        // LS: reject when the TDOA fit residual exceeds this
   double srp_grid_deg = 5.0;             // SRP-PHAT direction grid spacing
-  double srp_min_separation_deg = 10.0;  // two sources closer than this are one
+  double srp_min_separation_deg = 4.0;   // two sources closer than this are one
   // A further source (after the louder ones' bins are dropped) needs an SRP power this many
   // standard deviations above that of incoherent noise (which follows from the bins and frame).
   double srp_min_power_sigmas = 4.0;
