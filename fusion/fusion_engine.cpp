@@ -589,7 +589,13 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     // two-array site (min_arrays clamped to 2) continuity decides, not the pair's first fix.
     const bool supported = (arrays_heard >= min_arrays && (arrays_heard > 2 || min_arrays <= 1)) ||
                            arrays_repeating >= 2;
-    if (supported && hits >= params.confirm_hits) {
+    // Nor is a track under the ground by more than its own uncertainty: where two drones' rays
+    // (or a drone's and its ground image's) cross low, a ghost starts near the ground and sinks.
+    const double altitude_m = track.filter->mean()(StateBlock::position + 2);
+    const double altitude_std_m = std::sqrt(std::max(
+        track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
+    const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
+    if (supported && above_ground && hits >= params.confirm_hits) {
       track.confirmed = true;
       ++counters.tracks_confirmed;
     }

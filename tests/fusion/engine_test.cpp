@@ -339,6 +339,25 @@ TEST(FusionEngine, GroundReflectionImagesStartNoTrack) {
   EXPECT_GT(below_ground_tracks(no_ground, nullptr), 50);
 }
 
+// A source a few metres under the ground passes the initiation test (within 3 sigma of the
+// ground at first) but is never confirmed once the track knows its altitude better.
+TEST(FusionEngine, TrackUnderTheGroundIsNeverConfirmed) {
+  const auto arrays = square_site(100.0);
+  const Trajectory underground = line({-40, -20, -4}, {6, 2, 0});
+  const auto confirmed_ticks = [&](const FusionParams& params) {
+    const RunResult result = run(params, arrays, {underground}, 10.0, {0.2, true}, 8);
+    int confirmed = 0;
+    for (const auto& reports : result.reports)
+      for (const TrackReport& track : reports)
+        confirmed += track.status == TrackStatus::tentative ? 0 : 1;
+    return confirmed;
+  };
+  EXPECT_EQ(confirmed_ticks(FusionParams{}), 0);
+  FusionParams no_ground;  // the contrast: without the ground it is tracked like a drone
+  no_ground.ground_altitude_m = -1e4;
+  EXPECT_GT(confirmed_ticks(no_ground), 50);
+}
+
 TEST(FusionEngine, MalformedDoasAreRejectedAndCountedWithoutHarm) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = circle({0, 0, 40}, 50.0, 8.0);
