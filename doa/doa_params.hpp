@@ -31,15 +31,15 @@ struct DoaParams {
   double noise_floor_rise_db_per_s = 3.0;  // adaptive floor: how fast it follows louder noise
   double max_clipped_fraction = 0.01;      // frames with more clipped samples give no DOA
   LagInterpolation lag_interpolation = LagInterpolation::band_limited;
-  int correlation_oversample = 1;        // lag grid: 2x the band's Nyquist rate, times this
-  double max_angular_rate_dps = 90.0;    // trackers: largest plausible DOA rate of a source
-  int regression_window_frames = 13;     // robust_regression: frames in the sliding window
-  int regression_delay_frames = 6;       // robust_regression: evaluate the fit this many frames
-                                         // back (6 = the window's centre; adds 6 hops latency)
-  double max_norm_error = 0.1;           // LS: reject when ||A^-1 b| - 1| exceeds this
-  double max_chi2_per_dof = 30.0;        // LS: reject when the TDOA fit residual exceeds this
-  double srp_grid_deg = 5.0;             // SRP-PHAT direction grid spacing
-  double srp_min_separation_deg = 4.0;   // two sources closer than this are one
+  int correlation_oversample = 1;       // lag grid: 2x the band's Nyquist rate, times this
+  double max_angular_rate_dps = 90.0;   // trackers: largest plausible DOA rate of a source
+  int regression_window_frames = 13;    // robust_regression: frames in the sliding window
+  int regression_delay_frames = 6;      // robust_regression: evaluate the fit this many frames
+                                        // back (6 = the window's centre; adds 6 hops latency)
+  double max_norm_error = 0.1;          // LS: reject when ||A^-1 b| - 1| exceeds this
+  double max_chi2_per_dof = 30.0;       // LS: reject when the TDOA fit residual exceeds this
+  double srp_grid_deg = 5.0;            // SRP-PHAT direction grid spacing
+  double srp_min_separation_deg = 4.0;  // two sources closer than this are one
   // A further source (after the louder ones' bins are dropped) needs an SRP power this many
   // standard deviations above that of incoherent noise (which follows from the bins and frame).
   double srp_min_power_sigmas = 4.0;
