@@ -22,6 +22,28 @@ double true_tdoa_s(int source, int pair, double time_s) {
   return (source == 0 ? 100e-6 : -200e-6) + 10e-6 * pair + (source == 0 ? 20e-6 : -15e-6) * time_s;
 }
 
+// Two broadband sources (1-4 kHz) of the given RMS at one tetrahedron, with a little sensor noise.
+testing::Recording two_sources(const ArrayGeometry& geometry, const Eigen::Vector3d& first,
+                               double first_rms, const Eigen::Vector3d& second, double second_rms,
+                               double seconds, unsigned seed) {
+  const auto frames = static_cast<std::size_t>(seconds * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise first_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, seed);
+  const testing::BandNoise second_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, seed + 1);
+  testing::add_source(recording, geometry, first, first_source, first_rms);
+  testing::add_source(recording, geometry, second, second_source, second_rms);
+  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, seed + 2);
+  return recording;
+}
+
+std::vector<DoaMeasurement> run(NodePipeline& pipeline, const testing::Recording& recording) {
+  std::vector<DoaMeasurement> doas;
+  const std::size_t frames = recording.frames();
+  for (std::size_t first = 0; first < frames; first += 4800)
+    pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+  return doas;
+}
+
 TEST(SourceTracks, EachSourceKeepsItsOwnTdoasOnOneTimeBase) {
   TdoaTrackerSettings settings;
   settings.hop_s = 0.05;
@@ -100,20 +122,12 @@ TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
   const ArrayGeometry geometry = testing::tetrahedron(0.0);
   const Eigen::Vector3d loud = direction_from_azel_deg(30.0, 20.0);
   const Eigen::Vector3d weak = direction_from_azel_deg(55.0, 30.0);
-  const auto frames = static_cast<std::size_t>(4.0 * kRate);
-  testing::Recording recording = testing::silent_recording(4, frames);
-  const testing::BandNoise loud_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 5);
-  const testing::BandNoise weak_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 6);
-  testing::add_source(recording, geometry, loud, loud_source, 0.05);
-  testing::add_source(recording, geometry, weak, weak_source, 0.025);
-  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, 7);
+  const testing::Recording recording = two_sources(geometry, loud, 0.05, weak, 0.025, 4.0, 5);
   DoaParams params;
   params.tdoa_tracker = TdoaTracker::per_frame;
   params.max_sources = 2;
   NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
-  std::vector<DoaMeasurement> doas;
-  for (std::size_t first = 0; first < frames; first += 4800)
-    pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+  const std::vector<DoaMeasurement> doas = run(pipeline, recording);
   std::vector<double> loud_errors;
   std::vector<double> weak_errors;
   for (const DoaMeasurement& doa : doas) {
@@ -142,20 +156,12 @@ TEST(NodePipeline, SourcesBelowTheHorizonMaskAreNotReported) {
   const ArrayGeometry geometry = testing::tetrahedron(0.0);
   const Eigen::Vector3d ground = direction_from_azel_deg(-40.0, -12.0);
   const Eigen::Vector3d drone = direction_from_azel_deg(100.0, 25.0);
-  const auto frames = static_cast<std::size_t>(3.0 * kRate);
-  testing::Recording recording = testing::silent_recording(4, frames);
-  const testing::BandNoise ground_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 8);
-  const testing::BandNoise drone_source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 9);
-  testing::add_source(recording, geometry, ground, ground_source, 0.05);
-  testing::add_source(recording, geometry, drone, drone_source, 0.03);
-  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, 10);
+  const testing::Recording recording = two_sources(geometry, ground, 0.05, drone, 0.03, 3.0, 8);
   DoaParams params;
   params.tdoa_tracker = TdoaTracker::per_frame;
   params.static_null = false;  // the horizon mask alone
   NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
-  std::vector<DoaMeasurement> doas;
-  for (std::size_t first = 0; first < frames; first += 4800)
-    pipeline.process(recording.view(first, std::min<std::size_t>(4800, frames - first)), doas);
+  const std::vector<DoaMeasurement> doas = run(pipeline, recording);
   int drone_doas = 0;
   for (const DoaMeasurement& doa : doas) {
     EXPECT_GE(elevation_deg(doa.direction), params.min_elevation_deg);
