@@ -137,12 +137,12 @@ struct NodePipeline::Impl {
   void find_candidates();
   void mask_source(std::span<const PairTdoa> source_tdoas);
   bool below_horizon(const DoaSolution& solution);
+  bool already_found(const Eigen::Vector3d& direction_site) const;
   void remeasure_primary();
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
-  double output_delay_s() const {
-    return source_tracks ? source_tracks->output_delay_s() : tracker->output_delay_s();
-  }
+  // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
+  double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
   double mean_coherence(std::span<const PairTdoa> used) const;
   double inband_power() const;
   bool publish(const DoaSolution& solution, double time_s, std::span<const PairTdoa> used,
@@ -165,6 +165,7 @@ struct NodePipeline::Impl {
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
   SourceBinMask bin_mask{gcc};
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
+  double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
@@ -234,6 +235,15 @@ bool NodePipeline::Impl::below_horizon(const DoaSolution& solution) {
   return true;
 }
 
+// Within srp_min_separation_deg of a source already in this frame's candidates: the same one.
+bool NodePipeline::Impl::already_found(const Eigen::Vector3d& direction_site) const {
+  for (int s = 0; s < candidate_count; ++s)
+    if (direction_site.dot(candidates[static_cast<std::size_t>(s)].solution.direction_site) >=
+        separation_cosine)
+      return true;
+  return false;
+}
+
 void NodePipeline::Impl::find_candidates() {
   candidate_count = 0;
   Candidate& primary = candidates[0];
@@ -243,7 +253,7 @@ void NodePipeline::Impl::find_candidates() {
   if (primary.solution.accepted && !primary_below_horizon) {
     std::copy(tdoas.begin(), tdoas.end(), primary.tdoas.begin());
     primary.coherence = mean_coherence(tdoas);
-    primary.time_offset_s = tracker->output_delay_s();
+    primary.time_offset_s = 0.0;
     ++candidate_count;
   }
   if (!srp) return;
@@ -253,8 +263,6 @@ void NodePipeline::Impl::find_candidates() {
   gcc.save_whitened();
   if (candidate_count > 0) mask_source(tdoas);
   srp->begin_frame(gcc);
-  const double separation_cosine =
-      std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
        ++look) {
@@ -268,11 +276,8 @@ void NodePipeline::Impl::find_candidates() {
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
     candidate.solution = solver.solve(candidate_tdoas);
-    bool duplicate = !candidate.solution.accepted;
-    for (int s = 0; s < candidate_count && !duplicate; ++s)
-      duplicate =
-          candidate.solution.direction_site.dot(
-              candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
+    const bool duplicate =
+        !candidate.solution.accepted || already_found(candidate.solution.direction_site);
     if (!duplicate && below_horizon(candidate.solution)) {
       mask_source(candidate_tdoas);
       srp->begin_frame(gcc);
@@ -335,8 +340,6 @@ void NodePipeline::Impl::smooth_candidates(double time_s) {
   }
   const int estimate_count = source_tracks->update(
       time_s, std::span<const SourceObservation>(observations.data(), candidate_count), estimates);
-  const double separation_cosine =
-      std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   candidate_count = 0;
   for (int e = 0; e < estimate_count && candidate_count < params.max_sources; ++e) {
     const SourceEstimate& estimate = estimates[static_cast<std::size_t>(e)];
@@ -345,12 +348,7 @@ void NodePipeline::Impl::smooth_candidates(double time_s) {
     candidate.solution = solver.solve(smoothed);
     if (!candidate.solution.accepted) continue;
     // Two tracks that followed one source: the stronger speaks for it.
-    bool duplicate = false;
-    for (int s = 0; s < candidate_count && !duplicate; ++s)
-      duplicate =
-          candidate.solution.direction_site.dot(
-              candidates[static_cast<std::size_t>(s)].solution.direction_site) >= separation_cosine;
-    if (duplicate) continue;
+    if (already_found(candidate.solution.direction_site)) continue;
     std::copy(smoothed.begin(), smoothed.end(), candidate.tdoas.begin());
     candidate.coherence = mean_coherence(smoothed);
     candidate.time_offset_s = source_tracks->output_delay_s();

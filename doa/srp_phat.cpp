@@ -155,19 +155,6 @@ void SrpPhat::begin_frame(const GccPhat& gcc) {
   }
 }
 
-void SrpPhat::subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas) {
-  range_maxima_stale_ = true;
-  const double step = gcc.lag_step_s();
-  for (int p = 0; p < pairs_; ++p) {
-    const PairTdoa& tdoa = tdoas[static_cast<std::size_t>(p)];
-    if (!(tdoa.variance_s2 > 0.0)) continue;
-    const int half = gcc.half_span(p);
-    double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
-    for (int m = 0; m <= 2 * half; ++m)
-      residual[m] -= tdoa.peak_value * gcc.phat_kernel((m - half) * step - tdoa.tdoa_s);
-  }
-}
-
 void SrpPhat::subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array) {
   range_maxima_stale_ = true;
   const double step = gcc.lag_step_s();

@@ -31,13 +31,12 @@ class SrpPhat {
   // frame's principal plane for planar arrays, whose mirror is ambiguous anyway).
   SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg);
 
-  // Successive cancellation (CLEAN): start from this frame's correlations, take the strongest
-  // direction, subtract what that source explains (its peak value times the PHAT kernel around
-  // its lag on every pair), look again. Without it, the correlation lobes of one source one
-  // carrier period off on some pairs add up to ghost directions ~10 deg away.
+  // Starts a look from the correlations as they are now (NodePipeline drops the bins of the
+  // sources found so far and re-correlates before each further look: SourceBinMask).
   void begin_frame(const GccPhat& gcc);
-  void subtract(const GccPhat& gcc, std::span<const PairTdoa> tdoas);
-  // Subtracts the source at a grid direction itself (a peak no TDOA fit could confirm).
+  // Subtracts what a source at a grid direction explains (its correlation value there times the
+  // PHAT kernel around its lags): for a peak no TDOA fit could confirm, so the next look of the
+  // same frame does not find it again.
   void subtract_direction(const GccPhat& gcc, const Eigen::Vector3d& direction_array);
   // The strongest direction of what is left; false if nothing positive is left.
   bool strongest(SrpPeak& out) const;

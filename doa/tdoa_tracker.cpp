@@ -155,30 +155,6 @@ class GridEstimator final : public TdoaEstimator {
   std::vector<GccPeak> peaks_;
 };
 
-class RegressionEstimator final : public TdoaEstimator {
- public:
-  RegressionEstimator(const GccPhat& gcc, const TdoaTrackerSettings& settings)
-      : regression_(gcc.pair_count(), settings) {}
-
-  void update(double time_s, const GccPhat& gcc, bool signal_present,
-              std::span<PairTdoa> out) override {
-    for (int p = 0; p < gcc.pair_count(); ++p) {
-      out[static_cast<std::size_t>(p)] = PairTdoa{};
-      const PairCorrelation& pair = gcc.pair(p);
-      if (!signal_present || !(pair.peak.value > 0.0)) continue;
-      const PairTdoa current{pair.peak.lag_s, pair.tdoa_variance_s2, pair.peak.value,
-                             pair.coherence};
-      regression_.add(p, time_s, current);
-      out[static_cast<std::size_t>(p)] = regression_.estimate(p, time_s, current);
-    }
-  }
-
-  double output_delay_s() const override { return regression_.output_delay_s(); }
-
- private:
-  TdoaRegression regression_;
-};
-
 }  // namespace
 
 TdoaRegression::TdoaRegression(int pair_count, const TdoaTrackerSettings& settings)
@@ -323,7 +299,9 @@ std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPh
     case TdoaTracker::multi_peak:
       return std::make_unique<GridEstimator>(gcc, settings, true);
     case TdoaTracker::robust_regression:
-      return std::make_unique<RegressionEstimator>(gcc, settings);
+      // Not a per-pair estimator: the regression runs per source (SourceTracks).
+      throw std::invalid_argument(
+          "robust_regression smooths each source's TDOAs in SourceTracks, not per pair");
   }
   throw std::invalid_argument("unknown tdoa_tracker");
 }

@@ -7,7 +7,9 @@
 //   multi_peak        : seed 004. Same grid filter, but the likelihood is built from the top K
 //                       correlation peaks only (a Gaussian bump at each, height ~ peak value).
 //   robust_regression : seed 002. Weighted quadratic fit of the per-frame TDOAs over a sliding
-//                       window; points beyond a multiple of the MAD get zero weight.
+//                       window; points beyond a multiple of the MAD get zero weight. Not made by
+//                       make_tdoa_estimator: it runs per source (TdoaRegression in SourceTracks)
+//                       on the per-frame TDOAs of each source the frame found.
 // The diffusion s_m comes from the largest plausible angular rate of the source.
 #include <memory>
 #include <span>
@@ -42,8 +44,6 @@ class TdoaEstimator {
   // `out` has one entry per pair of `gcc`.
   virtual void update(double time_s, const GccPhat& gcc, bool signal_present,
                       std::span<PairTdoa> out) = 0;
-  // How far before the frame's own time the estimates refer to (their DOA's time offset).
-  virtual double output_delay_s() const { return 0.0; }
 };
 
 // Seed 002's robust regression of one source's TDOAs, pair by pair: a weighted quadratic in time
