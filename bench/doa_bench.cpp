@@ -16,6 +16,7 @@
 
 #include "doa/gcc_phat.hpp"
 #include "doa/node_pipeline.hpp"
+#include "doa/source_bin_mask.hpp"
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
@@ -115,6 +116,62 @@ void BM_NodePipeline(benchmark::State& state) {
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
 }
 BENCHMARK(BM_NodePipeline)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
+// Per-stage costs on one frame of the same scene (for profiling the pipeline; not in the ratio):
+// Arg 0: GccPhat::whiten; 1: correlate() with peak refinement; 2: correlate(false), the lag
+// grid only; 3: SourceBinMask::drop of the frame's source (after the whitening is restored);
+// 4: correlate(false) with that source's bins dropped (the further looks' re-correlation).
+void BM_PipelineStage(benchmark::State& state) {
+  const DoaParams params;
+  const ArrayGeometry geometry = testing::tetrahedron(30.0);
+  const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
+  MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
+  std::vector<MicPairSpec> pairs;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j)
+      pairs.push_back({i, j,
+                       (geometry.mics_m[static_cast<std::size_t>(i)] -
+                        geometry.mics_m[static_cast<std::size_t>(j)])
+                               .norm() /
+                           343.0});
+  GccPhat gcc(fft.fft_size(), frame_length, kRate, params.bands_hz, pairs, params.lag_interpolation,
+              params.correlation_oversample);
+  SourceBinMask mask(gcc);
+  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
+  const testing::Recording& audio = scene();
+  for (int c = 0; c < 4; ++c)
+    for (int n = 0; n < frame_length; ++n)
+      channels[static_cast<std::size_t>(c * frame_length + n)] =
+          audio.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
+  fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+  gcc.whiten(fft);
+  gcc.correlate();
+  std::vector<PairTdoa> tdoas(pairs.size());
+  for (int p = 0; p < gcc.pair_count(); ++p)
+    tdoas[static_cast<std::size_t>(p)] = {gcc.pair(p).peak.lag_s, gcc.pair(p).tdoa_variance_s2,
+                                          gcc.pair(p).peak.value, gcc.pair(p).coherence};
+  gcc.save_whitened();
+  const auto stage = state.range(0);
+  if (stage == 4) mask.drop(gcc, tdoas);
+  for (auto _ : state) {
+    if (stage == 0) gcc.whiten(fft);
+    if (stage == 1) gcc.correlate(true);
+    if (stage == 2) gcc.correlate(false);
+    if (stage == 4) gcc.correlate(false);
+    if (stage == 3) {
+      state.PauseTiming();
+      gcc.restore_whitened();
+      state.ResumeTiming();
+      benchmark::DoNotOptimize(mask.drop(gcc, tdoas));
+    }
+    benchmark::ClobberMemory();
+  }
+  if (stage == 3) {
+    gcc.correlate(false);
+    state.counters["kept_share"] = double(gcc.kept_bin_count()) / gcc.band_bin_count();
+  }
+}
+BENCHMARK(BM_PipelineStage)->DenseRange(0, 4)->Unit(benchmark::kMicrosecond);
 
 // Records each benchmark's CPU time per iteration so main() can print the ratio: the median
 // over repetitions when --benchmark_repetitions is given (the machine is shared: single runs

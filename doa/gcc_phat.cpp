@@ -2,8 +2,11 @@
 
 #include <fftw3.h>
 
+#include <Eigen/Core>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -21,6 +24,13 @@ constexpr double kMaxPeakRatio = 100.0;
 // peaks. Such a frame yields no peak. (Ground interferer, A1: 5 % -> 2 % found the drone in 30
 // more frames, same strays; no other bundled scene changes.)
 constexpr double kMinKeptShare = 0.02;
+// The lag grid is summed directly over the kept bins when kept bins x lags is below this times
+// N log2 N of the inverse FFT (N = correlation size); measured with doa_bench's
+// BM_PipelineStage (direct and FFT cost the same at about this ratio on x86-64 with FFTW 3.3).
+constexpr double kDirectProductsPerFftPoint = 0.25;
+// Newton's refinement stops when the lag is known to this (1 ns: TDOA noise is microseconds,
+// the grid step tens of microseconds).
+constexpr double kNewtonResidual_s = 1e-9;
 }  // namespace
 
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
@@ -78,6 +88,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   bin_correlation_ = 1.5 * static_cast<double>(fft_size) / frame_length;
 
   const int top_bin = runs_.back().last_bin;
+  newton_stop_s_ = std::sqrt(kNewtonResidual_s / (0.5 * top_bin * bin_omega_));
   correlation_size_ = 2;
   while (correlation_size_ / 2 <= top_bin) correlation_size_ *= 2;
   correlation_size_ *= oversample;
@@ -124,6 +135,43 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   kept_bins_ = band_bins_;
   kept_sum_omega2_ = sum_omega2_;
 
+  for (const MicPairSpec& pair : pairs_)
+    unit_channels_ = std::max({unit_channels_, pair.mic_i + 1, pair.mic_j + 1});
+  units_.assign(static_cast<std::size_t>(unit_channels_) * static_cast<std::size_t>(band_bins_),
+                {0.0, 0.0});
+  levels_.assign(units_.size(), 0.0);
+  inverse_levels_.assign(static_cast<std::size_t>(band_bins_), 0.0);
+  refined_index_.assign(pairs_.size(), -1);
+  refined_ok_.assign(pairs_.size(), 0);
+  refined_peaks_.assign(pairs_.size(), GccPeak{});
+
+  // The search only reads 2 * half_span + 1 lags of the correlation_size_ points the inverse
+  // FFT makes. When few bins are kept (the re-correlations after a loud source's bins are
+  // dropped: typically 10-30 % of the band) the lags are cheaper summed directly over the kept
+  // bins: per bin one row of cos and one of sin over lags 0..max_half_span, each product used
+  // for +m and -m. Same sums as the inverse FFT, up to rounding. Per frame correlate() takes
+  // the cheaper of the two from the count of kept bins (kDirectCostPerFftPoint, measured).
+  lag_rows_ = max_half_span + 1;
+  const std::size_t row = 2 * static_cast<std::size_t>(lag_rows_);
+  lag_table_.assign(static_cast<std::size_t>(band_bins_) * row, 0.0);
+  std::size_t index = 0;
+  for (const BandRun& run : runs_) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, index += row) {
+      for (int m = 0; m < lag_rows_; ++m) {
+        // Angle 2 pi k m / N reduced exactly in integers: no precision lost at large k m.
+        const auto turns = static_cast<std::int64_t>(k) * m % correlation_size_;
+        const double angle = 2.0 * std::numbers::pi * static_cast<double>(turns) /
+                             static_cast<double>(correlation_size_);
+        lag_table_[index + static_cast<std::size_t>(m)] = std::cos(angle);
+        lag_table_[index + static_cast<std::size_t>(lag_rows_ + m)] = std::sin(angle);
+      }
+    }
+  }
+  kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
+  lag_sums_.assign(pairs_.size() * row, 0.0);
+  max_direct_products_ = kDirectProductsPerFftPoint * correlation_size_ *
+                         std::log2(static_cast<double>(correlation_size_));
+
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
   inverse_->correlation = fftw_alloc_real(static_cast<std::size_t>(correlation_size_));
@@ -135,7 +183,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
 }
 
 GccPhat::~GccPhat() {
-  if (!inverse_) return;
+  if (!inverse_ || inverse_->plan == nullptr) return;
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   if (inverse_->plan != nullptr) fftw_destroy_plan(inverse_->plan);
   fftw_free(inverse_->spectrum);
@@ -165,6 +213,7 @@ void GccPhat::save_whitened() {
 }
 
 void GccPhat::restore_whitened() {
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
   std::copy(saved_phasors_.begin(), saved_phasors_.end(), phasors_.begin());
   std::copy(saved_magnitudes_.begin(), saved_magnitudes_.end(), magnitudes_.begin());
   std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
@@ -176,30 +225,54 @@ void GccPhat::process(const MultichannelFft& spectra) {
 }
 
 void GccPhat::whiten(const MultichannelFft& spectra) {
-  for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    const std::complex<double>* x_i = spectra.spectrum(pairs_[p].mic_i);
-    const std::complex<double>* x_j = spectra.spectrum(pairs_[p].mic_j);
-    std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
-    double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
-    int index = 0;
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
+  // W_ij = X_i X_j* / |X_i X_j*| = (X_i / |X_i|) (X_j / |X_j|)*: each channel is normalised
+  // once (a square root and a division per bin and mic, not per bin and pair), the pairs are
+  // products of unit phasors and |G_ij| = |X_i| |X_j|.
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  for (int mic = 0; mic < unit_channels_; ++mic) {
+    const std::complex<double>* x = spectra.spectrum(mic);
+    double* unit = reinterpret_cast<double*>(units_.data() + static_cast<std::size_t>(mic) * bins);
+    double* level = levels_.data() + static_cast<std::size_t>(mic) * bins;
+    std::size_t index = 0;
     for (const BandRun& run : runs_) {
-      // Real arithmetic, one division per bin: no complex NaN checks, vectorisable.
-      const double* a = reinterpret_cast<const double*>(x_i + run.first_bin);
-      const double* b = reinterpret_cast<const double*>(x_j + run.first_bin);
-      double* out = reinterpret_cast<double*>(phasor + index);
-      double* size_out = magnitude + index;
-      const int bins = run.last_bin - run.first_bin + 1;
-      for (int n = 0; n < bins; ++n) {
-        const double re = a[2 * n] * b[2 * n] + a[2 * n + 1] * b[2 * n + 1];
-        const double im = a[2 * n + 1] * b[2 * n] - a[2 * n] * b[2 * n + 1];
-        const double size = std::sqrt(re * re + im * im);
-        const bool live = size > kSilentBin;
-        const double inverse = live ? 1.0 / size : 0.0;
-        out[2 * n] = re * inverse;
-        out[2 * n + 1] = im * inverse;
-        size_out[n] = live ? size : 0.0;
+      const double* a = reinterpret_cast<const double*>(x + run.first_bin);
+      const int run_bins = run.last_bin - run.first_bin + 1;
+      for (int n = 0; n < run_bins; ++n, ++index)
+        level[index] = a[2 * n] * a[2 * n] + a[2 * n + 1] * a[2 * n + 1];
+    }
+    // Eigen's packet square root and division: std::sqrt per bin stays scalar (errno).
+    Eigen::Map<Eigen::ArrayXd> levels(level, static_cast<Eigen::Index>(bins));
+    levels = levels.sqrt();
+    Eigen::Map<Eigen::ArrayXd> inverse(inverse_levels_.data(), static_cast<Eigen::Index>(bins));
+    inverse = levels.max(std::numeric_limits<double>::min()).inverse();
+    index = 0;
+    for (const BandRun& run : runs_) {
+      // A silent bin (X = 0) gets the unit phasor 0.
+      const double* a = reinterpret_cast<const double*>(x + run.first_bin);
+      const int run_bins = run.last_bin - run.first_bin + 1;
+      for (int n = 0; n < run_bins; ++n, ++index) {
+        unit[2 * index] = a[2 * n] * inverse_levels_[index];
+        unit[2 * index + 1] = a[2 * n + 1] * inverse_levels_[index];
       }
-      index += bins;
+    }
+  }
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
+    const double* a = reinterpret_cast<const double*>(
+        units_.data() + static_cast<std::size_t>(pairs_[p].mic_i) * bins);
+    const double* b = reinterpret_cast<const double*>(
+        units_.data() + static_cast<std::size_t>(pairs_[p].mic_j) * bins);
+    const double* level_i = levels_.data() + static_cast<std::size_t>(pairs_[p].mic_i) * bins;
+    const double* level_j = levels_.data() + static_cast<std::size_t>(pairs_[p].mic_j) * bins;
+    double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
+    double* magnitude = magnitudes_.data() + p * bins;
+    for (std::size_t n = 0; n < bins; ++n) {
+      const double size = level_i[n] * level_j[n];
+      // Below kSilentBin a bin carries no phase: zero weight, as when a channel is silent.
+      const double live = size > kSilentBin ? 1.0 : 0.0;
+      out[2 * n] = live * (a[2 * n] * b[2 * n] + a[2 * n + 1] * b[2 * n + 1]);
+      out[2 * n + 1] = live * (a[2 * n + 1] * b[2 * n] - a[2 * n] * b[2 * n + 1]);
+      magnitude[n] = live * size;
     }
   }
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
@@ -213,6 +286,7 @@ void GccPhat::correlate(bool refine_peaks) {
     for (const BandRun& run : runs_) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         if (keep_[static_cast<std::size_t>(index)] == 0) continue;
+        kept_indices_[static_cast<std::size_t>(kept_bins_)] = index;
         ++kept_bins_;
         kept_sum_omega2_ += (k * bin_omega_) * (k * bin_omega_);
       }
@@ -223,41 +297,32 @@ void GccPhat::correlate(bool refine_peaks) {
     kept_bins_ = std::max(kept_bins_, 1);
     kept_sum_omega2_ = std::max(kept_sum_omega2_, bin_omega_ * bin_omega_);
   }
-  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
-  const double normalisation = 1.0 / (2.0 * kept_bins_);
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
     double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
     double magnitude_sum = 0.0;
-    int index = 0;
-    // c2r transforms destroy their input: clear it for every pair.
-    std::fill_n(inverse_bins, correlation_size_ / 2 + 1, std::complex<double>{0.0, 0.0});
-    for (const BandRun& run : runs_) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
-        if (keep_[static_cast<std::size_t>(index)] == 0) {
-          phasor[index] = {0.0, 0.0};
-          magnitude[index] = 0.0;
-        }
-        magnitude_sum += magnitude[index];
-        inverse_bins[k] = phasor[index];
+    for (int index = 0; index < band_bins_; ++index) {
+      // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
+      if (keep_[static_cast<std::size_t>(index)] == 0) {
+        phasor[index] = {0.0, 0.0};
+        magnitude[index] = 0.0;
       }
+      magnitude_sum += magnitude[index];
     }
     magnitude_sums_[p] = magnitude_sum;
+  }
+  const double normalisation = 1.0 / kept_bins_;
+  const bool direct = static_cast<double>(kept_bins_) * lag_rows_ <= max_direct_products_;
+  if (enough_bins && direct) direct_grids(normalisation);
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
     PairCorrelation& result = results_[p];
-    if (!enough_bins) {
-      result = PairCorrelation{};
-      continue;
-    }
-    fftw_execute(inverse_->plan);
+    result = PairCorrelation{};
+    if (!enough_bins) continue;
     const int half = half_spans_[p];
     double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
-    for (int m = -half; m <= half; ++m) {
-      const int index_circular = m >= 0 ? m : correlation_size_ + m;
-      grid_values[m + half] = inverse_->correlation[index_circular] * normalisation;
-    }
+    if (!direct) inverse_grid(p, normalisation, grid_values);
 
-    result = PairCorrelation{};
     if (!refine_peaks) continue;
     // Highest and second-highest local maxima on the grid.
     int best = -1;
@@ -290,6 +355,59 @@ void GccPhat::correlate(bool refine_peaks) {
                             : kMaxPeakRatio;
     result.coherence = result.peak.coherence;
     result.tdoa_variance_s2 = tdoa_variance_for_peak(result.peak.value);
+  }
+}
+
+void GccPhat::direct_grids(double normalisation) {
+  // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) over the kept
+  // bins; per bin the table rows are read once for every pair.
+  const auto rows = static_cast<std::size_t>(lag_rows_);
+  const std::size_t pairs = pairs_.size();
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  std::fill(lag_sums_.begin(), lag_sums_.end(), 0.0);
+  for (int n = 0; n < kept_bins_; ++n) {
+    const auto index = static_cast<std::size_t>(kept_indices_[static_cast<std::size_t>(n)]);
+    const double* cosines = lag_table_.data() + index * 2 * rows;
+    const double* sines = cosines + rows;
+    for (std::size_t p = 0; p < pairs; ++p) {
+      const std::complex<double> w = phasors_[p * bins + index];
+      const double re = w.real();
+      const double im = w.imag();
+      double* real_sums = lag_sums_.data() + p * 2 * rows;
+      double* imaginary_sums = real_sums + rows;
+      for (std::size_t m = 0; m < rows; ++m) {
+        real_sums[m] += re * cosines[m];
+        imaginary_sums[m] += im * sines[m];
+      }
+    }
+  }
+  for (std::size_t p = 0; p < pairs; ++p) {
+    const int half = half_spans_[p];
+    const double* real_sums = lag_sums_.data() + p * 2 * rows;
+    const double* imaginary_sums = real_sums + rows;
+    double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    for (int m = 0; m <= half; ++m) {
+      grid_values[half + m] = (real_sums[m] - imaginary_sums[m]) * normalisation;
+      grid_values[half - m] = (real_sums[m] + imaginary_sums[m]) * normalisation;
+    }
+  }
+}
+
+void GccPhat::inverse_grid(std::size_t pair, double normalisation, double* grid_values) {
+  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
+  // c2r transforms destroy their input: clear it for every pair.
+  std::fill_n(inverse_bins, correlation_size_ / 2 + 1, std::complex<double>{0.0, 0.0});
+  const std::complex<double>* phasor =
+      phasors_.data() + pair * static_cast<std::size_t>(band_bins_);
+  int index = 0;
+  for (const BandRun& run : runs_)
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) inverse_bins[k] = phasor[index];
+  fftw_execute(inverse_->plan);
+  // The c2r sums both halves of the spectrum: 2 Re(...) per bin.
+  const int half = half_spans_[pair];
+  for (int m = -half; m <= half; ++m) {
+    const int index_circular = m >= 0 ? m : correlation_size_ + m;
+    grid_values[m + half] = inverse_->correlation[index_circular] * 0.5 * normalisation;
   }
 }
 
@@ -346,8 +464,20 @@ double GccPhat::coherence_at(int pair, double lag_s) const {
 
 bool GccPhat::refine(int pair, double start_lag_s, GccPeak& out) const {
   const int m = climb(pair, start_lag_s);
-  return interpolation_ == LagInterpolation::band_limited ? refine_band_limited(pair, m, out)
-                                                          : refine_parabolic(pair, m, out);
+  // The same grid maximum gives the same refined peak: the trackers, the static null and SRP
+  // ask again for peaks correlate() already refined.
+  const auto p = static_cast<std::size_t>(pair);
+  if (refined_index_[p] == m) {
+    out = refined_peaks_[p];
+    return refined_ok_[p] != 0;
+  }
+  const bool ok = interpolation_ == LagInterpolation::band_limited
+                      ? refine_band_limited(pair, m, out)
+                      : refine_parabolic(pair, m, out);
+  refined_index_[p] = m;
+  refined_peaks_[p] = out;
+  refined_ok_[p] = ok ? 1 : 0;
+  return ok;
 }
 
 int GccPhat::climb(int pair, double start_lag_s) const {
@@ -387,14 +517,17 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   const std::complex<double>* phasor = phasors_.data() + offset;
   const double* magnitude = magnitudes_.data() + offset;
   // Newton on R(tau) = sum Re(W_k e^{j w_k tau}): R' = -sum w_k Im(.), R'' = -sum w_k^2 Re(.).
-  // Each pass also yields R and the |G|-weighted sum at the current lag; the last step is below
-  // kConverged_s, where R changes by ~R'' step^2, far below anything that matters.
-  constexpr double kConverged_s = 1e-8;
+  // Each pass also yields R, the |G|-weighted sum and its slope at the current lag. Newton
+  // converges quadratically: after a step delta the lag is off by about |R'''/2R''| delta^2,
+  // ~ (w_top / 2) delta^2. A step below newton_stop_s_ leaves less than kNewtonResidual_s, so
+  // it is the last: R and the weighted sum are carried to the new lag by their Taylor terms
+  // instead of another pass over the band (two passes from the parabola's start, not three).
   for (int iteration = 0; iteration < 6; ++iteration) {
     // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic:
     // half the latency chain through the complex product, no complex-multiply NaN checks.
     double sum0_a = 0.0, sum0_b = 0.0, weighted_a = 0.0, weighted_b = 0.0;
     double sum1_a = 0.0, sum1_b = 0.0, sum2_a = 0.0, sum2_b = 0.0;
+    double slope_a = 0.0, slope_b = 0.0;  // of the weighted sum
     int index = 0;
     const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
     const std::complex<double> step2 = step * step;
@@ -422,6 +555,8 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
         weighted_b += magnitude[index + 1] * tb_re;
         sum1_a -= omega_a * ta_im;
         sum1_b -= omega_b * tb_im;
+        slope_a -= omega_a * magnitude[index] * ta_im;
+        slope_b -= omega_b * magnitude[index + 1] * tb_im;
         sum2_a -= omega_a * omega_a * ta_re;
         sum2_b -= omega_b * omega_b * tb_re;
         const double na_re = a_re * step2_re - a_im * step2_im;
@@ -440,6 +575,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
         sum0_a += ta_re;
         weighted_a += magnitude[index] * ta_re;
         sum1_a -= omega_a * ta_im;
+        slope_a -= omega_a * magnitude[index] * ta_im;
         sum2_a -= omega_a * omega_a * ta_re;
         ++index;
       }
@@ -448,13 +584,16 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
     const double weighted = weighted_a + weighted_b;
     const double sum1 = sum1_a + sum1_b;
     const double sum2 = sum2_a + sum2_b;
+    const double slope = slope_a + slope_b;
     if (!(sum2 < 0.0)) return refine_parabolic(pair, m, out);
     const double delta = std::clamp(-sum1 / sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
     lag += delta;
-    if (std::abs(delta) < kConverged_s || iteration == 5) {
+    if (std::abs(delta) < newton_stop_s_ || iteration == 5) {
       if (std::abs(lag - grid_lag_s) > 1.5 * lag_step_s_) return false;
       const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-      out = {lag, sum0 / kept_bins_, total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0};
+      const double value = sum0 + sum1 * delta + 0.5 * sum2 * delta * delta;
+      const double coherent = weighted + slope * delta;
+      out = {lag, value / kept_bins_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
       return true;
     }
   }

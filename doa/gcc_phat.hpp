@@ -9,6 +9,8 @@
 // then maximises the continuous band-limited correlation R(tau) = sum_k Re(W_k e^{j w_k tau})
 // directly (Newton steps on the band bins): no interpolation bias at all. Parabolic
 // interpolation on the grid is kept for comparison (tests/doa/gcc_phat_test.cpp measures both).
+// Only the lags within the physical limit are used: when few bins are kept (a louder source's
+// bins dropped) they are summed directly over those bins, which is then cheaper than the FFT.
 //
 // Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
 // of X_i X_j* peaks there.
@@ -107,7 +109,9 @@ class GccPhat {
   // Continuous band-limited correlation at any lag.
   double value_at(int pair, double lag_s) const;
   // Climbs the grid from `start_lag_s` to a local maximum and refines it (Newton on the
-  // continuous correlation, or parabolic on the grid, per the interpolation chosen).
+  // continuous correlation, or parabolic on the grid, per the interpolation chosen). The last
+  // answer per pair is kept until the next whiten()/correlate()/restore_whitened(): asking
+  // again for a peak already refined (trackers, static null, SRP) costs a grid climb.
   bool refine(int pair, double start_lag_s, GccPeak& out) const;
   // Local maxima on the grid, highest first, at most out.size(); returns how many.
   int top_peaks(int pair, std::span<GccPeak> out) const;
@@ -127,6 +131,8 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
+  void direct_grids(double normalisation);
+  void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
 
   double sample_rate_hz_;
   int fft_size_;
@@ -139,6 +145,7 @@ class GccPhat {
   int kept_bins_ = 0;
   double kept_sum_omega2_ = 0.0;
   std::vector<std::uint8_t> keep_;  // per band bin
+  double newton_stop_s_ = 0.0;      // a Newton step below this is the last (refine_band_limited)
   double bin_correlation_ = 1.0;    // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
@@ -150,6 +157,11 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
+  // whiten(): per mic over the band bins, X / |X| and |X|.
+  int unit_channels_ = 0;
+  std::vector<std::complex<double>> units_;
+  std::vector<double> levels_;
+  std::vector<double> inverse_levels_;               // scratch, one mic
   std::vector<std::complex<double>> saved_phasors_;  // save_whitened()
   std::vector<double> saved_magnitudes_;
   std::vector<std::uint8_t> saved_keep_;
@@ -157,7 +169,18 @@ class GccPhat {
   double kernel_step_s_ = 0.0;
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
   int grid_stride_ = 0;
+  // Lag grid summed directly over the kept bins (direct_grids) or by the inverse FFT.
+  int lag_rows_ = 0;                  // lags 0..max half span
+  std::vector<double> lag_table_;     // per band bin: cos, then sin, of w_k m lag_step, per lag m
+  std::vector<int> kept_indices_;     // band indices of the kept bins (correlate())
+  std::vector<double> lag_sums_;      // per pair: sums with cos, then with sin, per lag
+  double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
   std::unique_ptr<Inverse> inverse_;
+  // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid
+  // change. Makes refine() not safe to call concurrently on one GccPhat.
+  mutable std::vector<int> refined_index_;
+  mutable std::vector<GccPeak> refined_peaks_;
+  mutable std::vector<std::uint8_t> refined_ok_;
 };
 
 }  // namespace dronetrack::doa

@@ -25,7 +25,6 @@ class SourceBinMask {
 
  private:
   double threshold_;
-  std::vector<double> scores_;  // per band bin
 };
 
 }  // namespace dronetrack::doa
