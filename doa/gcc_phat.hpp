@@ -157,9 +157,10 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
-  // whiten(): per mic over the band bins, X / |X| and |X|.
+  // whiten(): per mic over the band bins, X / |X| (real and imaginary rows) and |X|.
   int unit_channels_ = 0;
-  std::vector<std::complex<double>> units_;
+  std::vector<double> unit_re_;
+  std::vector<double> unit_im_;
   std::vector<double> levels_;
   std::vector<double> inverse_levels_;               // scratch, one mic
   std::vector<std::complex<double>> saved_phasors_;  // save_whitened()
