@@ -173,6 +173,27 @@ void BM_PipelineStage(benchmark::State& state) {
 }
 BENCHMARK(BM_PipelineStage)->DenseRange(0, 4)->Unit(benchmark::kMicrosecond);
 
+// The framer alone: one hop of interleaved audio in (deinterleaving, level, clipping and
+// NaN checks), frames out to a callback that does nothing.
+void BM_Framer(benchmark::State& state) {
+  const DoaParams params;
+  const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
+  const int hop = static_cast<int>(params.hop_s * kRate + 0.5);
+  Framer framer(4, frame_length, hop);
+  const testing::Recording& audio = scene();
+  std::size_t next = 0;
+  std::int64_t frames = 0;
+  for (auto _ : state) {
+    if (next + static_cast<std::size_t>(hop) > audio.frames()) next = 0;
+    AudioBlockView block = audio.view(next, static_cast<std::size_t>(hop));
+    block.first_sample = static_cast<std::int64_t>(next);
+    framer.push(block, [&](const FrameView& frame) { frames += frame.length > 0 ? 1 : 0; });
+    next += static_cast<std::size_t>(hop);
+  }
+  benchmark::DoNotOptimize(frames);
+}
+BENCHMARK(BM_Framer)->Unit(benchmark::kMicrosecond);
+
 // Records each benchmark's CPU time per iteration so main() can print the ratio: the median
 // over repetitions when --benchmark_repetitions is given (the machine is shared: single runs
 // are noisy), else the one run.

@@ -171,10 +171,11 @@ class GccPhat {
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
   int grid_stride_ = 0;
   // Lag grid summed directly over the kept bins (direct_grids) or by the inverse FFT.
-  int lag_rows_ = 0;                  // lags 0..max half span
-  std::vector<double> lag_table_;     // per band bin: cos, then sin, of w_k m lag_step, per lag m
+  int lag_rows_ = 0;    // lags 0..max half span
+  int lag_stride_ = 0;  // lag_rows_ rounded up to whole blocks
+  // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
+  std::vector<double> lag_table_;
   std::vector<int> kept_indices_;     // band indices of the kept bins (correlate())
-  std::vector<double> lag_sums_;      // per pair: sums with cos, then with sin, per lag
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
   std::unique_ptr<Inverse> inverse_;
   // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid

@@ -6,6 +6,7 @@
 // on average over the pairs (mean of Re(W_p e^{j w tau_p}) >= threshold) is that source's; the
 // rest carry the weaker sources and noise. After GccPhat::correlate() the correlations are
 // normalised by the bins kept, so a drone 10 dB below a nearer one still gives a clear peak.
+#include <complex>
 #include <span>
 #include <vector>
 
@@ -25,6 +26,7 @@ class SourceBinMask {
 
  private:
   double threshold_;
+  std::vector<std::complex<double>> zeros_;  // a phasor row for the lane of an odd pair out
 };
 
 }  // namespace dronetrack::doa

@@ -117,6 +117,20 @@ void SrpPhat::group_directions() {
     }
   }
   patch_bounds_.assign(patch_offsets_.size() - 1, 0.0);
+  // Each patch's range maximum per pair is the larger of two entries of the sparse table:
+  // their positions are fixed, so they are found once here, not per look.
+  const auto stride = static_cast<std::size_t>(grid_stride_);
+  for (std::size_t at = 0; at < patch_first_.size(); ++at) {
+    const auto p = static_cast<std::size_t>(static_cast<int>(at) % pairs_);
+    const int first = patch_first_[at];
+    const int last = patch_last_[at];
+    const int l = std::bit_width(static_cast<unsigned>(last - first + 1)) - 1;
+    const std::size_t level =
+        (p * static_cast<std::size_t>(range_levels_) + static_cast<std::size_t>(l)) * stride;
+    patch_low_.push_back(static_cast<std::int32_t>(level + static_cast<std::size_t>(first)));
+    patch_high_.push_back(
+        static_cast<std::int32_t>(level + static_cast<std::size_t>(last - (1 << l) + 1)));
+  }
 }
 
 void SrpPhat::build_range_maxima() const {
@@ -216,7 +230,8 @@ bool SrpPhat::strongest(SrpPeak& out, double min_power) const {
     double bound = kBoundMargin;
     for (int p = 0; p < pairs_; ++p) {
       const std::size_t at = g * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
-      bound += range_maximum(p, patch_first_[at], patch_last_[at]);
+      bound += std::max(range_maxima_[static_cast<std::size_t>(patch_low_[at])],
+                        range_maxima_[static_cast<std::size_t>(patch_high_[at])]);
     }
     patch_bounds_[g] = bound;
     if (bound > patch_bounds_[most_promising]) most_promising = g;

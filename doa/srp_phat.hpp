@@ -72,6 +72,9 @@ class SrpPhat {
   std::vector<std::int32_t> patch_members_;
   std::vector<std::int32_t> patch_first_;  // patches x pairs
   std::vector<std::int32_t> patch_last_;   // patches x pairs
+  // patches x pairs: the two range_maxima_ entries whose larger is the range maximum.
+  std::vector<std::int32_t> patch_low_;
+  std::vector<std::int32_t> patch_high_;
   // Sparse table of range maxima of the residual: level l holds max over [m, m + 2^l).
   int range_levels_ = 0;
   mutable std::vector<double> range_maxima_;  // pairs x levels x grid_stride_
