@@ -33,8 +33,8 @@ constexpr double kMinKeptShare = 0.02;
 constexpr double kDirectProductsPerFftPoint = 0.25;
 // Lags per block of direct_grids(): 2 x kLagBlock running sums fit the SIMD registers.
 constexpr int kLagBlock = 8;
-// Newton's refinement stops when the lag is known to this (1 ns: TDOA noise is microseconds,
-// the grid step tens of microseconds).
+// The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
+// microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
 // |X|^2 -> |X| in place, and 1 / |X|. Square roots and divisions dominated whitening (one
 // each per bin and mic, ~20 cycles per pair of them): 1/sqrt(x) instead starts from the
@@ -123,7 +123,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   bin_correlation_ = 1.5 * static_cast<double>(fft_size) / frame_length;
 
   const int top_bin = runs_.back().last_bin;
-  newton_stop_s_ = std::sqrt(kNewtonResidual_s / (0.5 * top_bin * bin_omega_));
   correlation_size_ = 2;
   while (correlation_size_ / 2 <= top_bin) correlation_size_ *= 2;
   correlation_size_ *= oversample;
@@ -341,18 +340,22 @@ void GccPhat::correlate(bool refine_peaks) {
   // Locals, not the members, carry the sums: no store-to-load chain per bin.
   int kept = 0;
   double sum_omega2 = 0.0;
+  double sum_omega4 = 0.0;
   {
     int index = 0;
     for (const BandRun& run : runs_) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         if (keep_[static_cast<std::size_t>(index)] == 0) continue;
         kept_indices_[static_cast<std::size_t>(kept++)] = index;
-        sum_omega2 += (k * bin_omega_) * (k * bin_omega_);
+        const double omega2 = (k * bin_omega_) * (k * bin_omega_);
+        sum_omega2 += omega2;
+        sum_omega4 += omega2 * omega2;
       }
     }
   }
   kept_bins_ = kept;
   kept_sum_omega2_ = sum_omega2;
+  taylor_bound_ = runs_.back().last_bin * bin_omega_ * sum_omega4;
   const bool enough_bins = kept_bins_ >= std::max(1.0, kMinKeptShare * band_bins_);
   if (!enough_bins) {
     kept_bins_ = std::max(kept_bins_, 1);
@@ -588,17 +591,19 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
   const std::complex<double>* phasor = phasors_.data() + offset;
   const double* magnitude = magnitudes_.data() + offset;
-  // Newton on R(tau) = sum Re(W_k e^{j w_k tau}): R' = -sum w_k Im(.), R'' = -sum w_k^2 Re(.).
-  // Each pass also yields R, the |G|-weighted sum and its slope at the current lag. Newton
-  // converges quadratically: after a step delta the lag is off by about |R'''/2R''| delta^2,
-  // ~ (w_top / 2) delta^2. A step below newton_stop_s_ leaves less than kNewtonResidual_s, so
-  // it is the last: R and the weighted sum are carried to the new lag by their Taylor terms
-  // instead of another pass over the band (two passes from the parabola's start, not three).
+  // R(tau) = sum Re(W_k e^{j w_k tau}); its n-th derivative is sum w_k^n Re(j^n W_k e^{..}).
+  // One pass over the band gives R and its first four derivatives at the current lag (and the
+  // |G|-weighted sum with two), i.e. R's Taylor polynomial; the peak of that polynomial is
+  // found without touching the band again. The polynomial's R' is off by at most
+  // |R^(5)| d^4 / 24 <= w_top sum_kept w^4 d^4 / 24 (|W_k| <= 1), so the peak by that over R'':
+  // below kNewtonResidual_s the pass was the last (from the parabola's start, typically the
+  // first), else the next pass starts from there.
   for (int iteration = 0; iteration < 6; ++iteration) {
     // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic,
     // as the two lanes of one vector: half the latency chain through the complex product, two
     // bins per instruction, no complex-multiply NaN checks.
     Lanes sum0{0.0, 0.0}, weighted{0.0, 0.0}, sum1{0.0, 0.0}, sum2{0.0, 0.0}, slope{0.0, 0.0};
+    Lanes sum3{0.0, 0.0}, sum4{0.0, 0.0}, bend{0.0, 0.0};  // bend: of the weighted sum
     int index = 0;
     const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
     const std::complex<double> step2 = step * step;
@@ -619,11 +624,15 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
         const Lanes size{magnitude[index], magnitude[index + 1]};
         const Lanes t_re = w_re * rotation_re - w_im * rotation_im;
         const Lanes t_im = w_re * rotation_im + w_im * rotation_re;
+        const Lanes omega2 = omega * omega;
         sum0 += t_re;
         weighted += size * t_re;
         sum1 -= omega * t_im;
         slope -= omega * size * t_im;
-        sum2 -= omega * omega * t_re;
+        sum2 -= omega2 * t_re;
+        bend -= omega2 * size * t_re;
+        sum3 += omega2 * omega * t_im;
+        sum4 += omega2 * omega2 * t_re;
         const Lanes next_re = rotation_re * step2_re - rotation_im * step2_im;
         rotation_im = rotation_re * step2_im + rotation_im * step2_re;
         rotation_re = next_re;
@@ -634,28 +643,48 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
         const double w_re = phasor[index].real(), w_im = phasor[index].imag();
         const double t_re = w_re * rotation_re[0] - w_im * rotation_im[0];
         const double t_im = w_re * rotation_im[0] + w_im * rotation_re[0];
+        const double omega2 = omega[0] * omega[0];
         sum0[0] += t_re;
         weighted[0] += magnitude[index] * t_re;
         sum1[0] -= omega[0] * t_im;
         slope[0] -= omega[0] * magnitude[index] * t_im;
-        sum2[0] -= omega[0] * omega[0] * t_re;
+        sum2[0] -= omega2 * t_re;
+        bend[0] -= omega2 * magnitude[index] * t_re;
+        sum3[0] += omega2 * omega[0] * t_im;
+        sum4[0] += omega2 * omega2 * t_re;
         ++index;
       }
     }
-    const double total_sum0 = sum0[0] + sum0[1];
-    const double total_weighted = weighted[0] + weighted[1];
-    const double total_sum1 = sum1[0] + sum1[1];
-    const double total_sum2 = sum2[0] + sum2[1];
-    const double total_slope = slope[0] + slope[1];
-    if (!(total_sum2 < 0.0)) return refine_parabolic(pair, m, out);
-    const double delta =
-        std::clamp(-total_sum1 / total_sum2, -0.5 * lag_step_s_, 0.5 * lag_step_s_);
+    const double r0 = sum0[0] + sum0[1];
+    const double r1 = sum1[0] + sum1[1];
+    const double r2 = sum2[0] + sum2[1];
+    const double r3 = sum3[0] + sum3[1];
+    const double r4 = sum4[0] + sum4[1];
+    if (!(r2 < 0.0)) return refine_parabolic(pair, m, out);
+    // Newton on the polynomial's R' = r1 + r2 d + r3 d^2/2 + r4 d^3/6, from the plain step.
+    const double reach = 0.5 * lag_step_s_;
+    double delta = std::clamp(-r1 / r2, -reach, reach);
+    double curvature = r2;
+    for (int polish = 0; polish < 4; ++polish) {
+      const double slope_at = r1 + delta * (r2 + delta * (0.5 * r3 + delta * r4 / 6.0));
+      curvature = r2 + delta * (r3 + 0.5 * delta * r4);
+      if (!(curvature < 0.0)) {
+        curvature = r2;
+        delta = std::clamp(-r1 / r2, -reach, reach);
+        break;
+      }
+      delta = std::clamp(delta - slope_at / curvature, -reach, reach);
+    }
+    const double delta2 = delta * delta;
+    const double residual_s = taylor_bound_ * delta2 * delta2 / (24.0 * std::abs(curvature));
     lag += delta;
-    if (std::abs(delta) < newton_stop_s_ || iteration == 5) {
+    if (residual_s < kNewtonResidual_s || iteration == 5) {
       if (std::abs(lag - grid_lag_s) > 1.5 * lag_step_s_) return false;
       const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-      const double value = total_sum0 + total_sum1 * delta + 0.5 * total_sum2 * delta * delta;
-      const double coherent = total_weighted + total_slope * delta;
+      const double value =
+          r0 + delta * (r1 + delta * (0.5 * r2 + delta * (r3 / 6.0 + delta * r4 / 24.0)));
+      const double coherent = (weighted[0] + weighted[1]) + delta * (slope[0] + slope[1]) +
+                              0.5 * delta2 * (bend[0] + bend[1]);
       out = {lag, value / kept_bins_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
       return true;
     }

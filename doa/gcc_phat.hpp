@@ -145,7 +145,7 @@ class GccPhat {
   int kept_bins_ = 0;
   double kept_sum_omega2_ = 0.0;
   std::vector<std::uint8_t> keep_;  // per band bin
-  double newton_stop_s_ = 0.0;      // a Newton step below this is the last (refine_band_limited)
+  double taylor_bound_ = 0.0;       // w_top sum_kept w^4: bounds the fifth derivative of R
   double bin_correlation_ = 1.0;    // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
