@@ -162,8 +162,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   phasors_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), {0.0, 0.0});
   magnitudes_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0);
   magnitude_sums_.assign(pairs_.size(), 0.0);
-  saved_phasors_.assign(phasors_.size(), {0.0, 0.0});
-  saved_magnitudes_.assign(magnitudes_.size(), 0.0);
   keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   saved_keep_.assign(keep_.size(), 1);
   kept_bins_ = band_bins_;
@@ -241,17 +239,15 @@ std::span<const double> GccPhat::magnitudes(int pair) const {
           static_cast<std::size_t>(band_bins_)};
 }
 
-void GccPhat::save_whitened() {
-  std::copy(phasors_.begin(), phasors_.end(), saved_phasors_.begin());
-  std::copy(magnitudes_.begin(), magnitudes_.end(), saved_magnitudes_.begin());
-  std::copy(keep_.begin(), keep_.end(), saved_keep_.begin());
-}
+void GccPhat::save_whitened() { std::copy(keep_.begin(), keep_.end(), saved_keep_.begin()); }
 
 void GccPhat::restore_whitened() {
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
-  std::copy(saved_phasors_.begin(), saved_phasors_.end(), phasors_.begin());
-  std::copy(saved_magnitudes_.begin(), saved_magnitudes_.end(), magnitudes_.begin());
   std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
+  // The frame's per-mic units and levels are still here: the pairs' phasors and magnitudes
+  // are made again exactly as whiten() made them, the saved mask's dropped bins zero (as
+  // correlate() had left them), instead of keeping a copy of every pair's band.
+  pair_phasors(true);
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -288,6 +284,14 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       unit_im[index] *= inverse_levels_[index];
     }
   }
+  pair_phasors(false);
+  std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
+}
+
+void GccPhat::pair_phasors(bool masked) {
+  // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
+  // dropped in keep_ zero.
+  const auto bins = static_cast<std::size_t>(band_bins_);
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     const std::size_t row_i = static_cast<std::size_t>(pairs_[p].mic_i) * bins;
     const std::size_t row_j = static_cast<std::size_t>(pairs_[p].mic_j) * bins;
@@ -315,7 +319,8 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       std::memcpy(&li, level_i + n, sizeof li);
       std::memcpy(&lj, level_j + n, sizeof lj);
       const Lanes size = li * lj;
-      const Lanes live = size > silent ? one : zero;
+      Lanes live = size > silent ? one : zero;
+      if (masked) live *= Lanes{static_cast<double>(keep_[n]), static_cast<double>(keep_[n + 1])};
       const Lanes re = (ar * br + ai * bi) * live;
       const Lanes im = (ai * br - ar * bi) * live;
       const Lanes first{re[0], im[0]};
@@ -327,13 +332,13 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     }
     for (; n < bins; ++n) {
       const double size = level_i[n] * level_j[n];
-      const double live = size > kSilentBin ? 1.0 : 0.0;
+      const double live =
+          (size > kSilentBin ? 1.0 : 0.0) * (masked ? static_cast<double>(keep_[n]) : 1.0);
       out[2 * n] = live * (a_re[n] * b_re[n] + a_im[n] * b_im[n]);
       out[2 * n + 1] = live * (a_im[n] * b_re[n] - a_re[n] * b_im[n]);
       magnitude[n] = live * size;
     }
   }
-  std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
 }
 
 void GccPhat::correlate(bool refine_peaks) {

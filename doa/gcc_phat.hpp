@@ -88,8 +88,9 @@ class GccPhat {
   std::span<std::uint8_t> bin_keep() { return keep_; }
   // Band bins kept in the last correlate().
   int kept_bin_count() const { return kept_bins_; }
-  // correlate() drops masked bins from the phasors themselves; these keep a copy of the
-  // phasors, magnitudes and mask to correlate the same frame again under another mask
+  // correlate() drops masked bins from the phasors themselves; these return to the phasors,
+  // magnitudes and mask as they were at save_whitened() (the mask is kept, the phasors made
+  // again from the frame's per-mic units) to correlate the same frame under another mask
   // (several sources: each measured without the others' bins).
   void save_whitened();
   void restore_whitened();
@@ -131,6 +132,7 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
+  void pair_phasors(bool masked);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
 
@@ -162,11 +164,9 @@ class GccPhat {
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
   std::vector<double> levels_;
-  std::vector<double> inverse_levels_;               // scratch, one mic
-  std::vector<std::complex<double>> saved_phasors_;  // save_whitened()
-  std::vector<double> saved_magnitudes_;
-  std::vector<std::uint8_t> saved_keep_;
-  std::vector<double> kernel_table_;  // phat_kernel at multiples of kernel_step_s_ from 0
+  std::vector<double> inverse_levels_;    // scratch, one mic
+  std::vector<std::uint8_t> saved_keep_;  // save_whitened()
+  std::vector<double> kernel_table_;      // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
   int grid_stride_ = 0;

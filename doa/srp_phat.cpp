@@ -150,16 +150,6 @@ void SrpPhat::build_range_maxima() const {
   range_maxima_stale_ = false;
 }
 
-double SrpPhat::range_maximum(int pair, int first, int last) const {
-  const auto stride = static_cast<std::size_t>(grid_stride_);
-  const int l = std::bit_width(static_cast<unsigned>(last - first + 1)) - 1;
-  const double* level = range_maxima_.data() +
-                        (static_cast<std::size_t>(pair) * static_cast<std::size_t>(range_levels_) +
-                         static_cast<std::size_t>(l)) *
-                            stride;
-  return std::max(level[first], level[last - (1 << l) + 1]);
-}
-
 void SrpPhat::begin_frame(const GccPhat& gcc) {
   range_maxima_stale_ = true;
   for (int p = 0; p < pairs_; ++p) {
@@ -217,13 +207,19 @@ bool SrpPhat::strongest_exhaustive(SrpPeak& out) const {
 bool SrpPhat::strongest(SrpPeak& out) const { return strongest(out, 0.0); }
 
 bool SrpPhat::strongest(SrpPeak& out, double min_power) const {
-  if (range_maxima_stale_) build_range_maxima();
   // Sums over pairs below this cannot reach min_power (the margin covers rounding).
   const double floor_sum = min_power * pairs_ - kBoundMargin;
+  // Every pair's highest value anywhere, straight from the residual: when even their sum
+  // cannot reach the floor (a look after the sources are found, usually), the range-maximum
+  // table is not built at all.
   double everywhere_bound = kBoundMargin;
-  for (int p = 0; p < pairs_; ++p)
-    everywhere_bound += range_maximum(p, 0, grid_last_[static_cast<std::size_t>(p)]);
+  for (int p = 0; p < pairs_; ++p) {
+    const double* residual = residual_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
+    everywhere_bound +=
+        *std::max_element(residual, residual + grid_last_[static_cast<std::size_t>(p)] + 1);
+  }
   if (everywhere_bound < floor_sum || !(everywhere_bound > 0.0)) return false;
+  if (range_maxima_stale_) build_range_maxima();
   const std::size_t patches = patch_bounds_.size();
   std::size_t most_promising = 0;
   for (std::size_t g = 0; g < patches; ++g) {

@@ -55,7 +55,6 @@ class SrpPhat {
   void group_directions();
   double power_sum(std::size_t direction) const;  // sum over pairs of the interpolated residual
   void build_range_maxima() const;
-  double range_maximum(int pair, int first, int last) const;  // over grid indices [first, last]
 
   const LsDoaSolver* solver_;
   int pairs_;
