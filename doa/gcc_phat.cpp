@@ -183,28 +183,35 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   // dropped: typically 10-30 % of the band) the lags are cheaper summed directly over the kept
   // bins: per bin one row of cos and one of sin over lags 0..max_half_span, each product used
   // for +m and -m. Same sums as the inverse FFT, up to rounding. Per frame correlate() takes
-  // the cheaper of the two from the count of kept bins (kDirectCostPerFftPoint, measured).
+  // the cheaper of the two from the count of kept bins (kDirectProductsPerFftPoint, measured).
   lag_rows_ = max_half_span + 1;
   lag_stride_ = (lag_rows_ + kLagBlock - 1) / kLagBlock * kLagBlock;  // whole blocks, zeros after
-  const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);
-  lag_table_.assign(static_cast<std::size_t>(band_bins_) * row, 0.0);
-  std::size_t index = 0;
-  for (const BandRun& run : runs_) {
-    for (int k = run.first_bin; k <= run.last_bin; ++k, index += row) {
-      for (int m = 0; m < lag_rows_; ++m) {
-        // Angle 2 pi k m / N reduced exactly in integers: no precision lost at large k m.
-        const auto turns = static_cast<std::int64_t>(k) * m % correlation_size_;
-        const double angle = 2.0 * std::numbers::pi * static_cast<double>(turns) /
-                             static_cast<double>(correlation_size_);
-        lag_table_[index + static_cast<std::size_t>(m)] = std::cos(angle);
-        lag_table_[index + static_cast<std::size_t>(lag_stride_ + m)] = std::sin(angle);
-      }
-    }
-  }
-  kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
   max_direct_products_ = kDirectProductsPerFftPoint * correlation_size_ *
                          std::log2(static_cast<double>(correlation_size_));
-
+  // No table when too few kept bins to correlate at all would already cost more than the FFT.
+  if (max_direct_products_ / lag_rows_ >= std::max(1.0, kMinKeptShare * band_bins_)) {
+    const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);
+    lag_table_.assign(static_cast<std::size_t>(band_bins_) * row, 0.0);
+    // Angles 2 pi k m / N are multiples of 2 pi / N: reduced exactly in integers and looked up.
+    std::vector<std::complex<double>> circle(static_cast<std::size_t>(correlation_size_));
+    for (int n = 0; n < correlation_size_; ++n)
+      circle[static_cast<std::size_t>(n)] =
+          std::polar(1.0, 2.0 * std::numbers::pi * n / correlation_size_);
+    std::size_t index = 0;
+    for (const BandRun& run : runs_) {
+      for (int k = run.first_bin; k <= run.last_bin; ++k, index += row) {
+        for (int m = 0; m < lag_rows_; ++m) {
+          const std::complex<double> turn = circle[static_cast<std::size_t>(
+              static_cast<std::int64_t>(k) * m % correlation_size_)];
+          lag_table_[index + static_cast<std::size_t>(m)] = turn.real();
+          lag_table_[index + static_cast<std::size_t>(lag_stride_ + m)] = turn.imag();
+        }
+      }
+    }
+  } else {
+    max_direct_products_ = 0.0;
+  }
+  kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
   inverse_->correlation = fftw_alloc_real(static_cast<std::size_t>(correlation_size_));
