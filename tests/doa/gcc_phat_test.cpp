@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <span>
 #include <vector>
 
 #include "doa/spectral_frame.hpp"
@@ -139,6 +140,64 @@ TEST(GccPhat, NoisyDelayStaysWithinItsPredictedSpread) {
               1e6 * std::sqrt(sum_squares / kTrials), 1e6 * std::sqrt(predicted / kTrials));
   EXPECT_GT(ratio, 0.3);
   EXPECT_LT(ratio, 2.5);
+}
+
+// The lag grid is the continuous correlation at the grid lags, however it is computed: by the
+// inverse FFT (every bin kept) or by direct sums over the kept bins (few kept, as after a loud
+// source's bins are dropped). A refined peak asked for again is the same peak.
+TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
+  const int length = 2 * 8192;
+  const testing::BandNoise first(length, kRate, 1500.0, 3500.0, 11);
+  const testing::BandNoise second(length, kRate, 1500.0, 3500.0, 12);
+  testing::Recording recording = testing::silent_recording(3, length);
+  recording.add(0, first.delayed(3.3 / kRate, 0.1));
+  recording.add(1, first.delayed(0.0, 0.1));
+  recording.add(2, first.delayed(-5.7 / kRate, 0.1));
+  recording.add(0, second.delayed(-2.0 / kRate, 0.05));
+  recording.add(2, second.delayed(1.5 / kRate, 0.05));
+  testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, 13);
+  Framer framer(3, kFrame, kFrame);
+  MultichannelFft fft(3, kFrame, fftw_friendly_size(kFrame));
+  const double max_lag_s = 0.8 / 343.0;
+  GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}},
+              {{0, 1, max_lag_s}, {0, 2, max_lag_s}, {1, 2, max_lag_s}});
+  bool done = false;
+  framer.push(recording.view(2000, kFrame), [&](const FrameView& frame) {
+    fft.process(frame);
+    gcc.whiten(fft);
+    done = true;
+  });
+  ASSERT_TRUE(done);
+  auto check_grid = [&](const char* what) {
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const std::span<const double> values = gcc.grid(p);
+      const int half = gcc.half_span(p);
+      for (int m = -half; m <= half; ++m)
+        EXPECT_NEAR(values[static_cast<std::size_t>(m + half)],
+                    gcc.value_at(p, m * gcc.lag_step_s()), 1e-12)
+            << what << " pair " << p << " lag index " << m;
+    }
+  };
+  gcc.save_whitened();
+  gcc.correlate();  // every bin: inverse FFT
+  check_grid("all bins kept");
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    GccPeak again;
+    ASSERT_TRUE(gcc.refine(p, gcc.pair(p).peak.lag_s, again));
+    EXPECT_EQ(again.lag_s, gcc.pair(p).peak.lag_s);
+    EXPECT_EQ(again.value, gcc.pair(p).peak.value);
+  }
+  // Every seventh bin kept (14 %): direct sums.
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 7 == 0 ? 1 : 0;
+  gcc.correlate(false);
+  EXPECT_LT(gcc.kept_bin_count(), gcc.band_bin_count() / 5);
+  check_grid("few bins kept");
+  // Back to the saved whitening: the same grid and peaks as the first time.
+  gcc.restore_whitened();
+  gcc.correlate();
+  EXPECT_EQ(gcc.kept_bin_count(), gcc.band_bin_count());
+  check_grid("restored");
 }
 
 TEST(BandRuns, MergesBandsAndRejectsEmpty) {
