@@ -1,6 +1,7 @@
 #include "fusion/fusion_engine.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -116,9 +117,14 @@ TEST(FusionEngine, TracksOneDroneAccurately) {
 TEST(FusionEngine, EveryFilterKindTracks) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = line({-60, -30, 35}, {8, 3, 0.5});
-  for (FilterKind kind : {FilterKind::ukf_seed002, FilterKind::ekf, FilterKind::particle}) {
+  for (int variant = 0; variant < 6; ++variant) {
+    // Variants 3-5: the IMM with and without the coordinated-turn mode (the other default).
+    const FilterKind kind =
+        std::array{FilterKind::ukf_seed002, FilterKind::ekf,         FilterKind::particle,
+                   FilterKind::ukf,         FilterKind::ukf_seed002, FilterKind::ekf}[variant];
     FusionParams params;
     params.filter = kind;
+    if (variant >= 3) params.imm_turn_mode = !FusionParams{}.imm_turn_mode;
     const RunResult result = run(params, arrays, {drone}, 10.0, {0.5, true});
     double error2 = 0.0;
     int count = 0;
@@ -525,6 +531,14 @@ TEST(FusionEngine, ConstructorNamesTheBadParameter) {
   }
   EXPECT_THROW(FusionEngine(FusionParams{}, {arrays[0]}, kSpeed), std::invalid_argument);
   EXPECT_THROW(FusionEngine(FusionParams{}, arrays, 0.0), std::invalid_argument);
+  FusionParams turn;
+  turn.imm_turn_rate_std_radps2 = {1.0, 0.0};
+  try {
+    FusionEngine engine(turn, arrays, kSpeed);
+    FAIL() << "accepted a zero turn-rate noise level";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("imm_turn_rate_std_radps2"), std::string::npos);
+  }
 }
 
 }  // namespace
