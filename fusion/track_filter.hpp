@@ -58,7 +58,7 @@ struct FilterSettings {
   // rad/s^2), each with the isotropic jerk std imm_turn_jerk_std_mps3. Empty: no turn mode.
   // The IMM runs when jerk levels + turn levels >= 2.
   std::vector<double> imm_turn_rate_std_radps2;
-  double imm_turn_jerk_std_mps3 = 0.5;
+  double imm_turn_jerk_std_mps3 = 0.2;
 };
 
 class TrackFilter {

@@ -349,7 +349,8 @@ TEST(TrackFilter, CoordinatedTurnModeImprovesTheImmInTheTurn) {
   // The cruise-turn-cruise path seen by two arrays only (A1, A2), as on the seed-002 site.
   const std::vector<double> jerk_levels{0.2, 3.0, 30.0};
   const SwitchingResult without = run_switching(FilterKind::ukf, jerk_levels, 12, {}, 2);
-  const SwitchingResult with = run_switching(FilterKind::ukf, jerk_levels, 12, {1.0, 10.0}, 2);
+  const SwitchingResult with =
+      run_switching(FilterKind::ukf, jerk_levels, 12, FusionParams{}.imm_turn_rate_std_radps2, 2);
   EXPECT_LT(with.rmse_manoeuvre_m, 0.9 * without.rmse_manoeuvre_m);
   EXPECT_LT(with.rmse_cruise_m, 1.1 * without.rmse_cruise_m);
   EXPECT_LT(with.mean_position_nees_turn, 3.0 * 3.0);
@@ -398,7 +399,7 @@ double circle_rmse(FilterKind kind, const std::vector<double>& turn_levels) {
 TEST(TrackFilter, CoordinatedTurnModeTracksACircleBetter) {
   for (FilterKind kind : {FilterKind::ukf, FilterKind::ekf, FilterKind::ukf_seed002}) {
     const double without = circle_rmse(kind, {});
-    const double with = circle_rmse(kind, {1.0});
+    const double with = circle_rmse(kind, FusionParams{}.imm_turn_rate_std_radps2);
     EXPECT_LT(with, 0.8 * without) << static_cast<int>(kind);
   }
 }
@@ -416,7 +417,7 @@ TEST(TrackFilter, StaysFiniteAndPositiveDefiniteThroughGapsAndOutliers) {
     FilterSettings settings;
     settings.particle_count = 500;
     if (variant >= 4) settings.imm_jerk_std_mps3 = {0.2, 3.0, 30.0};
-    if (variant >= 7) settings.imm_turn_rate_std_radps2 = {1.0};
+    if (variant >= 7) settings.imm_turn_rate_std_radps2 = {0.5, 3.0, 20.0};
     auto filter = make_track_filter(kind, settings);
     StateVector start = StateVector::Zero();
     start.segment<3>(StateBlock::position) << 40, 50, 20;
