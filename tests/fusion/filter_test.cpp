@@ -351,7 +351,8 @@ TEST(TrackFilter, CoordinatedTurnModeImprovesTheImmInTheTurn) {
   const SwitchingResult without = run_switching(FilterKind::ukf, jerk_levels, 12, {}, 2);
   const SwitchingResult with =
       run_switching(FilterKind::ukf, jerk_levels, 12, FusionParams{}.imm_turn_rate_std_radps2, 2);
-  EXPECT_LT(with.rmse_manoeuvre_m, 0.9 * without.rmse_manoeuvre_m);
+  // Measured: turn 0.90 -> 0.51 m, cruise 0.49 -> 0.52 m.
+  EXPECT_LT(with.rmse_manoeuvre_m, 0.7 * without.rmse_manoeuvre_m);
   EXPECT_LT(with.rmse_cruise_m, 1.1 * without.rmse_cruise_m);
   EXPECT_LT(with.mean_position_nees_turn, 3.0 * 3.0);
   EXPECT_GT(with.quiet_probability_cruise, 0.7);
@@ -400,7 +401,7 @@ TEST(TrackFilter, CoordinatedTurnModeTracksACircleBetter) {
   for (FilterKind kind : {FilterKind::ukf, FilterKind::ekf, FilterKind::ukf_seed002}) {
     const double without = circle_rmse(kind, {});
     const double with = circle_rmse(kind, FusionParams{}.imm_turn_rate_std_radps2);
-    EXPECT_LT(with, 0.8 * without) << static_cast<int>(kind);
+    EXPECT_LT(with, 0.5 * without) << static_cast<int>(kind);  // measured 0.85 -> 0.27-0.29 m
   }
 }
 
