@@ -13,10 +13,14 @@ namespace dronetrack::fusion {
 namespace {
 
 // One asynchronous DOA step: predict 50 ms, innovation from one of three arrays, update.
-void filter_update(benchmark::State& state, FilterKind kind) {
+// imm: 0 single model, 1 the IMM over three jerk levels, 2 the same plus three
+// coordinated-turn modes.
+void filter_update(benchmark::State& state, FilterKind kind, int imm = 0) {
   FilterSettings settings;
   settings.motion.jerk_variance_m2ps6 = 9.0;
   settings.particle_count = 1000;
+  if (imm >= 1) settings.imm_jerk_std_mps3 = {0.2, 3.0, 30.0};
+  if (imm >= 2) settings.imm_turn_rate_std_radps2 = {0.5, 3.0, 20.0};
   auto filter = make_track_filter(kind, settings);
   StateVector mean = StateVector::Zero();
   mean.segment<3>(StateBlock::position) << 40, 60, 30;
@@ -46,7 +50,11 @@ void BM_UkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::uk
 void BM_UkfSeed002Update(benchmark::State& state) { filter_update(state, FilterKind::ukf_seed002); }
 void BM_EkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ekf); }
 void BM_ParticleUpdate(benchmark::State& state) { filter_update(state, FilterKind::particle); }
+void BM_ImmUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 1); }
+void BM_ImmTurnUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 2); }
 BENCHMARK(BM_UkfUpdate);
+BENCHMARK(BM_ImmUkfUpdate);
+BENCHMARK(BM_ImmTurnUkfUpdate);
 BENCHMARK(BM_UkfSeed002Update);
 BENCHMARK(BM_EkfUpdate);
 BENCHMARK(BM_ParticleUpdate);
@@ -61,7 +69,10 @@ doa::ArrayGeometry tetrahedron(const char* id, Eigen::Vector3d position) {
 }
 
 // Whole engine: four arrays each reporting one drone every 50 ms (80 DOAs/s of scene time).
+// Argument: imm_turn_mode off (0) or on (1), the rest default.
 void BM_EngineFourArrays(benchmark::State& state) {
+  FusionParams params;
+  params.imm_turn_mode = state.range(0) != 0;
   const std::vector<doa::ArrayGeometry> arrays{
       tetrahedron("N1", {-100, -100, 2}), tetrahedron("N2", {100, -100, 2}),
       tetrahedron("N3", {100, 100, 2}), tetrahedron("N4", {-100, 100, 2})};
@@ -84,7 +95,7 @@ void BM_EngineFourArrays(benchmark::State& state) {
   }
   std::vector<TrackReport> tracks;
   for (auto _ : state) {
-    FusionEngine engine(FusionParams{}, arrays, 343.0);
+    FusionEngine engine(params, arrays, 343.0);
     for (const auto& m : doas) {
       engine.add(m);
       engine.advance_to(m.time_s);
@@ -94,7 +105,7 @@ void BM_EngineFourArrays(benchmark::State& state) {
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * doas.size()));
 }
-BENCHMARK(BM_EngineFourArrays)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EngineFourArrays)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace dronetrack::fusion

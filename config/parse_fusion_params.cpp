@@ -71,6 +71,24 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
     if (ok) params.imm_jerk_std_mps3 = *levels;
   }
   params.imm_sojourn_s = section.number("imm_sojourn_s", params.imm_sojourn_s, 0.01, 1e4);
+  params.imm_turn_mode = section.boolean("imm_turn_mode", params.imm_turn_mode);
+  if (auto levels = section.numbers("imm_turn_rate_std_radps2", 0, false)) {
+    bool ok = levels->size() <= 4;
+    if (!ok) {
+      section.diagnostics().error(section.path_of("imm_turn_rate_std_radps2"), "at most 4 levels");
+    }
+    for (std::size_t i = 0; i < levels->size() && ok; ++i) {
+      if (!((*levels)[i] > 0.0 && (*levels)[i] <= 1e3)) {
+        section.diagnostics().error(
+            section.path_of("imm_turn_rate_std_radps2") + "[" + std::to_string(i) + "]",
+            "must be in (0, 1000]");
+        ok = false;
+      }
+    }
+    if (ok) params.imm_turn_rate_std_radps2 = *levels;
+  }
+  params.imm_turn_jerk_std_mps3 =
+      section.number("imm_turn_jerk_std_mps3", params.imm_turn_jerk_std_mps3, 1e-6, 1e4);
   params.doa_error_correlation_s =
       section.number("doa_error_correlation_s", params.doa_error_correlation_s, 0.0, 60.0);
   params.ground_altitude_m =

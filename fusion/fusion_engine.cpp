@@ -192,6 +192,11 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
     check(level > 0.0 && std::isfinite(level), "imm_jerk_std_mps3", "levels must be > 0");
   }
   check(params.imm_sojourn_s > 0.0, "imm_sojourn_s", "must be > 0");
+  for (double level : params.imm_turn_rate_std_radps2) {
+    check(level > 0.0 && std::isfinite(level), "imm_turn_rate_std_radps2", "levels must be > 0");
+  }
+  check(params.imm_turn_jerk_std_mps3 > 0.0 && std::isfinite(params.imm_turn_jerk_std_mps3),
+        "imm_turn_jerk_std_mps3", "must be > 0");
   check(params.doa_error_correlation_s >= 0.0, "doa_error_correlation_s", "must be >= 0");
   check(std::isfinite(params.ground_altitude_m), "ground_altitude_m", "must be finite");
   if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
@@ -219,6 +224,10 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
     s.filter_settings.motion.jerk_variance_m2ps6 = std::pow(params.imm_jerk_std_mps3[0], 2);
   }
   s.filter_settings.imm_sojourn_s = params.imm_sojourn_s;
+  if (params.imm_turn_mode) {
+    s.filter_settings.imm_turn_rate_std_radps2 = params.imm_turn_rate_std_radps2;
+  }
+  s.filter_settings.imm_turn_jerk_std_mps3 = params.imm_turn_jerk_std_mps3;
   s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);

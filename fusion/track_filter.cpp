@@ -33,7 +33,18 @@ class GaussianFilter : public TrackFilter {
     covariance_ = covariance;
     symmetrise(covariance_);
   }
-  void predict(double dt_s) override { settings_.motion.predict(mean_, covariance_, dt_s); }
+  void predict(double dt_s) override {
+    if (dt_s == 0.0) return;
+    if (settings_.motion_kind == MotionKind::constant_jerk) {
+      settings_.motion.predict(mean_, covariance_, dt_s);
+      return;
+    }
+    predict_nonlinear(dt_s);
+    // A linearised or sampled covariance over a long gap can lose definiteness to round-off:
+    // repair it here (eigenvalue clamp) so every mode hands the mixing a valid covariance.
+    StateCovariance lower;
+    robust_cholesky(covariance_, lower);
+  }
   FilterStatus update(const Innovation& innovation, const Measurement& z) override {
     if (!valid_innovation_covariance(innovation.covariance) || !z.allFinite()) {
       return FilterStatus::failed;
@@ -54,6 +65,18 @@ class GaussianFilter : public TrackFilter {
   const StateCovariance& covariance() const override { return covariance_; }
 
  protected:
+  // Coordinated turn, linearised (EKF): F = numerical Jacobian at the mean.
+  virtual void predict_nonlinear(double dt_s) {
+    const StateCovariance f = settings_.turn.jacobian(mean_, dt_s);
+    const StateCovariance q = settings_.turn.process_noise(mean_, dt_s);
+    const StateVector mean = settings_.turn.propagate(mean_, dt_s);
+    StateCovariance covariance = f * covariance_ * f.transpose() + q;
+    symmetrise(covariance);
+    if (!mean.allFinite() || !covariance.allFinite()) return;  // keep the previous state
+    mean_ = mean;
+    covariance_ = covariance;
+  }
+
   FilterSettings settings_;
   StateVector mean_ = StateVector::Zero();
   StateCovariance covariance_ = StateCovariance::Identity();
@@ -116,6 +139,32 @@ class UnscentedFilter final : public GaussianFilter {
     }
     out = {z_hat, s, cross, noise, &model};
     return factor_status;
+  }
+
+ protected:
+  // Coordinated turn through the sigma points: f applied to each, weighted moments, + Q.
+  void predict_nonlinear(double dt_s) override {
+    StateCovariance lower;
+    if (robust_cholesky(covariance_, lower) == FilterStatus::failed) return;
+    constexpr int kPoints = 2 * kStateSize + 1;
+    Eigen::Matrix<double, kStateSize, kPoints> points;
+    points.col(0) = settings_.turn.propagate(mean_, dt_s);
+    for (int i = 0; i < kStateSize; ++i) {
+      points.col(1 + i) = settings_.turn.propagate(mean_ + spread_ * lower.col(i), dt_s);
+      points.col(1 + kStateSize + i) =
+          settings_.turn.propagate(mean_ - spread_ * lower.col(i), dt_s);
+    }
+    StateVector mean = weight_mean0_ * points.col(0);
+    for (int i = 1; i < kPoints; ++i) mean += weight_i_ * points.col(i);
+    StateCovariance covariance = settings_.turn.process_noise(mean_, dt_s);
+    for (int i = 0; i < kPoints; ++i) {
+      const StateVector d = points.col(i) - mean;
+      covariance.noalias() += (i == 0 ? weight_cov0_ : weight_i_) * d * d.transpose();
+    }
+    symmetrise(covariance);
+    if (!mean.allFinite() || !covariance.allFinite()) return;  // keep the previous state
+    mean_ = mean;
+    covariance_ = covariance;
   }
 
  private:
@@ -291,7 +340,8 @@ class ParticleFilter final : public TrackFilter {
 };
 
 // Interacting multiple model (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan ch. 11.6):
-// one Gaussian filter per jerk level on the same 9-state model. A drone cruising in gusts has a
+// one Gaussian filter per jerk level on the same 9-state model, plus optional coordinated-turn
+// modes (CoordinatedTurnModel, same state). A drone cruising in gusts has a
 // jerk of a fraction of a m/s^3, one entering a tight turn tens of m/s^3: one fixed q either
 // follows every wiggle of correlated DOA noise on the straight or lags in the turn. Each predict
 // mixes the models' estimates through a Markov chain whose switching probability grows with the
@@ -302,11 +352,23 @@ class InteractingFilter final : public TrackFilter {
   using Factory = std::unique_ptr<TrackFilter> (*)(FilterKind, const FilterSettings&);
   InteractingFilter(FilterKind kind, const FilterSettings& settings, Factory make)
       : sojourn_s_(settings.imm_sojourn_s) {
-    const std::size_t count = settings.imm_jerk_std_mps3.size();
+    const std::size_t count =
+        settings.imm_jerk_std_mps3.size() + settings.imm_turn_rate_std_radps2.size();
+    models_.reserve(count);
+    FilterSettings single = settings;
+    single.imm_jerk_std_mps3.clear();
+    single.imm_turn_rate_std_radps2.clear();
     for (double jerk_std : settings.imm_jerk_std_mps3) {
-      FilterSettings single = settings;
-      single.imm_jerk_std_mps3.clear();
+      single.motion_kind = MotionKind::constant_jerk;
       single.motion.jerk_variance_m2ps6 = jerk_std * jerk_std;
+      models_.push_back(make(kind, single));
+    }
+    // Coordinated-turn modes after the jerk levels (mode 0 stays the quietest jerk level).
+    for (double turn_rate_std : settings.imm_turn_rate_std_radps2) {
+      single.motion_kind = MotionKind::coordinated_turn;
+      single.turn.jerk_variance_m2ps6 =
+          settings.imm_turn_jerk_std_mps3 * settings.imm_turn_jerk_std_mps3;
+      single.turn.turn_rate_variance_rad2ps4 = turn_rate_std * turn_rate_std;
       models_.push_back(make(kind, single));
     }
     probability_.assign(count, 1.0 / static_cast<double>(count));
@@ -470,6 +532,11 @@ class InteractingFilter final : public TrackFilter {
       covariance_ += probability_[j] * (models_[j]->covariance() + d * d.transpose());
     }
     symmetrise(covariance_);
+    // A mixture of positive-definite covariances is positive definite, but not always in
+    // floating point when one mode has run far off (spread of 1e16 through a gap of wild DOAs):
+    // clamp then (a no-op otherwise).
+    StateCovariance lower;
+    robust_cholesky(covariance_, lower);
   }
 
   double sojourn_s_;
@@ -543,7 +610,9 @@ std::unique_ptr<TrackFilter> make_single_filter(FilterKind kind, const FilterSet
 
 std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
   // The particle filter samples one jerk level; the IMM mixes Gaussian filters only.
-  if (settings.imm_jerk_std_mps3.size() >= 2 && kind != FilterKind::particle) {
+  const std::size_t modes =
+      settings.imm_jerk_std_mps3.size() + settings.imm_turn_rate_std_radps2.size();
+  if (modes >= 2 && kind != FilterKind::particle) {
     return std::make_unique<InteractingFilter>(kind, settings, &make_single_filter);
   }
   return make_single_filter(kind, settings);

@@ -4,10 +4,12 @@
 //   ukf_seed002  the seed's UKF, n + kappa = 3 (negative centre weight), for comparison
 //   ekf          extended KF, numerical Jacobian of the same h(x)
 //   particle     bootstrap particle filter, robust likelihood (seeds 001/004)
-// The motion model is linear, so the Gaussian filters predict exactly with F and Q; they differ
-// in how they push the covariance through the nonlinear DOA model. The update is split in two
-// so the tracker can gate and assign on the innovation before committing it. Nothing allocates
-// per measurement (fixed-size Eigen; particles are allocated once, at construction).
+// The constant-jerk model is linear, so the Gaussian filters predict exactly with F and Q; they
+// differ in how they push the covariance through the nonlinear DOA model (and through the
+// nonlinear coordinated-turn model, an IMM mode: UKF sigma points, EKF numerical Jacobian). The
+// update is split in two so the tracker can gate and assign on the innovation before committing it.
+// Nothing allocates per measurement (fixed-size Eigen; particles are allocated once, at
+// construction).
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -35,8 +37,13 @@ struct Innovation {
   double mahalanobis2(const Measurement& z) const;
 };
 
+// Which motion model a single Gaussian filter predicts with.
+enum class MotionKind : std::uint8_t { constant_jerk, coordinated_turn };
+
 struct FilterSettings {
   ConstantJerkModel motion;
+  MotionKind motion_kind = MotionKind::constant_jerk;
+  CoordinatedTurnModel turn;  // motion_kind == coordinated_turn (Gaussian filters only)
   double ukf_alpha = 1.0;
   double ukf_beta = 2.0;
   double ukf_kappa = 0.0;
@@ -47,6 +54,11 @@ struct FilterSettings {
   // (Blom & Bar-Shalom); `motion` is then unused. A mode is kept for imm_sojourn_s on average.
   std::vector<double> imm_jerk_std_mps3;
   double imm_sojourn_s = 2.0;
+  // Coordinated-turn modes added to the IMM, one per turn-rate noise level (std of omega',
+  // rad/s^2), each with the isotropic jerk std imm_turn_jerk_std_mps3. Empty: no turn mode.
+  // The IMM runs when jerk levels + turn levels >= 2.
+  std::vector<double> imm_turn_rate_std_radps2;
+  double imm_turn_jerk_std_mps3 = 0.2;
 };
 
 class TrackFilter {

@@ -202,6 +202,20 @@ TEST(SiteConfig, ProcessingSectionsValidated) {
   EXPECT_TRUE(has("fusion.confirm_hits: must not exceed confirm_window"));
 }
 
+TEST(SiteConfig, TurnModeKeysParseAndValidate) {
+  json site = two_array_site();
+  site["fusion"] = {{"imm_turn_mode", true},
+                    {"imm_turn_rate_std_radps2", {0.5, 20}},
+                    {"imm_turn_jerk_std_mps3", 0.2}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  EXPECT_TRUE(parsed.fusion.imm_turn_mode);
+  EXPECT_EQ(parsed.fusion.imm_turn_rate_std_radps2, (std::vector<double>{0.5, 20}));
+  EXPECT_DOUBLE_EQ(parsed.fusion.imm_turn_jerk_std_mps3, 0.2);
+  site["fusion"]["imm_turn_rate_std_radps2"] = {1, -2};
+  expect_problem(site, "fusion.imm_turn_rate_std_radps2[1]: must be in (0, 1000]");
+}
+
 TEST(SiteConfig, ZonesParseAndValidate) {
   json site = two_array_site();
   site["zones"] = {

@@ -1,6 +1,7 @@
 #include "fusion/fusion_engine.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -116,9 +117,14 @@ TEST(FusionEngine, TracksOneDroneAccurately) {
 TEST(FusionEngine, EveryFilterKindTracks) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = line({-60, -30, 35}, {8, 3, 0.5});
-  for (FilterKind kind : {FilterKind::ukf_seed002, FilterKind::ekf, FilterKind::particle}) {
+  for (int variant = 0; variant < 6; ++variant) {
+    // Variants 3-5: the IMM with and without the coordinated-turn mode (the other default).
+    const FilterKind kind =
+        std::array{FilterKind::ukf_seed002, FilterKind::ekf,         FilterKind::particle,
+                   FilterKind::ukf,         FilterKind::ukf_seed002, FilterKind::ekf}[variant];
     FusionParams params;
     params.filter = kind;
+    if (variant >= 3) params.imm_turn_mode = !FusionParams{}.imm_turn_mode;
     const RunResult result = run(params, arrays, {drone}, 10.0, {0.5, true});
     double error2 = 0.0;
     int count = 0;
@@ -138,10 +144,11 @@ TEST(FusionEngine, EveryFilterKindTracks) {
 // correlated errors (AR(1) here, integrated correlation time 0.3 s at 20 DOAs/s). Fed as
 // independent, 20 DOAs/s look like 6x more information than they hold and the track's covariance
 // is overconfident; scaled by the effective sample size (doa_error_correlation_s) it is honest.
-double position_nees_with_correlated_doas(double correlation_s) {
+double position_nees_with_correlated_doas(double correlation_s, bool turn_mode) {
   const auto arrays = square_site(100.0);
   const Trajectory drone = line({-60, -30, 35}, {8, 3, 0.5});
   FusionParams params;
+  params.imm_turn_mode = turn_mode;
   params.doa_noise_floor_deg = 0.0;
   params.doa_error_correlation_s = correlation_s;
   FusionEngine engine(params, arrays, kSpeed);
@@ -184,12 +191,19 @@ double position_nees_with_correlated_doas(double correlation_s) {
 }
 
 TEST(FusionEngine, CorrelatedDoaErrorsScaledByEffectiveSampleSizeGiveAnHonestCovariance) {
-  const double independent = position_nees_with_correlated_doas(0.0);
-  const double scaled = position_nees_with_correlated_doas(0.3);
-  // Position NEES of a consistent filter averages 3 (three dof).
+  // The jerk levels alone, then with the coordinated-turn modes (default).
+  const double independent = position_nees_with_correlated_doas(0.0, false);
+  const double scaled = position_nees_with_correlated_doas(0.3, false);
+  const double turn_independent = position_nees_with_correlated_doas(0.0, true);
+  const double turn_scaled = position_nees_with_correlated_doas(0.3, true);
+  // Position NEES of a consistent filter averages 3 (three dof). Measured: 5.47 / 1.55 (jerk
+  // levels only), 5.49 / 1.49 with the turn modes (six modes mixed: a little more spread).
   EXPECT_GT(scaled, 3.0 * 0.5);
   EXPECT_LT(scaled, 3.0 * 1.6);
   EXPECT_GT(independent, 2.0 * scaled);
+  EXPECT_GT(turn_scaled, 3.0 * 0.45);
+  EXPECT_LT(turn_scaled, 3.0 * 1.6);
+  EXPECT_GT(turn_independent, 2.0 * turn_scaled);
 }
 
 // Sound from 300 m takes ~0.9 s; a drone at 15 m/s has moved ~13 m by then.
@@ -525,6 +539,14 @@ TEST(FusionEngine, ConstructorNamesTheBadParameter) {
   }
   EXPECT_THROW(FusionEngine(FusionParams{}, {arrays[0]}, kSpeed), std::invalid_argument);
   EXPECT_THROW(FusionEngine(FusionParams{}, arrays, 0.0), std::invalid_argument);
+  FusionParams turn;
+  turn.imm_turn_rate_std_radps2 = {1.0, 0.0};
+  try {
+    FusionEngine engine(turn, arrays, kSpeed);
+    FAIL() << "accepted a zero turn-rate noise level";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("imm_turn_rate_std_radps2"), std::string::npos);
+  }
 }
 
 }  // namespace
