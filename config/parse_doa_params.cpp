@@ -69,6 +69,10 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("srp_min_power_sigmas", params.srp_min_power_sigmas, 0.0, 100.0);
   params.min_elevation_deg =
       section.number("min_elevation_deg", params.min_elevation_deg, -90.0, 90.0);
+  params.snr_weighting = section.boolean("snr_weighting", params.snr_weighting);
+  params.snr_noise_rise_db_per_s =
+      section.number("snr_noise_rise_db_per_s", params.snr_noise_rise_db_per_s, 0.01, 100.0);
+  params.snr_weight_floor = section.number("snr_weight_floor", params.snr_weight_floor, 0.0, 1.0);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

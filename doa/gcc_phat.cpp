@@ -27,6 +27,8 @@ constexpr double kMaxPeakRatio = 100.0;
 // peaks. Such a frame yields no peak. (Ground interferer, A1: 5 % -> 2 % found the drone in 30
 // more frames, same strays; no other bundled scene changes.)
 constexpr double kMinKeptShare = 0.02;
+// Smallest bin weight: a weighted phasor can be scaled back to plain PHAT (1 / w) exactly.
+constexpr double kMinWeight = 1e-3;
 // The lag grid is summed directly over the kept bins when kept bins x lags is below this times
 // N log2 N of the inverse FFT (N = correlation size); measured with doa_bench's
 // BM_PipelineStage (direct and FFT cost the same at about this ratio on x86-64 with FFTW 3.3).
@@ -165,7 +167,11 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   saved_keep_.assign(keep_.size(), 1);
   kept_bins_ = band_bins_;
+  kept_weight_ = band_bins_;
+  effective_bins_ = band_bins_;
   kept_sum_omega2_ = sum_omega2_;
+  kept_sum_w2_omega2_ = sum_omega2_;
+  weights_.assign(static_cast<std::size_t>(band_bins_), 1.0);
 
   for (const MicPairSpec& pair : pairs_)
     unit_channels_ = std::max({unit_channels_, pair.mic_i + 1, pair.mic_j + 1});
@@ -298,6 +304,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
 void GccPhat::pair_phasors(bool masked) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
   // dropped in keep_ zero.
+  weights_applied_ = false;
   const auto bins = static_cast<std::size_t>(band_bins_);
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     const std::size_t row_i = static_cast<std::size_t>(pairs_[p].mic_i) * bins;
@@ -348,10 +355,17 @@ void GccPhat::pair_phasors(bool masked) {
   }
 }
 
-void GccPhat::correlate(bool refine_peaks) {
+void GccPhat::correlate(bool refine_peaks, bool weighted) {
+  // The phasors carry the weights of the last weighted correlate() until whiten() or
+  // restore_whitened() makes them again: a change of mind scales each bin by w or 1 / w.
+  const bool rescale = weighted != weights_applied_;
+  for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
   // Locals, not the members, carry the sums: no store-to-load chain per bin.
   int kept = 0;
+  double sum_w = 0.0;
+  double sum_w2 = 0.0;
   double sum_omega2 = 0.0;
+  double sum_w2_omega2 = 0.0;
   double sum_omega4 = 0.0;
   {
     int index = 0;
@@ -359,19 +373,31 @@ void GccPhat::correlate(bool refine_peaks) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         if (keep_[static_cast<std::size_t>(index)] == 0) continue;
         kept_indices_[static_cast<std::size_t>(kept++)] = index;
+        const double w = weighted ? weights_[static_cast<std::size_t>(index)] : 1.0;
         const double omega2 = (k * bin_omega_) * (k * bin_omega_);
-        sum_omega2 += omega2;
+        sum_w += w;
+        sum_w2 += w * w;
+        sum_omega2 += w * omega2;
+        sum_w2_omega2 += w * w * omega2;
         sum_omega4 += omega2 * omega2;
       }
     }
   }
   kept_bins_ = kept;
+  kept_weight_ = sum_w;
   kept_sum_omega2_ = sum_omega2;
+  kept_sum_w2_omega2_ = sum_w2_omega2;
+  // An upper bound either way: weights are at most 1.
   taylor_bound_ = runs_.back().last_bin * bin_omega_ * sum_omega4;
-  const bool enough_bins = kept_bins_ >= std::max(1.0, kMinKeptShare * band_bins_);
+  const double effective = sum_w2 > 0.0 ? sum_w * sum_w / sum_w2 : 0.0;
+  effective_bins_ = static_cast<int>(effective + 0.5);
+  const bool enough_bins = effective >= std::max(1.0, kMinKeptShare * band_bins_);
   if (!enough_bins) {
     kept_bins_ = std::max(kept_bins_, 1);
+    effective_bins_ = std::max(effective_bins_, 1);
+    kept_weight_ = std::max(kept_weight_, 1.0);
     kept_sum_omega2_ = std::max(kept_sum_omega2_, bin_omega_ * bin_omega_);
+    kept_sum_w2_omega2_ = std::max(kept_sum_w2_omega2_, bin_omega_ * bin_omega_);
   }
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   const bool all_kept = kept == band_bins_;
@@ -381,21 +407,30 @@ void GccPhat::correlate(bool refine_peaks) {
     // Four partial sums: one would make every bin wait for the previous addition.
     double sums[4] = {0.0, 0.0, 0.0, 0.0};
     int index = 0;
-    if (!all_kept) {
+    if (!all_kept || rescale) {
       // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
       // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite).
       for (; index < band_bins_; ++index) {
-        const double factor = keep_[static_cast<std::size_t>(index)];
-        phasor[index] *= factor;
-        magnitude[index] *= factor;
+        const double keep = keep_[static_cast<std::size_t>(index)];
+        const double w = weights_[static_cast<std::size_t>(index)];
+        const double scale = !rescale ? 1.0 : weighted ? w : 1.0 / w;
+        phasor[index] *= keep * scale;
+        magnitude[index] *= keep;
       }
     }
-    for (index = 0; index + 4 <= band_bins_; index += 4)
-      for (int lane = 0; lane < 4; ++lane) sums[lane] += magnitude[index + lane];
-    for (; index < band_bins_; ++index) sums[0] += magnitude[index];
+    // Coherence: the magnitude-weighted correlation over the same weights.
+    if (weighted) {
+      for (index = 0; index < band_bins_; ++index)
+        sums[index & 3] += magnitude[index] * weights_[static_cast<std::size_t>(index)];
+    } else {
+      for (index = 0; index + 4 <= band_bins_; index += 4)
+        for (int lane = 0; lane < 4; ++lane) sums[lane] += magnitude[index + lane];
+      for (; index < band_bins_; ++index) sums[0] += magnitude[index];
+    }
     magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
   }
-  const double normalisation = 1.0 / kept_bins_;
+  weights_applied_ = weighted;
+  const double normalisation = 1.0 / kept_weight_;
   const bool direct = static_cast<double>(kept_bins_) * lag_rows_ <= max_direct_products_;
   if (enough_bins && direct) direct_grids(normalisation);
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
@@ -504,7 +539,10 @@ double GccPhat::tdoa_variance_for_peak(double peak_value) const {
   // variance sigma_phi^2 / sum w_k^2, times the number of bins sharing one independent phase.
   const double rho = std::clamp(peak_value, 0.02, 0.999);
   const double phase_variance = -2.0 * std::log(rho);
-  return bin_correlation_ * phase_variance / kept_sum_omega2_;
+  // Weighted: the phase slope through the origin has variance
+  // sigma^2 sum w^2 w_k^2 / (sum w w_k^2)^2 (sigma^2 / sum w_k^2 when every w is 1).
+  return bin_correlation_ * phase_variance * kept_sum_w2_omega2_ /
+         (kept_sum_omega2_ * kept_sum_omega2_);
 }
 
 double GccPhat::phat_kernel(double offset_s) const {
@@ -528,7 +566,7 @@ double GccPhat::value_at(int pair, double lag_s) const {
       rotation *= step;
     }
   }
-  return sum / kept_bins_;
+  return sum / kept_weight_;
 }
 
 double GccPhat::coherence_at(int pair, double lag_s) const {
@@ -697,7 +735,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
           r0 + delta * (r1 + delta * (0.5 * r2 + delta * (r3 / 6.0 + delta * r4 / 24.0)));
       const double coherent = (weighted[0] + weighted[1]) + delta * (slope[0] + slope[1]) +
                               0.5 * delta2 * (bend[0] + bend[1]);
-      out = {lag, value / kept_bins_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
+      out = {lag, value / kept_weight_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
       return true;
     }
   }
@@ -736,7 +774,7 @@ void GccPhat::evaluate(int pair, double lag_s, double& value, double& coherence)
       rotation *= step;
     }
   }
-  value = sum / kept_bins_;
+  value = sum / kept_weight_;
   const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
   coherence = total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0;
 }

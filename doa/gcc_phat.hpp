@@ -73,8 +73,10 @@ class GccPhat {
   // bins kept and runs the inverse FFTs and peak refinement.
   void whiten(const MultichannelFft& spectra);
   // refine_peaks false: the lag grid only (pair() results left empty), for a correlation that
-  // is only searched (SRP) and refined where asked (refine()).
-  void correlate(bool refine_peaks = true);
+  // is only searched (SRP) and refined where asked (refine()). weighted: the phasors carry
+  // bin_weight() (normalised by the weights' sum); false: every kept bin counts the same
+  // (plain PHAT).
+  void correlate(bool refine_peaks = true, bool weighted = true);
 
   // The band's bins, in the order of phasors()/bin_keep(): runs of FFT bins, ascending.
   const std::vector<BandRun>& band() const { return runs_; }
@@ -86,8 +88,19 @@ class GccPhat {
   std::span<const double> magnitudes(int pair) const;
   // 1 = bin used by correlate(), 0 = dropped for every pair. whiten() sets all to 1.
   std::span<std::uint8_t> bin_keep() { return keep_; }
-  // Band bins kept in the last correlate().
-  int kept_bin_count() const { return kept_bins_; }
+  // Per band bin weight in (0, 1] (order of bin_keep()) that a weighted correlate() puts on the
+  // phasors: an SNR weight (BinSnrWeight) so bins with only noise do not dilute the correlation.
+  // All 1 (plain PHAT) unless set; kept across frames. Set them while the phasors are plain:
+  // after whiten(), restore_whitened() or an unweighted correlate().
+  std::span<double> bin_weight() { return weights_; }
+  // What each band bin's phasors are scaled by now: its weight after a weighted correlate(),
+  // else 1 (SourceBinMask judges phases, whatever the weight).
+  double phasor_scale(int band_index) const {
+    return weights_applied_ ? weights_[static_cast<std::size_t>(band_index)] : 1.0;
+  }
+  // Effective number of band bins in the last correlate(): (sum w)^2 / sum w^2 over the kept
+  // bins (the kept-bin count when unweighted).
+  int kept_bin_count() const { return effective_bins_; }
   // correlate() drops masked bins from the phasors themselves; these return to the phasors,
   // magnitudes and mask as they were at save_whitened() (the mask is kept, the phasors made
   // again from the frame's per-mic units) to correlate the same frame under another mask
@@ -145,10 +158,15 @@ class GccPhat {
   // This frame's kept bins (all band bins unless a mask dropped some): normalisation of the
   // correlation and the TDOA variance.
   int kept_bins_ = 0;
-  double kept_sum_omega2_ = 0.0;
-  std::vector<std::uint8_t> keep_;  // per band bin
-  double taylor_bound_ = 0.0;       // w_top sum_kept w^4: bounds the fifth derivative of R
-  double bin_correlation_ = 1.0;    // how many bins share one independent phase (window, padding)
+  double kept_weight_ = 0.0;  // sum of the kept bins' weights (kept_bins_ unweighted): R's scale
+  int effective_bins_ = 0;
+  double kept_sum_omega2_ = 0.0;     // sum_kept w w_k^2
+  double kept_sum_w2_omega2_ = 0.0;  // sum_kept w^2 w_k^2
+  std::vector<double> weights_;      // bin_weight()
+  bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
+  std::vector<std::uint8_t> keep_;   // per band bin
+  double taylor_bound_ = 0.0;        // w_top sum_kept w^4: bounds the fifth derivative of R
+  double bin_correlation_ = 1.0;     // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
   std::vector<int> half_spans_;

@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "doa/bin_snr_weight.hpp"
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ls_doa_solver.hpp"
@@ -28,6 +29,9 @@ namespace dronetrack::doa {
 namespace {
 
 constexpr int kMaxSources = 8;
+// With SNR weighting the static null gets its own plain-PHAT look every this many frames
+// (0.2 s at the default hop; it learns over static_null_learn_s = 3 s).
+constexpr std::int64_t kStaticNullLookFrames = 4;
 
 void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
               double speed_of_sound_mps) {
@@ -121,6 +125,10 @@ struct NodePipeline::Impl {
     if (params.static_null && params.static_null_max_sources > 0)
       static_null = std::make_unique<StaticSourceNull>(
           geometry, gcc, static_null_settings(params, tracker_settings.hop_s, speed_of_sound_mps));
+    if (params.snr_weighting)
+      snr_weight =
+          std::make_unique<BinSnrWeight>(gcc.band(), tracker_settings.hop_s,
+                                         params.snr_noise_rise_db_per_s, params.snr_weight_floor);
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
@@ -167,6 +175,7 @@ struct NodePipeline::Impl {
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
+  std::unique_ptr<BinSnrWeight> snr_weight;       // noise-only bins faded
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};
@@ -326,7 +335,9 @@ void NodePipeline::Impl::remeasure_primary() {
 // correlation values, already used, are overwritten).
 void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas) {
   bin_mask.drop(gcc, source_tdoas);
-  gcc.correlate(false);
+  // Further looks in plain PHAT: the SNR weights favour the first source's bins, and SRP's
+  // noise floor is calibrated on equal weights.
+  gcc.correlate(false, false);
 }
 
 // Replaces this frame's per-frame candidates by every tracked source's smoothed estimate for
@@ -371,7 +382,22 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
 
   fft.process(frame);
   gcc.whiten(fft);
+  if (snr_weight) snr_weight->update(fft, gcc.bin_weight());
   if (static_null) static_null->mask(time_s, gcc);
+  const bool frame_clean =
+      frame.non_finite_samples == 0 &&
+      frame.clipped_samples <= static_cast<int>(params.max_clipped_fraction * frame.length);
+  if (static_null && snr_weight && diagnostics.frames_processed % kStaticNullLookFrames == 0) {
+    // The static null learns from plain PHAT peaks: a steady ground source is as steady in power
+    // as the noise floor, so the SNR weights fade it and it would never be the strongest. It
+    // learns over seconds, so a plain look every few frames is enough.
+    gcc.correlate(true, false);
+    double plain_peak_sum = 0.0;
+    for (int p = 0; p < gcc.pair_count(); ++p) plain_peak_sum += gcc.pair(p).peak.value;
+    static_null->observe(time_s, gcc,
+                         frame_clean && plain_peak_sum >= params.min_gcc_peak * gcc.pair_count());
+    diagnostics.static_sources_nulled = static_null->nulled_count();
+  }
   gcc.correlate();
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
@@ -382,15 +408,13 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   DetectionInput detection;
   detection.inband_power = inband_power();
   detection.mean_peak_value = peak_sum / gcc.pair_count();
-  detection.frame_clean =
-      frame.non_finite_samples == 0 &&
-      frame.clipped_samples <= static_cast<int>(params.max_clipped_fraction * frame.length);
+  detection.frame_clean = frame_clean;
   // Sharp correlations on a clean frame: worth tracking and solving. Whether to publish also
   // needs the level over the noise floor, whose update needs the coherent power of every
   // source found, so the gate comes after the candidates.
   const bool sharp = detection.frame_clean && detection.mean_peak_value >= params.min_gcc_peak &&
                      detection.inband_power > 0.0;
-  if (static_null) {
+  if (static_null && !snr_weight) {
     static_null->observe(time_s, gcc, sharp);
     diagnostics.static_sources_nulled = static_null->nulled_count();
   }

@@ -59,7 +59,9 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
         rotation_re[vector] = a_re * step_re[vector] - a_im * step_im[vector];
         rotation_im[vector] = a_re * step_im[vector] + a_im * step_re[vector];
       }
-      if (keep[index] != 0 && scores[0] + scores[1] >= threshold) {
+      // Phases decide: a weighted correlation left its weights on the phasors.
+      const double scale = gcc.phasor_scale(static_cast<int>(index));
+      if (keep[index] != 0 && scores[0] + scores[1] >= threshold * scale) {
         keep[index] = 0;
         ++dropped;
       }
