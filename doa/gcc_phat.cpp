@@ -359,7 +359,9 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
   // The phasors carry the weights of the last weighted correlate() until whiten() or
   // restore_whitened() makes them again: a change of mind scales each bin by w or 1 / w.
   const bool rescale = weighted != weights_applied_;
-  for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
+  // Weights change only on plain phasors (bin_weight()): bounded once, as they go on.
+  if (rescale && weighted)
+    for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
   // Locals, not the members, carry the sums: no store-to-load chain per bin.
   int kept = 0;
   double sum_w = 0.0;
