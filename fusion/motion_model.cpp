@@ -159,16 +159,9 @@ StateCovariance CoordinatedTurnModel::process_noise(const StateVector& x, double
 }
 
 StateCovariance CoordinatedTurnModel::jacobian(const StateVector& x, double dt_s) const {
-  StateCovariance f;
-  for (int i = 0; i < kStateSize; ++i) {
-    const double step = 1e-5 * (1.0 + std::abs(x(i)));
-    StateVector plus = x;
-    StateVector minus = x;
-    plus(i) += step;
-    minus(i) -= step;
-    f.col(i) = (propagate(plus, dt_s) - propagate(minus, dt_s)) / (2.0 * step);
-  }
-  return f;
+  return central_difference_jacobian<kStateSize>(
+      x, [&](const StateVector& state) { return propagate(state, dt_s); },
+      [](const StateVector& a, const StateVector& b) { return StateVector(a - b); });
 }
 
 }  // namespace dronetrack::fusion

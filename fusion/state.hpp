@@ -1,6 +1,8 @@
 #pragma once
 // The 9-state constant-jerk track state (SPEC 4.5, seed 002 eqs. 14-18), in the order TrackReport
 // uses: [px py pz vx vy vz ax ay az]. Blocks are named so no code indexes a bare number.
+#include <cmath>
+
 #include <Eigen/Core>
 
 namespace dronetrack::fusion {
@@ -29,6 +31,25 @@ inline Eigen::Vector3d velocity_of(const StateVector& x) {
 }
 inline Eigen::Vector3d acceleration_of(const StateVector& x) {
   return x.segment<3>(StateBlock::acceleration);
+}
+
+// Jacobian of f at x by central differences (step 1e-5 (1 + |x_i|) per state), for the EKF's
+// measurement model and the turn model's transition. `difference(a, b)` is a - b in f's space
+// (wrapped for angles).
+template <int Rows, class Function, class Difference>
+Eigen::Matrix<double, Rows, kStateSize> central_difference_jacobian(const StateVector& x,
+                                                                    Function&& f,
+                                                                    Difference&& difference) {
+  Eigen::Matrix<double, Rows, kStateSize> jacobian;
+  for (int i = 0; i < kStateSize; ++i) {
+    const double step = 1e-5 * (1.0 + std::abs(x(i)));
+    StateVector plus = x;
+    StateVector minus = x;
+    plus(i) += step;
+    minus(i) -= step;
+    jacobian.col(i) = difference(f(plus), f(minus)) / (2.0 * step);
+  }
+  return jacobian;
 }
 
 }  // namespace dronetrack::fusion

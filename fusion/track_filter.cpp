@@ -182,15 +182,10 @@ class ExtendedFilter final : public GaussianFilter {
   FilterStatus innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
                           Innovation& out) override {
     const Measurement z_hat = model.predict(mean_);
-    Eigen::Matrix<double, kMeasurementSize, kStateSize> jacobian;
-    for (int i = 0; i < kStateSize; ++i) {
-      const double step = 1e-5 * (1.0 + std::abs(mean_(i)));
-      StateVector plus = mean_;
-      StateVector minus = mean_;
-      plus(i) += step;
-      minus(i) -= step;
-      jacobian.col(i) = azel_residual(model.predict(plus), model.predict(minus)) / (2.0 * step);
-    }
+    const Eigen::Matrix<double, kMeasurementSize, kStateSize> jacobian =
+        central_difference_jacobian<kMeasurementSize>(
+            mean_, [&](const StateVector& state) { return model.predict(state); },
+            [](const Measurement& a, const Measurement& b) { return azel_residual(a, b); });
     const CrossCovariance cross = covariance_ * jacobian.transpose();
     MeasurementCovariance s = jacobian * cross + noise;
     s = 0.5 * (s + s.transpose()).eval();
