@@ -218,6 +218,8 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
     max_direct_products_ = 0.0;
   }
   kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
+  bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
+  bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
   inverse_->correlation = fftw_alloc_real(static_cast<std::size_t>(correlation_size_));
@@ -403,6 +405,16 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
   }
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   const bool all_kept = kept == band_bins_;
+  if (!all_kept || rescale) {
+    // One factor per bin for every pair (the division once per bin, not per bin and pair).
+    for (std::size_t index = 0; index < keep_.size(); ++index) {
+      const double keep = keep_[index];
+      const double w = weights_[index];
+      const double scale = !rescale ? 1.0 : weighted ? w : 1.0 / w;
+      bin_scales_[index] = keep * scale;
+      bin_keeps_[index] = keep;
+    }
+  }
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
     double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
@@ -413,17 +425,18 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
       // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
       // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite).
       for (; index < band_bins_; ++index) {
-        const double keep = keep_[static_cast<std::size_t>(index)];
-        const double w = weights_[static_cast<std::size_t>(index)];
-        const double scale = !rescale ? 1.0 : weighted ? w : 1.0 / w;
-        phasor[index] *= keep * scale;
-        magnitude[index] *= keep;
+        phasor[index] *= bin_scales_[static_cast<std::size_t>(index)];
+        magnitude[index] *= bin_keeps_[static_cast<std::size_t>(index)];
       }
     }
     // Coherence: the magnitude-weighted correlation over the same weights.
     if (weighted) {
-      for (index = 0; index < band_bins_; ++index)
-        sums[index & 3] += magnitude[index] * weights_[static_cast<std::size_t>(index)];
+      // Lane by lane as written out: a sums[index & 3] index would go through memory.
+      const double* w = weights_.data();
+      for (index = 0; index + 4 <= band_bins_; index += 4)
+        for (int lane = 0; lane < 4; ++lane)
+          sums[lane] += magnitude[index + lane] * w[index + lane];
+      for (; index < band_bins_; ++index) sums[index & 3] += magnitude[index] * w[index];
     } else {
       for (index = 0; index + 4 <= band_bins_; index += 4)
         for (int lane = 0; lane < 4; ++lane) sums[lane] += magnitude[index + lane];

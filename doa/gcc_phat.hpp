@@ -194,6 +194,8 @@ class GccPhat {
   // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
   std::vector<double> lag_table_;
   std::vector<int> kept_indices_;     // band indices of the kept bins (correlate())
+  std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
+  std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
   std::unique_ptr<Inverse> inverse_;
   // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid

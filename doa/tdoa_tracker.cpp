@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include <Eigen/LU>
+#include <Eigen/Core>
 
 namespace dronetrack::doa {
 
@@ -191,25 +191,57 @@ bool TdoaRegression::fresh(const History& history, std::size_t i, double now_s) 
 }
 
 // Weighted quadratic in (t - now); returns the coefficients and their covariance.
+// The normal matrix of rows (1, dt, dt^2) is the Hankel matrix of the weighted moments
+// sum w dt^n, n = 0..4: five sums instead of a 3x3 outer product per point, and its inverse
+// in closed form (symmetric adjugate over the determinant) instead of a pivoting LU (this runs
+// twice per pair and source every frame). The moments are taken with the weights divided by
+// their sum (scale-free cofactors), the covariance scaled back after.
 bool TdoaRegression::weighted_fit(const History& history, double now_s,
                                   Eigen::Vector3d& coefficients,
                                   Eigen::Matrix3d& covariance) const {
-  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  double weight_sum = 0.0;
   int used = 0;
   for (std::size_t i = 0; i < window_; ++i) {
     if (weights_[i] <= 0.0) continue;
-    const double dt = history.points[i].time_s - now_s;
-    const Eigen::Vector3d row(1.0, dt, dt * dt);
-    normal += weights_[i] * row * row.transpose();
-    rhs += weights_[i] * history.points[i].tdoa_s * row;
+    weight_sum += weights_[i];
     ++used;
   }
-  if (used < 4) return false;
-  const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
-  if (lu.rank() < 3) return false;
-  covariance = lu.inverse();
-  coefficients = covariance * rhs;
+  if (used < 4 || !(weight_sum > 0.0) || !std::isfinite(weight_sum)) return false;
+  const double unit = 1.0 / weight_sum;
+  double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, m4 = 0.0;
+  double r0 = 0.0, r1 = 0.0, r2 = 0.0;
+  for (std::size_t i = 0; i < window_; ++i) {
+    if (weights_[i] <= 0.0) continue;
+    const double w = weights_[i] * unit;
+    const double dt = history.points[i].time_s - now_s;
+    const double dt2 = dt * dt;
+    const double wy = w * history.points[i].tdoa_s;
+    m0 += w;
+    m1 += w * dt;
+    m2 += w * dt2;
+    m3 += w * dt2 * dt;
+    m4 += w * dt2 * dt2;
+    r0 += wy;
+    r1 += wy * dt;
+    r2 += wy * dt2;
+  }
+  // Cofactors of [[m0 m1 m2] [m1 m2 m3] [m2 m3 m4]].
+  const double c00 = m2 * m4 - m3 * m3;
+  const double c01 = m2 * m3 - m1 * m4;
+  const double c02 = m1 * m3 - m2 * m2;
+  const double c11 = m0 * m4 - m2 * m2;
+  const double c12 = m1 * m2 - m0 * m3;
+  const double c22 = m0 * m2 - m1 * m1;
+  const double determinant = m0 * c00 + m1 * c01 + m2 * c02;
+  // Rank < 3 (fewer than three distinct times): the determinant is rounding next to the
+  // product of the diagonal (its bound for a positive definite matrix).
+  if (!(determinant > 1e-12 * m0 * m2 * m4)) return false;
+  const double scale = unit / determinant;
+  covariance << c00 * scale, c01 * scale, c02 * scale, c01 * scale, c11 * scale, c12 * scale,
+      c02 * scale, c12 * scale, c22 * scale;
+  const double solve = 1.0 / determinant;
+  coefficients << (c00 * r0 + c01 * r1 + c02 * r2) * solve, (c01 * r0 + c11 * r1 + c12 * r2) * solve,
+      (c02 * r0 + c12 * r1 + c22 * r2) * solve;
   return true;
 }
 
