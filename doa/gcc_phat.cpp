@@ -38,35 +38,23 @@ constexpr int kLagBlock = 8;
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
-// |X|^2 -> |X| in place, and 1 / |X|. Square roots and divisions dominated whitening (one
+// 1 / |X| from |X|^2, two bins at once. Square roots and divisions dominated whitening (one
 // each per bin and mic, ~20 cycles per pair of them): 1/sqrt(x) instead starts from the
 // exponent-halving bit estimate (within 3.5 %) and takes four Newton steps (3.5 % -> 2e-3 ->
-// 5e-6 -> 3e-11 -> rounding), two bins per instruction; then |X| = x / sqrt(x). A silent bin
+// 5e-6 -> 3e-11 -> rounding); then |X| = x / sqrt(x). A silent bin
 // (x = 0) keeps the huge estimate: its unit X / |X| = 0 and |X| = 0, as before.
-void levels_and_inverses(double* level, double* inverse, std::size_t count) {
+inline Lanes inverse_sqrt(Lanes x) {
   using Bits = unsigned long long __attribute__((vector_size(16)));
   constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
   const Bits magic{kMagic, kMagic};
-  std::size_t n = 0;
-  for (; n + 2 <= count; n += 2) {
-    Lanes x;
-    std::memcpy(&x, level + n, sizeof x);
-    Bits bits;
-    std::memcpy(&bits, &x, sizeof bits);
-    bits = magic - (bits >> 1);
-    Lanes y;
-    std::memcpy(&y, &bits, sizeof y);
-    const Lanes half_x = 0.5 * x;
-    for (int step = 0; step < 4; ++step) y = y * (1.5 - half_x * y * y);
-    const Lanes size = x * y;
-    std::memcpy(inverse + n, &y, sizeof y);
-    std::memcpy(level + n, &size, sizeof size);
-  }
-  for (; n < count; ++n) {
-    const double size = std::sqrt(level[n]);
-    level[n] = size;
-    inverse[n] = size > 0.0 ? 1.0 / size : 0.0;
-  }
+  Bits bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  bits = magic - (bits >> 1);
+  Lanes y;
+  std::memcpy(&y, &bits, sizeof y);
+  const Lanes half_x = 0.5 * x;
+  for (int step = 0; step < 4; ++step) y = y * (1.5 - half_x * y * y);
+  return y;
 }
 }  // namespace
 
@@ -96,10 +84,14 @@ std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double s
   return runs;
 }
 
+// The inverse transform runs in single precision: its lag grid only locates the peaks (the
+// refinement maximises the continuous correlation from the double phasors) and feeds SRP's
+// look-ups, where float rounding (~1e-7 of a peak) is far below the noise; the transform is a
+// third of the whole-band correlation's cost in double.
 struct GccPhat::Inverse {
-  fftw_complex* spectrum = nullptr;  // correlation_size/2 + 1
-  double* correlation = nullptr;     // correlation_size
-  fftw_plan plan = nullptr;
+  fftwf_complex* spectrum = nullptr;  // correlation_size/2 + 1
+  float* correlation = nullptr;       // correlation_size
+  fftwf_plan plan = nullptr;
 };
 
 GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
@@ -179,7 +171,8 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
                   0.0);
   unit_im_.assign(unit_re_.size(), 0.0);
   levels_.assign(unit_re_.size(), 0.0);
-  inverse_levels_.assign(static_cast<std::size_t>(band_bins_), 0.0);
+  for (const BandRun& run : runs_)
+    for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
   refined_index_.assign(pairs_.size(), -1);
   refined_ok_.assign(pairs_.size(), 0);
   refined_peaks_.assign(pairs_.size(), GccPeak{});
@@ -221,21 +214,21 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-  inverse_->spectrum = fftw_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
-  inverse_->correlation = fftw_alloc_real(static_cast<std::size_t>(correlation_size_));
+  inverse_->spectrum = fftwf_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
+  inverse_->correlation = fftwf_alloc_real(static_cast<std::size_t>(correlation_size_));
   if (inverse_->spectrum == nullptr || inverse_->correlation == nullptr) throw std::bad_alloc();
-  std::fill_n(reinterpret_cast<double*>(inverse_->spectrum), correlation_size_ + 2, 0.0);
-  inverse_->plan = fftw_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
-                                        inverse_->correlation, FFTW_MEASURE);
+  std::fill_n(reinterpret_cast<float*>(inverse_->spectrum), correlation_size_ + 2, 0.0f);
+  inverse_->plan = fftwf_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
+                                         inverse_->correlation, FFTW_MEASURE);
   if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
 }
 
 GccPhat::~GccPhat() {
   if (!inverse_ || inverse_->plan == nullptr) return;
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-  if (inverse_->plan != nullptr) fftw_destroy_plan(inverse_->plan);
-  fftw_free(inverse_->spectrum);
-  fftw_free(inverse_->correlation);
+  if (inverse_->plan != nullptr) fftwf_destroy_plan(inverse_->plan);
+  fftwf_free(inverse_->spectrum);
+  fftwf_free(inverse_->correlation);
 }
 
 std::span<const double> GccPhat::grid(int pair) const {
@@ -284,19 +277,30 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     double* unit_re = unit_re_.data() + row;
     double* unit_im = unit_im_.data() + row;
     double* level = levels_.data() + row;
+    // One pass per mic, two bins per step: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit
+    // X / |X|. A silent bin (X = 0) gets the unit phasor 0.
     std::size_t index = 0;
-    for (const BandRun& run : runs_)
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        unit_re[index] = x[k].real();
-        unit_im[index] = x[k].imag();
-      }
-    for (index = 0; index < bins; ++index)
-      level[index] = unit_re[index] * unit_re[index] + unit_im[index] * unit_im[index];
-    levels_and_inverses(level, inverse_levels_.data(), bins);
-    // A silent bin (X = 0) gets the unit phasor 0.
-    for (index = 0; index < bins; ++index) {
-      unit_re[index] *= inverse_levels_[index];
-      unit_im[index] *= inverse_levels_[index];
+    for (; index + 2 <= bins; index += 2) {
+      const std::complex<double> x0 = x[band_fft_bins_[index]];
+      const std::complex<double> x1 = x[band_fft_bins_[index + 1]];
+      const Lanes re{x0.real(), x1.real()};
+      const Lanes im{x0.imag(), x1.imag()};
+      const Lanes power = re * re + im * im;
+      const Lanes inverse = inverse_sqrt(power);
+      const Lanes size = power * inverse;
+      const Lanes unit_real = re * inverse;
+      const Lanes unit_imag = im * inverse;
+      std::memcpy(level + index, &size, sizeof size);
+      std::memcpy(unit_re + index, &unit_real, sizeof unit_real);
+      std::memcpy(unit_im + index, &unit_imag, sizeof unit_imag);
+    }
+    for (; index < bins; ++index) {
+      const std::complex<double> x0 = x[band_fft_bins_[index]];
+      const double size = std::sqrt(x0.real() * x0.real() + x0.imag() * x0.imag());
+      const double inverse = size > 0.0 ? 1.0 / size : 0.0;
+      level[index] = size;
+      unit_re[index] = x0.real() * inverse;
+      unit_im[index] = x0.imag() * inverse;
     }
   }
   pair_phasors(false);
@@ -531,20 +535,22 @@ void GccPhat::direct_grids(double normalisation) {
 }
 
 void GccPhat::inverse_grid(std::size_t pair, double normalisation, double* grid_values) {
-  auto* inverse_bins = reinterpret_cast<std::complex<double>*>(inverse_->spectrum);
+  auto* inverse_bins = reinterpret_cast<float*>(inverse_->spectrum);
   // c2r transforms destroy their input: clear it for every pair.
-  std::fill_n(inverse_bins, correlation_size_ / 2 + 1, std::complex<double>{0.0, 0.0});
-  const std::complex<double>* phasor =
-      phasors_.data() + pair * static_cast<std::size_t>(band_bins_);
+  std::fill_n(inverse_bins, correlation_size_ + 2, 0.0f);
+  const auto* phasor =
+      reinterpret_cast<const double*>(phasors_.data() + pair * static_cast<std::size_t>(band_bins_));
   int index = 0;
   for (const BandRun& run : runs_)
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) inverse_bins[k] = phasor[index];
-  fftw_execute(inverse_->plan);
+    for (int k = 2 * run.first_bin; k <= 2 * run.last_bin + 1; ++k, ++index)
+      inverse_bins[k] = static_cast<float>(phasor[index]);
+  fftwf_execute(inverse_->plan);
   // The c2r sums both halves of the spectrum: 2 Re(...) per bin.
   const int half = half_spans_[pair];
+  const double scale = 0.5 * normalisation;
   for (int m = -half; m <= half; ++m) {
     const int index_circular = m >= 0 ? m : correlation_size_ + m;
-    grid_values[m + half] = inverse_->correlation[index_circular] * 0.5 * normalisation;
+    grid_values[m + half] = static_cast<double>(inverse_->correlation[index_circular]) * scale;
   }
 }
 

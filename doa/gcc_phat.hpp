@@ -182,7 +182,7 @@ class GccPhat {
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
   std::vector<double> levels_;
-  std::vector<double> inverse_levels_;    // scratch, one mic
+  std::vector<int> band_fft_bins_;        // FFT bin of each band bin
   std::vector<std::uint8_t> saved_keep_;  // save_whitened()
   std::vector<double> kernel_table_;      // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;

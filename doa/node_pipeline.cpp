@@ -29,9 +29,9 @@ namespace dronetrack::doa {
 namespace {
 
 constexpr int kMaxSources = 8;
-// With SNR weighting the static null gets its own plain-PHAT look every this many frames
-// (0.1 s at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left
-// the generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
+// With SNR weighting the static null observes a plain-PHAT look every this many frames (0.1 s
+// at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left the
+// generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
 constexpr std::int64_t kStaticNullLookFrames = 2;
 
 void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
@@ -144,7 +144,9 @@ struct NodePipeline::Impl {
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
-  void mask_source(std::span<const PairTdoa> source_tdoas);
+  void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
+  void null_observe();
+  void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
   void remeasure_primary();
@@ -189,8 +191,38 @@ struct NodePipeline::Impl {
   std::vector<PairTdoa> tdoas;
   std::array<Candidate, kMaxSources> candidates{};
   int candidate_count = 0;
+  // This frame's static-null observation (SNR weighting on): wanted, made, and on what time and
+  // frame condition.
+  bool null_wanted = false;
+  bool null_observed = false;
+  double null_time_s = 0.0;
+  bool null_frame_clean = false;
   NodeDiagnostics diagnostics;
 };
+
+// The static null learns from plain PHAT peaks: a steady ground source is as steady in power as
+// the noise floor, so the SNR weights fade it and it would rarely be the strongest. It learns
+// over seconds, so one look every kStaticNullLookFrames frames is enough, and a look the frame
+// makes anyway serves: the plain re-correlation without the first source's bins (a drone's
+// bins gone, the ground source stands out more than in the full band), or the weighted look
+// itself when its strongest source is below the horizon (it is the ground source). Only a
+// frame without either gets a plain look of its own (null_own_look).
+void NodePipeline::Impl::null_observe() {
+  double peak_sum = 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) peak_sum += gcc.pair(p).peak.value;
+  static_null->observe(null_time_s, gcc,
+                       null_frame_clean && peak_sum >= params.min_gcc_peak * gcc.pair_count());
+  diagnostics.static_sources_nulled = static_null->nulled_count();
+  null_observed = true;
+}
+
+// The full band in plain PHAT with only the static null's mask, as whiten() and mask() left
+// it (save_whitened() in analyse()).
+void NodePipeline::Impl::null_own_look() {
+  gcc.restore_whitened();
+  gcc.correlate(true, false);
+  null_observe();
+}
 
 double NodePipeline::Impl::inband_power() const {
   double total = 0.0;
@@ -259,6 +291,7 @@ void NodePipeline::Impl::find_candidates() {
   Candidate& primary = candidates[0];
   primary.solution = solver.solve(tdoas);
   const bool primary_below_horizon = primary.solution.accepted && below_horizon(primary.solution);
+  if (primary_below_horizon && null_wanted) null_observe();
   if (primary_below_horizon) mask_source(tdoas);
   if (primary.solution.accepted && !primary_below_horizon) {
     std::copy(tdoas.begin(), tdoas.end(), primary.tdoas.begin());
@@ -271,7 +304,7 @@ void NodePipeline::Impl::find_candidates() {
   // left is normalised over the bins the louder sources do not own, so a weaker drone's peak
   // is neither buried under the louder one's lobes nor pulled by them.
   gcc.save_whitened();
-  if (candidate_count > 0) mask_source(tdoas);
+  if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
   srp->begin_frame(gcc);
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
@@ -334,11 +367,14 @@ void NodePipeline::Impl::remeasure_primary() {
 
 // Drops the bins a found source owns and correlates what is left (the frame's earlier
 // correlation values, already used, are overwritten).
-void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas) {
+void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas,
+                                     bool null_observes) {
   bin_mask.drop(gcc, source_tdoas);
   // Further looks in plain PHAT: the SNR weights favour the first source's bins, and SRP's
-  // noise floor is calibrated on equal weights.
-  gcc.correlate(false, false);
+  // noise floor is calibrated on equal weights. Refined peaks only when the static null
+  // observes this look (SRP refines where it asks, the same answers).
+  gcc.correlate(null_observes, false);
+  if (null_observes) null_observe();
 }
 
 // Replaces this frame's per-frame candidates by every tracked source's smoothed estimate for
@@ -388,17 +424,12 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   const bool frame_clean =
       frame.non_finite_samples == 0 &&
       frame.clipped_samples <= static_cast<int>(params.max_clipped_fraction * frame.length);
-  if (static_null && snr_weight && diagnostics.frames_processed % kStaticNullLookFrames == 0) {
-    // The static null learns from plain PHAT peaks: a steady ground source is as steady in power
-    // as the noise floor, so the SNR weights fade it and it would never be the strongest. It
-    // learns over seconds, so a plain look every few frames is enough.
-    gcc.correlate(true, false);
-    double plain_peak_sum = 0.0;
-    for (int p = 0; p < gcc.pair_count(); ++p) plain_peak_sum += gcc.pair(p).peak.value;
-    static_null->observe(time_s, gcc,
-                         frame_clean && plain_peak_sum >= params.min_gcc_peak * gcc.pair_count());
-    diagnostics.static_sources_nulled = static_null->nulled_count();
-  }
+  null_wanted = static_null && snr_weight &&
+                diagnostics.frames_processed % kStaticNullLookFrames == 0;
+  null_observed = false;
+  null_time_s = time_s;
+  null_frame_clean = frame_clean;
+  if (null_wanted) gcc.save_whitened();  // for null_own_look()
   gcc.correlate();
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
@@ -422,6 +453,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   tracker->update(time_s, gcc, sharp, tdoas);
   candidate_count = 0;
   if (sharp) find_candidates();
+  if (null_wanted && !null_observed) null_own_look();
   double coherent_share = 0.0;
   for (int s = 0; s < candidate_count; ++s)
     coherent_share += candidates[static_cast<std::size_t>(s)].coherence;

@@ -6,6 +6,74 @@
 
 namespace dronetrack::doa {
 
+namespace {
+
+using Lanes = double __attribute__((vector_size(16)));
+constexpr int kMaxVectors = (kMaxPairs + 1) / 2;
+
+struct BinScan {
+  const GccPhat& gcc;
+  double bin_omega;
+  const std::complex<double>* const* phasors;  // 2 x vectors rows (an odd pair out: zeros)
+  const double* taus;
+  const Lanes* step_re;
+  const Lanes* step_im;
+  double threshold;
+  std::span<std::uint8_t> keep;
+};
+
+// The scan over the band for `vectors` pair vectors; Vectors > 0 fixes the count at compile
+// time (up to 6 pairs, 4 mics) so the rotations stay in registers instead of going through
+// memory bin by bin.
+template <int Vectors>
+int scan_bins(const BinScan& scan, int vectors) {
+  constexpr int kSize = Vectors > 0 ? Vectors : kMaxVectors;
+  const int count = Vectors > 0 ? Vectors : vectors;
+  Lanes rotation_re[kSize] = {};
+  Lanes rotation_im[kSize] = {};
+  Lanes step_re[kSize] = {};
+  Lanes step_im[kSize] = {};
+  for (int v = 0; v < count; ++v) {
+    step_re[v] = scan.step_re[v];
+    step_im[v] = scan.step_im[v];
+  }
+  int dropped = 0;
+  std::size_t index = 0;
+  for (const BandRun& run : scan.gcc.band()) {
+    for (int v = 0; v < count; ++v) {
+      const std::complex<double> first0 =
+          std::polar(1.0, scan.bin_omega * run.first_bin * scan.taus[2 * v]);
+      const std::complex<double> first1 =
+          std::polar(1.0, scan.bin_omega * run.first_bin * scan.taus[2 * v + 1]);
+      rotation_re[v] = Lanes{first0.real(), first1.real()};
+      rotation_im[v] = Lanes{first0.imag(), first1.imag()};
+    }
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      Lanes scores{0.0, 0.0};
+      for (int v = 0; v < count; ++v) {
+        const std::complex<double> w0 = scan.phasors[2 * v][index];
+        const std::complex<double> w1 = scan.phasors[2 * v + 1][index];
+        const Lanes w_re{w0.real(), w1.real()};
+        const Lanes w_im{w0.imag(), w1.imag()};
+        const Lanes a_re = rotation_re[v];
+        const Lanes a_im = rotation_im[v];
+        scores += w_re * a_re - w_im * a_im;
+        rotation_re[v] = a_re * step_re[v] - a_im * step_im[v];
+        rotation_im[v] = a_re * step_im[v] + a_im * step_re[v];
+      }
+      // Phases decide: a weighted correlation left its weights on the phasors.
+      const double scale = scan.gcc.phasor_scale(static_cast<int>(index));
+      if (scan.keep[index] != 0 && scores[0] + scores[1] >= scan.threshold * scale) {
+        scan.keep[index] = 0;
+        ++dropped;
+      }
+    }
+  }
+  return dropped;
+}
+
+}  // namespace
+
 SourceBinMask::SourceBinMask(const GccPhat& gcc, double threshold)
     : threshold_(threshold), zeros_(static_cast<std::size_t>(gcc.band_bin_count())) {}
 
@@ -13,7 +81,6 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
   // Bins outer, pairs inner: one rotation e^{j w_k tau_p} per pair advanced bin by bin, two
   // pairs per vector (lanes), the pairs' recurrences independent of each other. An odd pair
   // out is paired with a phasor row of zeros.
-  using Lanes = double __attribute__((vector_size(16)));
   std::array<int, kMaxPairs + 1> used{};
   int pairs_used = 0;
   for (int p = 0; p < gcc.pair_count() && p < kMaxPairs; ++p)
@@ -24,7 +91,7 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
   const double bin_omega = gcc.bin_omega_rad_per_s();
   std::array<const std::complex<double>*, kMaxPairs + 1> phasors{};
   std::array<double, kMaxPairs + 1> taus{};
-  std::array<Lanes, (kMaxPairs + 1) / 2> step_re{}, step_im{}, rotation_re{}, rotation_im{};
+  std::array<Lanes, kMaxVectors> step_re{}, step_im{};
   for (int u = 0; u < 2 * vectors; ++u) {
     const auto slot = static_cast<std::size_t>(u);
     const bool real_pair = u < pairs_used;
@@ -36,38 +103,18 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
   }
   const std::span<std::uint8_t> keep = gcc.bin_keep();
   const double threshold = threshold_ * pairs_used;
-  int dropped = 0;
-  std::size_t index = 0;
-  for (const BandRun& run : gcc.band()) {
-    for (int u = 0; u < 2 * vectors; ++u) {
-      const auto slot = static_cast<std::size_t>(u);
-      const std::complex<double> first = std::polar(1.0, bin_omega * run.first_bin * taus[slot]);
-      rotation_re[slot / 2][u % 2] = first.real();
-      rotation_im[slot / 2][u % 2] = first.imag();
-    }
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      Lanes scores{0.0, 0.0};
-      for (int v = 0; v < vectors; ++v) {
-        const auto vector = static_cast<std::size_t>(v);
-        const std::complex<double> w0 = phasors[2 * vector][index];
-        const std::complex<double> w1 = phasors[2 * vector + 1][index];
-        const Lanes w_re{w0.real(), w1.real()};
-        const Lanes w_im{w0.imag(), w1.imag()};
-        const Lanes a_re = rotation_re[vector];
-        const Lanes a_im = rotation_im[vector];
-        scores += w_re * a_re - w_im * a_im;
-        rotation_re[vector] = a_re * step_re[vector] - a_im * step_im[vector];
-        rotation_im[vector] = a_re * step_im[vector] + a_im * step_re[vector];
-      }
-      // Phases decide: a weighted correlation left its weights on the phasors.
-      const double scale = gcc.phasor_scale(static_cast<int>(index));
-      if (keep[index] != 0 && scores[0] + scores[1] >= threshold * scale) {
-        keep[index] = 0;
-        ++dropped;
-      }
-    }
+  const BinScan scan{gcc,     bin_omega, phasors.data(), taus.data(), step_re.data(),
+                     step_im.data(), threshold, keep};
+  switch (vectors) {
+    case 1:
+      return scan_bins<1>(scan, vectors);
+    case 2:
+      return scan_bins<2>(scan, vectors);
+    case 3:
+      return scan_bins<3>(scan, vectors);
+    default:
+      return scan_bins<0>(scan, vectors);
   }
-  return dropped;
 }
 
 }  // namespace dronetrack::doa

@@ -14,6 +14,18 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
+// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by
+// insertion sort: windows hold a dozen points, where nth_element's partitioning costs more.
+double middle_value(double* values, int count) {
+  for (int i = 1; i < count; ++i) {
+    const double value = values[i];
+    int j = i;
+    for (; j > 0 && values[j - 1] > value; --j) values[j] = values[j - 1];
+    values[j] = value;
+  }
+  return values[count / 2];
+}
+
 PairTdoa from_peak(const GccPhat& gcc, const GccPeak& peak) {
   return {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value, peak.coherence};
 }
@@ -251,8 +263,7 @@ void TdoaRegression::gate_residuals(const History& history) {
   for (std::size_t i = 0; i < window_; ++i)
     if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = std::abs(residuals_[i]);
   if (count == 0) return;
-  std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
-  const double mad = sorted_[static_cast<std::size_t>(count / 2)];
+  const double mad = middle_value(sorted_.data(), count);
   for (std::size_t i = 0; i < window_; ++i) {
     if (weights_[i] <= 0.0) continue;
     const double scale = std::max(1.4826 * mad, std::sqrt(history.points[i].variance_s2));
@@ -283,8 +294,7 @@ PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& curren
   int count = 0;
   for (std::size_t i = 0; i < window_; ++i)
     if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = history.points[i].tdoa_s;
-  std::nth_element(sorted_.begin(), sorted_.begin() + count / 2, sorted_.begin() + count);
-  const double level = sorted_[static_cast<std::size_t>(count / 2)];
+  const double level = middle_value(sorted_.data(), count);
   for (std::size_t i = 0; i < window_; ++i)
     residuals_[i] = weights_[i] > 0.0 ? history.points[i].tdoa_s - level : 0.0;
   gate_residuals(history);
