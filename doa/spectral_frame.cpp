@@ -111,7 +111,7 @@ double deinterleave(const float* source, int channels, int count, double* target
 }  // namespace
 
 Framer::Framer(int channels, int frame_length, int hop)
-    : channels_(channels), length_(frame_length), hop_(hop), capacity_(2 * frame_length) {
+    : channels_(channels), length_(frame_length), hop_(hop), capacity_(4 * frame_length) {
   if (channels < 1) throw std::invalid_argument("Framer: channels must be >= 1");
   if (frame_length < 2) throw std::invalid_argument("Framer: frame_length must be >= 2");
   if (hop < 1 || hop > frame_length)
