@@ -596,8 +596,8 @@ void GccPhat::direct_grids(double normalisation) {
         const std::size_t p = group + q;
         const bool real_pair = p < pairs_.size();
         rows[q] = real_pair ? phasors_.data() + p * bins : zero_phasors_.data();
-        grids[q] = real_pair ? grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_
-                             : nullptr;
+        grids[q] =
+            real_pair ? grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_ : nullptr;
         halves[q] = real_pair ? half_spans_[p] : 0;
         max_half = std::max(max_half, halves[q]);
       }
@@ -646,8 +646,8 @@ void GccPhat::inverse_grid(std::size_t pair, double normalisation, double* grid_
   auto* inverse_bins = reinterpret_cast<float*>(inverse_->spectrum);
   // c2r transforms destroy their input: clear it for every pair.
   std::fill_n(inverse_bins, correlation_size_ + 2, 0.0f);
-  const auto* phasor =
-      reinterpret_cast<const double*>(phasors_.data() + pair * static_cast<std::size_t>(band_bins_));
+  const auto* phasor = reinterpret_cast<const double*>(phasors_.data() +
+                                                       pair * static_cast<std::size_t>(band_bins_));
   int index = 0;
   for (const BandRun& run : runs_)
     for (int k = 2 * run.first_bin; k <= 2 * run.last_bin + 1; ++k, ++index)

@@ -367,8 +367,7 @@ void NodePipeline::Impl::remeasure_primary() {
 
 // Drops the bins a found source owns and correlates what is left (the frame's earlier
 // correlation values, already used, are overwritten).
-void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas,
-                                     bool null_observes) {
+void NodePipeline::Impl::mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes) {
   bin_mask.drop(gcc, source_tdoas);
   // Further looks in plain PHAT: the SNR weights favour the first source's bins, and SRP's
   // noise floor is calibrated on equal weights. Refined peaks only when the static null
@@ -424,8 +423,8 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   const bool frame_clean =
       frame.non_finite_samples == 0 &&
       frame.clipped_samples <= static_cast<int>(params.max_clipped_fraction * frame.length);
-  null_wanted = static_null && snr_weight &&
-                diagnostics.frames_processed % kStaticNullLookFrames == 0;
+  null_wanted =
+      static_null && snr_weight && diagnostics.frames_processed % kStaticNullLookFrames == 0;
   null_observed = false;
   null_time_s = time_s;
   null_frame_clean = frame_clean;

@@ -103,8 +103,8 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
   }
   const std::span<std::uint8_t> keep = gcc.bin_keep();
   const double threshold = threshold_ * pairs_used;
-  const BinScan scan{gcc,     bin_omega, phasors.data(), taus.data(), step_re.data(),
-                     step_im.data(), threshold, keep};
+  const BinScan scan{
+      gcc, bin_omega, phasors.data(), taus.data(), step_re.data(), step_im.data(), threshold, keep};
   switch (vectors) {
     case 1:
       return scan_bins<1>(scan, vectors);

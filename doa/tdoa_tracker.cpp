@@ -252,8 +252,8 @@ bool TdoaRegression::weighted_fit(const History& history, double now_s,
   covariance << c00 * scale, c01 * scale, c02 * scale, c01 * scale, c11 * scale, c12 * scale,
       c02 * scale, c12 * scale, c22 * scale;
   const double solve = 1.0 / determinant;
-  coefficients << (c00 * r0 + c01 * r1 + c02 * r2) * solve, (c01 * r0 + c11 * r1 + c12 * r2) * solve,
-      (c02 * r0 + c12 * r1 + c22 * r2) * solve;
+  coefficients << (c00 * r0 + c01 * r1 + c02 * r2) * solve,
+      (c01 * r0 + c11 * r1 + c12 * r2) * solve, (c02 * r0 + c12 * r1 + c22 * r2) * solve;
   return true;
 }
 
