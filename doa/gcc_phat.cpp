@@ -85,7 +85,7 @@ struct WideJob {
 
 // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) for kWideGroup pairs
 // at once, 16 lags per block: every table row is loaded once for all the group's pairs.
-__attribute__((target("avx512f,fma"))) void wide_direct_grids(const WideJob& job) {
+__attribute__((target("avx512f,fma"))) void wide_simd_grids(const WideJob& job) {
   using Wide = double __attribute__((vector_size(64)));
   constexpr int kBlock = 16;
   for (int first = 0; first <= job.max_half; first += kBlock) {
@@ -128,9 +128,169 @@ __attribute__((target("avx512f,fma"))) void wide_direct_grids(const WideJob& job
   }
 }
 
-bool wide_direct_supported() { return __builtin_cpu_supports("avx512f") != 0; }
+bool wide_simd_supported() { return __builtin_cpu_supports("avx512f") != 0; }
 #else
-bool wide_direct_supported() { return false; }
+bool wide_simd_supported() { return false; }
+#endif
+
+// R(tau) = sum Re(W_k e^{j w_k tau}) and its first four derivatives at one lag (r[n] = sum
+// w_k^n Re(j^n W_k e^{j w_k tau})), and the |G|-weighted sum with its first two derivatives
+// (coherence): one pass over the band (GccPhat::refine_band_limited).
+struct TaylorSums {
+  double r[5] = {};
+  double weighted = 0.0;
+  double slope = 0.0;
+  double bend = 0.0;
+};
+
+TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
+                       const std::complex<double>* phasor, const double* magnitude, double lag) {
+  // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic,
+  // as the two lanes of one vector: half the latency chain through the complex product, two
+  // bins per instruction, no complex-multiply NaN checks.
+  Lanes sum0{0.0, 0.0}, weighted{0.0, 0.0}, sum1{0.0, 0.0}, sum2{0.0, 0.0}, slope{0.0, 0.0};
+  Lanes sum3{0.0, 0.0}, sum4{0.0, 0.0}, bend{0.0, 0.0};  // bend: of the weighted sum
+  int index = 0;
+  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
+  const std::complex<double> step2 = step * step;
+  const Lanes step2_re{step2.real(), step2.real()};
+  const Lanes step2_im{step2.imag(), step2.imag()};
+  const Lanes omega_step{2.0 * bin_omega, 2.0 * bin_omega};
+  for (const BandRun& run : runs) {
+    const std::complex<double> first = std::polar(1.0, bin_omega * run.first_bin * lag);
+    const std::complex<double> second = first * step;
+    Lanes rotation_re{first.real(), second.real()};
+    Lanes rotation_im{first.imag(), second.imag()};
+    Lanes omega{run.first_bin * bin_omega, (run.first_bin + 1) * bin_omega};
+    const int bins = run.last_bin - run.first_bin + 1;
+    int k = 0;
+    for (; k + 2 <= bins; k += 2, index += 2) {
+      const Lanes w_re{phasor[index].real(), phasor[index + 1].real()};
+      const Lanes w_im{phasor[index].imag(), phasor[index + 1].imag()};
+      const Lanes size{magnitude[index], magnitude[index + 1]};
+      const Lanes t_re = w_re * rotation_re - w_im * rotation_im;
+      const Lanes t_im = w_re * rotation_im + w_im * rotation_re;
+      const Lanes omega2 = omega * omega;
+      sum0 += t_re;
+      weighted += size * t_re;
+      sum1 -= omega * t_im;
+      slope -= omega * size * t_im;
+      sum2 -= omega2 * t_re;
+      bend -= omega2 * size * t_re;
+      sum3 += omega2 * omega * t_im;
+      sum4 += omega2 * omega2 * t_re;
+      const Lanes next_re = rotation_re * step2_re - rotation_im * step2_im;
+      rotation_im = rotation_re * step2_im + rotation_im * step2_re;
+      rotation_re = next_re;
+      omega += omega_step;
+    }
+    if (k < bins) {
+      // The odd bin out: lane 0 only.
+      const double w_re = phasor[index].real(), w_im = phasor[index].imag();
+      const double t_re = w_re * rotation_re[0] - w_im * rotation_im[0];
+      const double t_im = w_re * rotation_im[0] + w_im * rotation_re[0];
+      const double omega2 = omega[0] * omega[0];
+      sum0[0] += t_re;
+      weighted[0] += magnitude[index] * t_re;
+      sum1[0] -= omega[0] * t_im;
+      slope[0] -= omega[0] * magnitude[index] * t_im;
+      sum2[0] -= omega2 * t_re;
+      bend[0] -= omega2 * magnitude[index] * t_re;
+      sum3[0] += omega2 * omega[0] * t_im;
+      sum4[0] += omega2 * omega2 * t_re;
+      ++index;
+    }
+  }
+  TaylorSums sums;
+  sums.r[0] = sum0[0] + sum0[1];
+  sums.r[1] = sum1[0] + sum1[1];
+  sums.r[2] = sum2[0] + sum2[1];
+  sums.r[3] = sum3[0] + sum3[1];
+  sums.r[4] = sum4[0] + sum4[1];
+  sums.weighted = weighted[0] + weighted[1];
+  sums.slope = slope[0] + slope[1];
+  sums.bend = bend[0] + bend[1];
+  return sums;
+}
+
+#ifdef DRONETRACK_WIDE_DIRECT
+// taylor_sums() eight bins per vector: lane l holds bin first + l of a run (rotation e^{j w_k
+// tau} advanced by step^8), a run's last partial vector has zero phasors in the unused lanes.
+__attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
+    const std::vector<BandRun>& runs, double bin_omega, const std::complex<double>* phasor,
+    const double* magnitude, double lag) {
+  using Wide = double __attribute__((vector_size(64)));
+  constexpr int kLanes = 8;
+  Wide sum0{}, weighted{}, sum1{}, sum2{}, slope{}, sum3{}, sum4{}, bend{};
+  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
+  std::complex<double> step8 = step * step;
+  step8 *= step8;
+  step8 *= step8;
+  const Wide step8_re = Wide{} + step8.real();
+  const Wide step8_im = Wide{} + step8.imag();
+  const Wide omega_step = Wide{} + kLanes * bin_omega;
+  int index = 0;
+  for (const BandRun& run : runs) {
+    Wide rotation_re, rotation_im, omega;
+    std::complex<double> rotation = std::polar(1.0, bin_omega * run.first_bin * lag);
+    for (int l = 0; l < kLanes; ++l) {
+      rotation_re[l] = rotation.real();
+      rotation_im[l] = rotation.imag();
+      omega[l] = (run.first_bin + l) * bin_omega;
+      rotation *= step;
+    }
+    const int bins = run.last_bin - run.first_bin + 1;
+    for (int k = 0; k < bins; k += kLanes, index += kLanes) {
+      Wide w_re, w_im, size;
+      if (k + kLanes <= bins) {
+        // Eight interleaved (re, im) pairs in two vectors, split into reals and imaginaries.
+        using Selector = long long __attribute__((vector_size(64)));
+        Wide first_half, second_half;
+        std::memcpy(&first_half, phasor + index, sizeof first_half);
+        std::memcpy(&second_half, phasor + index + 4, sizeof second_half);
+        w_re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
+        w_im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+        std::memcpy(&size, magnitude + index, sizeof size);
+      } else {
+        for (int l = 0; l < kLanes; ++l) {
+          const bool inside = k + l < bins;
+          w_re[l] = inside ? phasor[index + l].real() : 0.0;
+          w_im[l] = inside ? phasor[index + l].imag() : 0.0;
+          size[l] = inside ? magnitude[index + l] : 0.0;
+        }
+      }
+      const Wide t_re = w_re * rotation_re - w_im * rotation_im;
+      const Wide t_im = w_re * rotation_im + w_im * rotation_re;
+      const Wide omega2 = omega * omega;
+      sum0 += t_re;
+      weighted += size * t_re;
+      sum1 -= omega * t_im;
+      slope -= omega * size * t_im;
+      sum2 -= omega2 * t_re;
+      bend -= omega2 * size * t_re;
+      sum3 += omega2 * omega * t_im;
+      sum4 += omega2 * omega2 * t_re;
+      const Wide next_re = rotation_re * step8_re - rotation_im * step8_im;
+      rotation_im = rotation_re * step8_im + rotation_im * step8_re;
+      rotation_re = next_re;
+      omega += omega_step;
+    }
+    index -= (kLanes - bins % kLanes) % kLanes;  // back to the next run's first bin
+  }
+  const auto total = [](Wide v) {
+    return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
+  };
+  TaylorSums sums;
+  sums.r[0] = total(sum0);
+  sums.r[1] = total(sum1);
+  sums.r[2] = total(sum2);
+  sums.r[3] = total(sum3);
+  sums.r[4] = total(sum4);
+  sums.weighted = total(weighted);
+  sums.slope = total(slope);
+  sums.bend = total(bend);
+  return sums;
+}
 #endif
 }  // namespace
 
@@ -262,10 +422,10 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   lag_rows_ = max_half_span + 1;
   lag_stride_ = (lag_rows_ + kLagStrideMultiple - 1) / kLagStrideMultiple *
                 kLagStrideMultiple;  // whole blocks, zeros after
-  wide_direct_ = wide_direct_supported();
+  wide_simd_ = wide_simd_supported();
 #ifdef DRONETRACK_WIDE_DIRECT
   const double products_per_fft_point =
-      wide_direct_ ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint;
+      wide_simd_ ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint;
 #else
   const double products_per_fft_point = kDirectProductsPerFftPoint;
 #endif
@@ -296,7 +456,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   }
   kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
-  if (wide_direct_) zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
+  if (wide_simd_) zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftwf_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
@@ -586,7 +746,7 @@ void GccPhat::direct_grids(double normalisation) {
   const auto stride = static_cast<std::size_t>(lag_stride_);
   const auto bins = static_cast<std::size_t>(band_bins_);
 #ifdef DRONETRACK_WIDE_DIRECT
-  if (wide_direct_) {
+  if (wide_simd_) {
     for (std::size_t group = 0; group < pairs_.size(); group += kWideGroup) {
       std::array<const std::complex<double>*, kWideGroup> rows{};
       std::array<double*, kWideGroup> grids{};
@@ -601,9 +761,8 @@ void GccPhat::direct_grids(double normalisation) {
         halves[q] = real_pair ? half_spans_[p] : 0;
         max_half = std::max(max_half, halves[q]);
       }
-      wide_direct_grids(WideJob{rows.data(), grids.data(), halves.data(), max_half,
-                                lag_table_.data(), stride, kept_indices_.data(), kept_bins_,
-                                normalisation});
+      wide_simd_grids(WideJob{rows.data(), grids.data(), halves.data(), max_half, lag_table_.data(),
+                              stride, kept_indices_.data(), kept_bins_, normalisation});
     }
     return;
   }
@@ -778,67 +937,17 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   // below kNewtonResidual_s the pass was the last (from the parabola's start, typically the
   // first), else the next pass starts from there.
   for (int iteration = 0; iteration < 6; ++iteration) {
-    // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic,
-    // as the two lanes of one vector: half the latency chain through the complex product, two
-    // bins per instruction, no complex-multiply NaN checks.
-    Lanes sum0{0.0, 0.0}, weighted{0.0, 0.0}, sum1{0.0, 0.0}, sum2{0.0, 0.0}, slope{0.0, 0.0};
-    Lanes sum3{0.0, 0.0}, sum4{0.0, 0.0}, bend{0.0, 0.0};  // bend: of the weighted sum
-    int index = 0;
-    const std::complex<double> step = std::polar(1.0, bin_omega_ * lag);
-    const std::complex<double> step2 = step * step;
-    const Lanes step2_re{step2.real(), step2.real()};
-    const Lanes step2_im{step2.imag(), step2.imag()};
-    const Lanes omega_step{2.0 * bin_omega_, 2.0 * bin_omega_};
-    for (const BandRun& run : runs_) {
-      const std::complex<double> first = std::polar(1.0, bin_omega_ * run.first_bin * lag);
-      const std::complex<double> second = first * step;
-      Lanes rotation_re{first.real(), second.real()};
-      Lanes rotation_im{first.imag(), second.imag()};
-      Lanes omega{run.first_bin * bin_omega_, (run.first_bin + 1) * bin_omega_};
-      const int bins = run.last_bin - run.first_bin + 1;
-      int k = 0;
-      for (; k + 2 <= bins; k += 2, index += 2) {
-        const Lanes w_re{phasor[index].real(), phasor[index + 1].real()};
-        const Lanes w_im{phasor[index].imag(), phasor[index + 1].imag()};
-        const Lanes size{magnitude[index], magnitude[index + 1]};
-        const Lanes t_re = w_re * rotation_re - w_im * rotation_im;
-        const Lanes t_im = w_re * rotation_im + w_im * rotation_re;
-        const Lanes omega2 = omega * omega;
-        sum0 += t_re;
-        weighted += size * t_re;
-        sum1 -= omega * t_im;
-        slope -= omega * size * t_im;
-        sum2 -= omega2 * t_re;
-        bend -= omega2 * size * t_re;
-        sum3 += omega2 * omega * t_im;
-        sum4 += omega2 * omega2 * t_re;
-        const Lanes next_re = rotation_re * step2_re - rotation_im * step2_im;
-        rotation_im = rotation_re * step2_im + rotation_im * step2_re;
-        rotation_re = next_re;
-        omega += omega_step;
-      }
-      if (k < bins) {
-        // The odd bin out: lane 0 only.
-        const double w_re = phasor[index].real(), w_im = phasor[index].imag();
-        const double t_re = w_re * rotation_re[0] - w_im * rotation_im[0];
-        const double t_im = w_re * rotation_im[0] + w_im * rotation_re[0];
-        const double omega2 = omega[0] * omega[0];
-        sum0[0] += t_re;
-        weighted[0] += magnitude[index] * t_re;
-        sum1[0] -= omega[0] * t_im;
-        slope[0] -= omega[0] * magnitude[index] * t_im;
-        sum2[0] -= omega2 * t_re;
-        bend[0] -= omega2 * magnitude[index] * t_re;
-        sum3[0] += omega2 * omega[0] * t_im;
-        sum4[0] += omega2 * omega2 * t_re;
-        ++index;
-      }
-    }
-    const double r0 = sum0[0] + sum0[1];
-    const double r1 = sum1[0] + sum1[1];
-    const double r2 = sum2[0] + sum2[1];
-    const double r3 = sum3[0] + sum3[1];
-    const double r4 = sum4[0] + sum4[1];
+#ifdef DRONETRACK_WIDE_DIRECT
+    const TaylorSums sums = wide_simd_ ? wide_taylor_sums(runs_, bin_omega_, phasor, magnitude, lag)
+                                       : taylor_sums(runs_, bin_omega_, phasor, magnitude, lag);
+#else
+    const TaylorSums sums = taylor_sums(runs_, bin_omega_, phasor, magnitude, lag);
+#endif
+    const double r0 = sums.r[0];
+    const double r1 = sums.r[1];
+    const double r2 = sums.r[2];
+    const double r3 = sums.r[3];
+    const double r4 = sums.r[4];
     if (!(r2 < 0.0)) return refine_parabolic(pair, m, out);
     // Newton on the polynomial's R' = r1 + r2 d + r3 d^2/2 + r4 d^3/6, from the plain step.
     const double reach = 0.5 * lag_step_s_;
@@ -862,8 +971,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
       const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
       const double value =
           r0 + delta * (r1 + delta * (0.5 * r2 + delta * (r3 / 6.0 + delta * r4 / 24.0)));
-      const double coherent = (weighted[0] + weighted[1]) + delta * (slope[0] + slope[1]) +
-                              0.5 * delta2 * (bend[0] + bend[1]);
+      const double coherent = sums.weighted + delta * sums.slope + 0.5 * delta2 * sums.bend;
       out = {lag, value / kept_weight_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
       return true;
     }

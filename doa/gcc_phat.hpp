@@ -197,7 +197,7 @@ class GccPhat {
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
-  bool wide_direct_ = false;          // direct sums in the AVX-512 kernel (chosen at run time)
+  bool wide_simd_ = false;  // AVX-512 kernels for the direct sums and refinement (run time)
   std::vector<std::complex<double>> zero_phasors_;  // the wide kernel's unused pair slots
   std::unique_ptr<Inverse> inverse_;
   // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid

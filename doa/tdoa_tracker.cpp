@@ -14,16 +14,22 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
-// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by
-// insertion sort: windows hold a dozen points, where nth_element's partitioning costs more.
-double middle_value(double* values, int count) {
-  for (int i = 1; i < count; ++i) {
-    const double value = values[i];
-    int j = i;
-    for (; j > 0 && values[j - 1] > value; --j) values[j] = values[j - 1];
-    values[j] = value;
+// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by rank
+// counting: windows hold a dozen points, whose order is random, so every sorting or
+// partitioning step is a branch mispredicted half the time; counts compile to compares and
+// adds without branches.
+double middle_value(const double* values, int count) {
+  const int middle = count / 2;
+  for (int i = 0; i < count; ++i) {
+    int below = 0;
+    int equal = 0;
+    for (int j = 0; j < count; ++j) {
+      below += values[j] < values[i] ? 1 : 0;
+      equal += values[j] == values[i] ? 1 : 0;
+    }
+    if (below <= middle && middle < below + equal) return values[i];
   }
-  return values[count / 2];
+  return values[middle];  // not reached for finite values
 }
 
 PairTdoa from_peak(const GccPhat& gcc, const GccPeak& peak) {
@@ -191,7 +197,12 @@ void TdoaRegression::clear() {
 void TdoaRegression::add(int pair, double time_s, const PairTdoa& tdoa) {
   if (!(tdoa.variance_s2 > 0.0) || !std::isfinite(tdoa.tdoa_s)) return;
   History& history = histories_[static_cast<std::size_t>(pair)];
-  history.points[history.next] = {time_s, tdoa.tdoa_s, tdoa.variance_s2, tdoa.peak_value};
+  history.points[history.next] = {time_s,
+                                  tdoa.tdoa_s,
+                                  tdoa.variance_s2,
+                                  tdoa.peak_value,
+                                  1.0 / tdoa.variance_s2,
+                                  std::sqrt(tdoa.variance_s2)};
   history.next = (history.next + 1) % window_;
   history.count = std::min(history.count + 1, window_);
 }
@@ -266,7 +277,7 @@ void TdoaRegression::gate_residuals(const History& history) {
   const double mad = middle_value(sorted_.data(), count);
   for (std::size_t i = 0; i < window_; ++i) {
     if (weights_[i] <= 0.0) continue;
-    const double scale = std::max(1.4826 * mad, std::sqrt(history.points[i].variance_s2));
+    const double scale = std::max(1.4826 * mad, history.points[i].sigma_s);
     if (std::abs(residuals_[i]) > settings_.regression_mad_gate * scale) weights_[i] = 0.0;
   }
 }
@@ -276,7 +287,7 @@ PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& curren
   int candidates = 0;
   for (std::size_t i = 0; i < window_; ++i) {
     const bool use = fresh(history, i, now_s);
-    weights_[i] = use ? 1.0 / history.points[i].variance_s2 : 0.0;
+    weights_[i] = use ? history.points[i].inverse_variance : 0.0;
     candidates += use ? 1 : 0;
   }
   // With a delay, the newest frame's own value is not a substitute for the earlier frame's.
@@ -305,7 +316,7 @@ PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& curren
     // Re-admit every fresh point, then gate on the residuals of the fit.
     const Point& point = history.points[i];
     const bool use = fresh(history, i, now_s);
-    weights_[i] = use ? 1.0 / point.variance_s2 : 0.0;
+    weights_[i] = use ? point.inverse_variance : 0.0;
     const double dt = point.time_s - now_s;
     residuals_[i] =
         use ? point.tdoa_s - (coefficients(0) + coefficients(1) * dt + coefficients(2) * dt * dt)

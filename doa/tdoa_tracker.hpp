@@ -68,6 +68,8 @@ class TdoaRegression {
     double tdoa_s = 0.0;
     double variance_s2 = 0.0;
     double peak_value = 0.0;
+    double inverse_variance = 0.0;  // the fit's weight, 1 / variance_s2
+    double sigma_s = 0.0;           // sqrt(variance_s2), the residual gate's floor
   };
   struct History {
     std::vector<Point> points;
