@@ -85,7 +85,7 @@ struct WideJob {
 
 // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) for kWideGroup pairs
 // at once, 16 lags per block: every table row is loaded once for all the group's pairs.
-__attribute__((target("avx512f,fma"))) void wide_simd_grids(const WideJob& job) {
+__attribute__((target("avx512f,fma"))) void wide_direct_grids(const WideJob& job) {
   using Wide = double __attribute__((vector_size(64)));
   constexpr int kBlock = 16;
   for (int first = 0; first <= job.max_half; first += kBlock) {
@@ -664,35 +664,48 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
       bin_keeps_[index] = keep;
     }
   }
-  for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
-    double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
-    // Four partial sums: one would make every bin wait for the previous addition.
-    double sums[4] = {0.0, 0.0, 0.0, 0.0};
-    int index = 0;
-    if (!all_kept || rescale) {
-      // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
-      // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite).
-      for (; index < band_bins_; ++index) {
-        phasor[index] *= bin_scales_[static_cast<std::size_t>(index)];
-        magnitude[index] *= bin_keeps_[static_cast<std::size_t>(index)];
+  // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
+  // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
+  // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
+  // four partial sums (one would make every bin wait for the previous addition).
+  const auto scale_and_sum = [&]<bool kScale, bool kWeighted>() {
+    const double* w = weights_.data();
+    const double* scales = bin_scales_.data();
+    const double* keeps = bin_keeps_.data();
+    for (std::size_t p = 0; p < pairs_.size(); ++p) {
+      std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
+      double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
+      double sums[4] = {0.0, 0.0, 0.0, 0.0};
+      int index = 0;
+      for (; index + 4 <= band_bins_; index += 4) {
+        for (int lane = 0; lane < 4; ++lane) {
+          const int i = index + lane;
+          if constexpr (kScale) {
+            phasor[i] *= scales[i];
+            magnitude[i] *= keeps[i];
+          }
+          sums[lane] += kWeighted ? magnitude[i] * w[i] : magnitude[i];
+        }
       }
+      for (; index < band_bins_; ++index) {
+        if constexpr (kScale) {
+          phasor[index] *= scales[index];
+          magnitude[index] *= keeps[index];
+        }
+        if constexpr (kWeighted) {
+          sums[index & 3] += magnitude[index] * w[index];
+        } else {
+          sums[0] += magnitude[index];
+        }
+      }
+      magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
     }
-    // Coherence: the magnitude-weighted correlation over the same weights.
-    if (weighted) {
-      // Lane by lane as written out: a sums[index & 3] index would go through memory.
-      const double* w = weights_.data();
-      for (index = 0; index + 4 <= band_bins_; index += 4)
-        for (int lane = 0; lane < 4; ++lane)
-          sums[lane] += magnitude[index + lane] * w[index + lane];
-      for (; index < band_bins_; ++index) sums[index & 3] += magnitude[index] * w[index];
-    } else {
-      for (index = 0; index + 4 <= band_bins_; index += 4)
-        for (int lane = 0; lane < 4; ++lane) sums[lane] += magnitude[index + lane];
-      for (; index < band_bins_; ++index) sums[0] += magnitude[index];
-    }
-    magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
-  }
+  };
+  const bool scale = !all_kept || rescale;
+  if (scale && weighted) scale_and_sum.operator()<true, true>();
+  if (scale && !weighted) scale_and_sum.operator()<true, false>();
+  if (!scale && weighted) scale_and_sum.operator()<false, true>();
+  if (!scale && !weighted) scale_and_sum.operator()<false, false>();
   weights_applied_ = weighted;
   const double normalisation = 1.0 / kept_weight_;
   const bool direct = static_cast<double>(kept_bins_) * lag_rows_ <= max_direct_products_;
@@ -761,8 +774,9 @@ void GccPhat::direct_grids(double normalisation) {
         halves[q] = real_pair ? half_spans_[p] : 0;
         max_half = std::max(max_half, halves[q]);
       }
-      wide_simd_grids(WideJob{rows.data(), grids.data(), halves.data(), max_half, lag_table_.data(),
-                              stride, kept_indices_.data(), kept_bins_, normalisation});
+      wide_direct_grids(WideJob{rows.data(), grids.data(), halves.data(), max_half,
+                                lag_table_.data(), stride, kept_indices_.data(), kept_bins_,
+                                normalisation});
     }
     return;
   }

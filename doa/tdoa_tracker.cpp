@@ -19,15 +19,26 @@ constexpr double kDegToRad = std::numbers::pi / 180.0;
 // partitioning step is a branch mispredicted half the time; counts compile to compares and
 // adds without branches.
 double middle_value(const double* values, int count) {
+  using Lanes = double __attribute__((vector_size(16)));
+  using Counts = long long __attribute__((vector_size(16)));
   const int middle = count / 2;
   for (int i = 0; i < count; ++i) {
-    int below = 0;
-    int equal = 0;
-    for (int j = 0; j < count; ++j) {
-      below += values[j] < values[i] ? 1 : 0;
-      equal += values[j] == values[i] ? 1 : 0;
+    const Lanes value{values[i], values[i]};
+    Counts below{0, 0};
+    Counts equal{0, 0};
+    int j = 0;
+    for (; j + 2 <= count; j += 2) {
+      const Lanes other{values[j], values[j + 1]};
+      below -= other < value;  // a true compare is -1 in every bit
+      equal -= other == value;
     }
-    if (below <= middle && middle < below + equal) return values[i];
+    long long below_count = below[0] + below[1];
+    long long equal_count = equal[0] + equal[1];
+    for (; j < count; ++j) {
+      below_count += values[j] < values[i] ? 1 : 0;
+      equal_count += values[j] == values[i] ? 1 : 0;
+    }
+    if (below_count <= middle && middle < below_count + equal_count) return values[i];
   }
   return values[middle];  // not reached for finite values
 }
