@@ -128,6 +128,90 @@ __attribute__((target("avx512f,fma"))) void wide_direct_grids(const WideJob& job
   }
 }
 
+// whiten()'s per-mic pass eight bins per vector (same steps as the two-lane loop): returns
+// how many bins it did (whole vectors); the caller finishes the rest.
+__attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex<double>* x,
+                                                              const int* fft_bins,
+                                                              std::size_t count, double* level,
+                                                              double* unit_re, double* unit_im) {
+  using Wide = double __attribute__((vector_size(64)));
+  using WideBits = unsigned long long __attribute__((vector_size(64)));
+  using Selector = long long __attribute__((vector_size(64)));
+  constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
+  std::size_t index = 0;
+  for (; index + 8 <= count; index += 8) {
+    Wide re, im;
+    if (fft_bins[index + 7] - fft_bins[index] == 7) {
+      // Eight consecutive FFT bins (within one band run): two loads, split re / im.
+      Wide first_half, second_half;
+      std::memcpy(&first_half, x + fft_bins[index], sizeof first_half);
+      std::memcpy(&second_half, x + fft_bins[index] + 4, sizeof second_half);
+      re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
+      im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+    } else {
+      for (int l = 0; l < 8; ++l) {
+        re[l] = x[fft_bins[index + l]].real();
+        im[l] = x[fft_bins[index + l]].imag();
+      }
+    }
+    const Wide power = re * re + im * im;
+    WideBits bits;
+    std::memcpy(&bits, &power, sizeof bits);
+    bits = kMagic - (bits >> 1);
+    Wide inverse;
+    std::memcpy(&inverse, &bits, sizeof inverse);
+    const Wide half_power = 0.5 * power;
+    for (int step = 0; step < 4; ++step) inverse = inverse * (1.5 - half_power * inverse * inverse);
+    const Wide size = power * inverse;
+    const Wide unit_real = re * inverse;
+    const Wide unit_imag = im * inverse;
+    std::memcpy(level + index, &size, sizeof size);
+    std::memcpy(unit_re + index, &unit_real, sizeof unit_real);
+    std::memcpy(unit_im + index, &unit_imag, sizeof unit_imag);
+  }
+  return index;
+}
+
+// pair_phasors()'s products eight bins per vector, (re, im) interleaved on the way out: returns
+// how many bins it did; `keep` null: every bin kept.
+__attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
+    const double* a_re, const double* a_im, const double* b_re, const double* b_im,
+    const double* level_i, const double* level_j, const std::uint8_t* keep, std::size_t count,
+    double* out, double* magnitude) {
+  using Wide = double __attribute__((vector_size(64)));
+  using Selector = long long __attribute__((vector_size(64)));
+  const Wide silent = Wide{} + kSilentBin;
+  const Wide one = Wide{} + 1.0;
+  const Wide zero = Wide{};
+  std::size_t n = 0;
+  for (; n + 8 <= count; n += 8) {
+    Wide ar, ai, br, bi, li, lj;
+    std::memcpy(&ar, a_re + n, sizeof ar);
+    std::memcpy(&ai, a_im + n, sizeof ai);
+    std::memcpy(&br, b_re + n, sizeof br);
+    std::memcpy(&bi, b_im + n, sizeof bi);
+    std::memcpy(&li, level_i + n, sizeof li);
+    std::memcpy(&lj, level_j + n, sizeof lj);
+    const Wide size = li * lj;
+    Wide live = size > silent ? one : zero;
+    if (keep != nullptr) {
+      Wide kept;
+      for (int l = 0; l < 8; ++l)
+        kept[l] = static_cast<double>(keep[n + static_cast<std::size_t>(l)]);
+      live *= kept;
+    }
+    const Wide re = (ar * br + ai * bi) * live;
+    const Wide im = (ai * br - ar * bi) * live;
+    const Wide low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
+    const Wide high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
+    const Wide sizes = size * live;
+    std::memcpy(out + 2 * n, &low, sizeof low);
+    std::memcpy(out + 2 * n + 8, &high, sizeof high);
+    std::memcpy(magnitude + n, &sizes, sizeof sizes);
+  }
+  return n;
+}
+
 bool wide_simd_supported() { return __builtin_cpu_supports("avx512f") != 0; }
 #else
 bool wide_simd_supported() { return false; }
@@ -525,6 +609,9 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     // One pass per mic, two bins per step: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit
     // X / |X|. A silent bin (X = 0) gets the unit phasor 0.
     std::size_t index = 0;
+#ifdef DRONETRACK_WIDE_DIRECT
+    if (wide_simd_) index = wide_units(x, band_fft_bins_.data(), bins, level, unit_re, unit_im);
+#endif
     for (; index + 2 <= bins; index += 2) {
       const std::complex<double> x0 = x[band_fft_bins_[index]];
       const std::complex<double> x1 = x[band_fft_bins_[index + 1]];
@@ -575,6 +662,11 @@ void GccPhat::pair_phasors(bool masked) {
     const Lanes one{1.0, 1.0};
     const Lanes zero{0.0, 0.0};
     std::size_t n = 0;
+#ifdef DRONETRACK_WIDE_DIRECT
+    if (wide_simd_)
+      n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
+                             masked ? keep_.data() : nullptr, bins, out, magnitude);
+#endif
     for (; n + 2 <= bins; n += 2) {
       Lanes ar, ai, br, bi, li, lj;
       std::memcpy(&ar, a_re + n, sizeof ar);
