@@ -73,6 +73,9 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.snr_noise_rise_db_per_s =
       section.number("snr_noise_rise_db_per_s", params.snr_noise_rise_db_per_s, 0.01, 100.0);
   params.snr_weight_floor = section.number("snr_weight_floor", params.snr_weight_floor, 0.0, 1.0);
+  params.ground_echo = section.boolean("ground_echo", params.ground_echo);
+  params.ground_height_m =
+      section.number("ground_height_m", params.ground_height_m, -10000.0, 10000.0);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

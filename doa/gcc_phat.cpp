@@ -587,6 +587,26 @@ void GccPhat::restore_whitened() {
   pair_phasors(true);
 }
 
+std::span<const double> GccPhat::unit_real(int mic) const {
+  return {unit_re_.data() + static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_),
+          static_cast<std::size_t>(band_bins_)};
+}
+
+std::span<const double> GccPhat::unit_imag(int mic) const {
+  return {unit_im_.data() + static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_),
+          static_cast<std::size_t>(band_bins_)};
+}
+
+void GccPhat::rotate_units(int mic, std::span<const std::complex<double>> rotation) {
+  const std::size_t row = static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_);
+  for (std::size_t k = 0; k < rotation.size() && k < static_cast<std::size_t>(band_bins_); ++k) {
+    const std::complex<double> unit =
+        std::complex<double>(unit_re_[row + k], unit_im_[row + k]) * rotation[k];
+    unit_re_[row + k] = unit.real();
+    unit_im_[row + k] = unit.imag();
+  }
+}
+
 void GccPhat::process(const MultichannelFft& spectra) {
   whiten(spectra);
   correlate();

@@ -88,11 +88,13 @@ class GccPhat {
   std::span<const double> magnitudes(int pair) const;
   // 1 = bin used by correlate(), 0 = dropped for every pair. whiten() sets all to 1.
   std::span<std::uint8_t> bin_keep() { return keep_; }
+  std::span<const std::uint8_t> bin_keep() const { return keep_; }
   // Per band bin weight in (0, 1] (order of bin_keep()) that a weighted correlate() puts on the
   // phasors: an SNR weight (BinSnrWeight) so bins with only noise do not dilute the correlation.
   // All 1 (plain PHAT) unless set; kept across frames. Set them while the phasors are plain:
   // after whiten(), restore_whitened() or an unweighted correlate().
   std::span<double> bin_weight() { return weights_; }
+  std::span<const double> bin_weight() const { return weights_; }
   // What each band bin's phasors are scaled by now: its weight after a weighted correlate(),
   // else 1 (SourceBinMask judges phases, whatever the weight).
   double phasor_scale(int band_index) const {
@@ -107,6 +109,12 @@ class GccPhat {
   // (several sources: each measured without the others' bins).
   void save_whitened();
   void restore_whitened();
+  // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
+  std::span<const double> unit_real(int mic) const;
+  std::span<const double> unit_imag(int mic) const;
+  // Multiplies one mic's units by `rotation` (per band bin, unit magnitude): a per-mic phase
+  // correction (GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it.
+  void rotate_units(int mic, std::span<const std::complex<double>> rotation);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }

@@ -16,6 +16,7 @@
 #include "doa/bin_snr_weight.hpp"
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
+#include "doa/ground_echo.hpp"
 #include "doa/ls_doa_solver.hpp"
 #include "doa/source_bin_mask.hpp"
 #include "doa/source_tracks.hpp"
@@ -133,6 +134,13 @@ struct NodePipeline::Impl {
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
+    // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
+    // horizontal one hears the same comb at every mic: no differential phase to remove.
+    if (params.ground_echo && solver.rank() >= 3) {
+      GroundEchoSettings echo_settings;
+      echo_settings.ground_height_m = params.ground_height_m;
+      ground_echo = std::make_unique<GroundEcho>(geometry, gcc, speed_of_sound_mps, echo_settings);
+    }
   }
 
   struct Candidate {
@@ -144,12 +152,14 @@ struct NodePipeline::Impl {
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
   void find_candidates();
+  void find_further_sources();
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
   void remeasure_primary();
+  void remove_ground_echo();
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
@@ -179,6 +189,7 @@ struct NodePipeline::Impl {
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<BinSnrWeight> snr_weight;       // noise-only bins faded
+  std::unique_ptr<GroundEcho> ground_echo;        // the first source's ground reflection removed
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};
@@ -299,11 +310,18 @@ void NodePipeline::Impl::find_candidates() {
     primary.time_offset_s = 0.0;
     ++candidate_count;
   }
-  if (!srp) return;
-  // Each source found takes its bins out of the correlations before the next look: what is
-  // left is normalised over the bins the louder sources do not own, so a weaker drone's peak
-  // is neither buried under the louder one's lobes nor pulled by them.
   gcc.save_whitened();
+  if (srp) find_further_sources();
+  // A frame whose looks gave the static null nothing to observe: its own look, before the echo
+  // removal rotates the mics' units.
+  if (null_wanted && !null_observed) null_own_look();
+  if (ground_echo && candidate_count > 0) remove_ground_echo();
+}
+
+// Each source found takes its bins out of the correlations before the next look: what is left is
+// normalised over the bins the louder sources do not own, so a weaker drone's peak is neither
+// buried under the louder one's lobes nor pulled by them.
+void NodePipeline::Impl::find_further_sources() {
   if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
   srp->begin_frame(gcc);
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
@@ -339,6 +357,19 @@ void NodePipeline::Impl::find_candidates() {
     }
   }
   if (candidate_count >= 2) remeasure_primary();
+}
+
+// The first source's ground reflection, found on its own bins (the others' dropped), divided out
+// of the mics' phases; its TDOAs are then measured again.
+void NodePipeline::Impl::remove_ground_echo() {
+  gcc.restore_whitened();
+  for (int s = 1; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  const Eigen::Vector3d direction = candidates[0].solution.direction_site;
+  if (!ground_echo->observe(gcc, direction)) return;
+  ground_echo->remove(gcc, direction);
+  remeasure_primary();
 }
 
 // The first source was measured with every other source's bins in its correlation: measured

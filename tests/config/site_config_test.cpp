@@ -189,10 +189,9 @@ TEST(SiteConfig, UnknownKeysWarnButParse) {
 
 TEST(SiteConfig, ProcessingSectionsValidated) {
   json site = two_array_site();
-  site["doa"] = {{"tdoa_tracker", "magic"},
-                 {"bands_hz", {{3000, 1000}}},
-                 {"snr_weight_floor", 1.5},
-                 {"snr_weighting", "yes"}};
+  site["doa"] = {{"tdoa_tracker", "magic"}, {"bands_hz", {{3000, 1000}}},
+                 {"snr_weight_floor", 1.5}, {"snr_weighting", "yes"},
+                 {"ground_echo", 1},        {"ground_height_m", "low"}};
   site["fusion"] = {{"confirm_hits", 9}, {"confirm_window", 4}};
   const auto problems = problems_of(site);
   auto has = [&](const std::string& line) {
@@ -201,6 +200,8 @@ TEST(SiteConfig, ProcessingSectionsValidated) {
   EXPECT_TRUE(has("doa.bands_hz[0]: expected 0 <= low_hz < high_hz"));
   EXPECT_TRUE(has("doa.snr_weight_floor: must be in [0, 1], got 1.5"));
   EXPECT_TRUE(has("doa.snr_weighting: expected true or false, got a string"));
+  EXPECT_TRUE(has("doa.ground_echo: expected true or false, got a number"));
+  EXPECT_TRUE(has("doa.ground_height_m: expected a number, got a string"));
   EXPECT_TRUE(
       has("doa.tdoa_tracker: unknown value \"magic\", expected one of: per_frame, "
           "bayesian_grid, multi_peak, robust_regression"));

@@ -35,10 +35,10 @@ TEST(SceneAccuracy, Seed002At10dB) {
   for (const char* array : {"A1", "A2"}) {
     const DroneAtArray& entry = cell(result, array, "D1");
     EXPECT_GT(entry.audible_frames, 500) << array;
-    // Issue 4 asks <= 0.2 deg. Plain PHAT gives A1 0.200; the default SNR weighting 0.209 (its
-    // floor trades this 10 dB scene against the 0 dB far pass, docs/doa.md): not met, guarded.
-    EXPECT_LE(entry.median_deg(), 0.22) << array;
-    EXPECT_LE(entry.p90_deg(), 0.5) << array;
+    // Issue 4 asks <= 0.2 deg. Measured with the ground echo removed: A1 0.092, A2 0.083 (0.209
+    // and 0.135 before; the echo pulled the elevation, docs/doa.md stage 7b).
+    EXPECT_LE(entry.median_deg(), 0.15) << array;
+    EXPECT_LE(entry.p90_deg(), 0.35) << array;
     EXPECT_GE(entry.coverage(), 0.95) << array;
   }
   EXPECT_LT(result.stray_doas, result.doas / 100);
