@@ -19,6 +19,32 @@ constexpr double kLocalGainStep = 0.1;
 constexpr double kAcquisitionGain = 0.5;
 constexpr double kMinGain = 0.05;
 constexpr double kMaxGain = 0.95;
+// The search judges coherence on at most this many bins: the comb's period (1/Delta, 140 Hz and
+// up) spans many 5.9 Hz bins, so a spread subset sees it as well as the whole band does.
+constexpr int kSearchBins = 64;
+
+// e^{j phase} from a table (linear interpolation, error < 3e-7): the search's inner loop.
+constexpr int kPhaseTableSize = 4096;
+const std::vector<std::complex<double>>& phase_table() {
+  static const std::vector<std::complex<double>> table = [] {
+    std::vector<std::complex<double>> values(kPhaseTableSize + 1);
+    for (int i = 0; i <= kPhaseTableSize; ++i)
+      values[static_cast<std::size_t>(i)] =
+          std::polar(1.0, 2.0 * std::numbers::pi * i / kPhaseTableSize);
+    return values;
+  }();
+  return table;
+}
+
+std::complex<double> unit_phasor(double phase_rad) {
+  const double position = phase_rad * (kPhaseTableSize / (2.0 * std::numbers::pi));
+  const double floor = std::floor(position);
+  const double fraction = position - floor;
+  const auto index =
+      static_cast<std::size_t>(static_cast<std::int64_t>(floor) & (kPhaseTableSize - 1));
+  const std::vector<std::complex<double>>& table = phase_table();
+  return table[index] + fraction * (table[index + 1] - table[index]);
+}
 
 // Vertex of the parabola through (-step, left), (0, centre), (+step, right), as a multiple of
 // step, clamped to [-limit, limit]; 0 when the three do not make a maximum.
@@ -46,10 +72,13 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   arrival_s_.assign(mics, 0.0);
   delay_s_.assign(mics, 0.0);
   level_.assign(mics, 0.0);
-  direct_.assign(mics, {});
-  direct_step_.assign(mics, {});
-  echo_.assign(mics, {});
-  echo_step_.assign(mics, {});
+  for (const BandRun& run : runs_)
+    for (int k = run.first_bin; k <= run.last_bin; ++k) band_omega_.push_back(k * bin_omega_);
+  candidates_.assign(band_omega_.size(), 0);
+  search_omega_.assign(kSearchBins, 0.0);
+  search_weight_.assign(kSearchBins, 0.0);
+  aligned_.assign(static_cast<std::size_t>(kSearchBins) * mics, {});
+  (void)phase_table();  // made here, not in the first frame's search
   rotation_.assign(static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
@@ -91,45 +120,58 @@ void GroundEcho::paths(const Eigen::Vector3d& direction_site, double curvature_p
   }
 }
 
-double GroundEcho::coherence(const GccPhat& gcc, double gain) {
+void GroundEcho::prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
   const std::span<const double> weights = gcc.bin_weight();
   const std::span<const std::uint8_t> keep = gcc.bin_keep();
+  double strongest = 0.0;
+  for (std::size_t k = 0; k < keep.size(); ++k)
+    if (keep[k] != 0) strongest = std::max(strongest, weights[k]);
+  // The source's own bins: the SNR weights' upper half (every kept bin with plain PHAT). Bins
+  // with noise only would add chance coherence, not evidence.
+  int count = 0;
+  for (std::size_t k = 0; k < keep.size(); ++k)
+    if (keep[k] != 0 && weights[k] > 0.0 && weights[k] >= 0.5 * strongest)
+      candidates_[static_cast<std::size_t>(count++)] = static_cast<int>(k);
+  const int stride = std::max(1, (count + kSearchBins - 1) / kSearchBins);
+  const std::size_t mics = mics_m_.size();
+  for (std::size_t mic = 0; mic < mics; ++mic)
+    arrival_s_[mic] = -direction_site.dot(mics_m_[mic]) / speed_of_sound_mps_;
+  search_bins_ = 0;
+  for (int c = 0; c < count; c += stride) {
+    const int index = candidates_[static_cast<std::size_t>(c)];
+    const auto slot = static_cast<std::size_t>(search_bins_++);
+    search_omega_[slot] = band_omega_[static_cast<std::size_t>(index)];
+    search_weight_[slot] = weights[static_cast<std::size_t>(index)];
+    for (std::size_t mic = 0; mic < mics; ++mic) {
+      const int m = static_cast<int>(mic);
+      // e^{+j w t_i} undoes the direct path's delay: aligned units add up in phase.
+      aligned_[slot * mics + mic] =
+          std::complex<double>(gcc.unit_real(m)[static_cast<std::size_t>(index)],
+                               gcc.unit_imag(m)[static_cast<std::size_t>(index)]) *
+          unit_phasor(search_omega_[slot] * arrival_s_[mic]);
+    }
+  }
+}
+
+double GroundEcho::coherence(double gain) const {
   const std::size_t mics = mics_m_.size();
   double total = 0.0;
   double weight_sum = 0.0;
-  std::size_t index = 0;
-  for (const BandRun& run : runs_) {
-    const double first_omega = run.first_bin * bin_omega_;
+  for (std::size_t bin = 0; bin < static_cast<std::size_t>(search_bins_); ++bin) {
+    const std::complex<double>* aligned = aligned_.data() + bin * mics;
+    std::complex<double> sum(0.0, 0.0);
     for (std::size_t mic = 0; mic < mics; ++mic) {
-      // Units are aligned on the direct path by e^{+j w t_i}; the echo term needs e^{-j w Delta_i}.
-      direct_[mic] = std::polar(1.0, first_omega * arrival_s_[mic]);
-      direct_step_[mic] = std::polar(1.0, bin_omega_ * arrival_s_[mic]);
-      echo_[mic] = std::polar(gain * level_[mic], -first_omega * delay_s_[mic]);
-      echo_step_[mic] = std::polar(1.0, -bin_omega_ * delay_s_[mic]);
-    }
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      const double weight = keep[index] != 0 ? weights[index] : 0.0;
-      if (weight > 0.0) {
-        std::complex<double> sum(0.0, 0.0);
-        for (std::size_t mic = 0; mic < mics; ++mic) {
-          const int m = static_cast<int>(mic);
-          std::complex<double> aligned =
-              std::complex<double>(gcc.unit_real(m)[index], gcc.unit_imag(m)[index]) * direct_[mic];
-          if (gain > 0.0) {
-            const std::complex<double> comb = 1.0 + echo_[mic];
-            const double size = std::abs(comb);
-            if (size > 1e-9) aligned *= std::conj(comb) / size;
-          }
-          sum += aligned;
-        }
-        total += weight * std::norm(sum);
-        weight_sum += weight;
+      if (gain <= 0.0) {
+        sum += aligned[mic];
+        continue;
       }
-      for (std::size_t mic = 0; mic < mics; ++mic) {
-        direct_[mic] *= direct_step_[mic];
-        echo_[mic] *= echo_step_[mic];
-      }
+      const std::complex<double> comb =
+          1.0 + gain * level_[mic] * unit_phasor(-search_omega_[bin] * delay_s_[mic]);
+      const double size = std::sqrt(std::norm(comb));  // not std::abs: hypot is slow
+      sum += size > 1e-9 ? aligned[mic] * std::conj(comb) / size : aligned[mic];
     }
+    total += search_weight_[bin] * std::norm(sum);
+    weight_sum += search_weight_[bin];
   }
   const double scale = weight_sum * static_cast<double>(mics * mics);
   return scale > 0.0 ? total / scale : 0.0;
@@ -137,6 +179,7 @@ double GroundEcho::coherence(const GccPhat& gcc, double gain) {
 
 void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full) {
   frames_since_search_ = 0;
+  prepare(gcc, direction_site);
   const double max_curvature = 1.0 / settings_.min_range_m;
   double curvature = curvature_per_m_;
   double gain = locked_ ? gain_ : kAcquisitionGain;
@@ -144,7 +187,7 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
     double best = -1.0;
     for (double candidate = 0.0; candidate <= max_curvature + 1e-12; candidate += kScanStep_per_m) {
       paths(direction_site, candidate);
-      const double value = coherence(gcc, gain);
+      const double value = coherence(gain);
       if (value > best) {
         best = value;
         curvature = candidate;
@@ -155,7 +198,7 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   const double step = kLocalCurvatureStep_per_m;
   auto at_curvature = [&](double value) {
     paths(direction_site, std::clamp(value, 0.0, max_curvature));
-    return coherence(gcc, gain);
+    return coherence(gain);
   };
   const double left = at_curvature(curvature - step);
   const double right = at_curvature(curvature + step);
@@ -163,16 +206,23 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   curvature =
       std::clamp(curvature + step * parabola_vertex(left, centre, right, 2.0), 0.0, max_curvature);
   paths(direction_site, curvature);
-  const double lower = coherence(gcc, std::max(kMinGain, gain - kLocalGainStep));
-  const double upper = coherence(gcc, std::min(kMaxGain, gain + kLocalGainStep));
-  const double middle = coherence(gcc, gain);
+  const double lower = coherence(std::max(kMinGain, gain - kLocalGainStep));
+  const double upper = coherence(std::min(kMaxGain, gain + kLocalGainStep));
+  const double middle = coherence(gain);
   gain = std::clamp(gain + kLocalGainStep * parabola_vertex(lower, middle, upper, 1.5), kMinGain,
                     kMaxGain);
-  const double with_echo = coherence(gcc, gain);
-  const double without = coherence(gcc, 0.0);
+  const double with_echo = coherence(gain);
+  const double without = coherence(0.0);
   locked_ = with_echo > without * (1.0 + settings_.min_improvement);
   curvature_per_m_ = curvature;
   gain_ = gain;
+}
+
+bool GroundEcho::search_due(const Eigen::Vector3d& direction_site) const {
+  if (!(direction_site.z() >= min_sine_elevation_)) return false;
+  const bool jump = direction_site.dot(last_direction_) < max_jump_cosine_;
+  if (!locked_ || jump) return jump || frames_since_search_ + 1 >= settings_.acquire_every_frames;
+  return frames_since_search_ + 1 >= settings_.search_every_frames;
 }
 
 bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
@@ -206,7 +256,7 @@ void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
       const std::complex<double> echo_step = std::polar(1.0, -bin_omega_ * delay_s_[mic]);
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         const std::complex<double> comb = 1.0 + echo;
-        const double size = std::abs(comb);
+        const double size = std::sqrt(std::norm(comb));  // not std::abs: hypot is slow
         rotation_[index] = size > 1e-9 ? std::conj(comb) / size : std::complex<double>(1.0, 0.0);
         echo *= echo_step;
       }

@@ -32,8 +32,8 @@ struct GroundEchoSettings {
   double min_range_m = 4.0;             // nearest source searched
   double min_elevation_deg = 2.0;       // lower, the echo is the direct path itself
   double min_improvement = 0.02;        // relative coherence gain that counts as an echo
-  int search_every_frames = 2;          // local search period while locked
-  int acquire_every_frames = 10;        // full search period while not locked
+  int search_every_frames = 4;          // local search period while locked
+  int acquire_every_frames = 20;        // full search period while not locked
   double max_direction_jump_deg = 3.0;  // a larger jump is another source: search again
 };
 
@@ -46,6 +46,9 @@ class GroundEcho {
   // array centre) on this frame's per-mic units (kept bins, bin weights). Returns whether an echo
   // is locked; remove() then divides it out.
   bool observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  // Whether the next observe() searches (reads the units, the kept bins and their weights);
+  // otherwise it only follows the direction.
+  bool search_due(const Eigen::Vector3d& direction_site) const;
   // Divides the locked echo, for the source's direction now, out of every mic's units.
   void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
   void reset();
@@ -60,9 +63,12 @@ class GroundEcho {
   // curvature cannot buy coherence by bending the direct path), the echo's delay and relative
   // level.
   void paths(const Eigen::Vector3d& direction_site, double curvature_per_m);
-  // Mean coherence along the direct path of the units with the current paths' combs removed
-  // (gain 0: as they are), in [0, 1].
-  double coherence(const GccPhat& gcc, double gain);
+  // The search's bins for this frame (the strongest weights, at most kSearchBins spread over
+  // the band), their units aligned on the direct path from `direction_site`.
+  void prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  // Weighted mean coherence of the prepared bins with the current paths' combs removed (gain 0:
+  // as they are), in [0, 1].
+  double coherence(double gain) const;
   void search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full);
 
   GroundEchoSettings settings_;
@@ -72,6 +78,7 @@ class GroundEcho {
   double centre_height_m_ = 0.0;
   std::vector<BandRun> runs_;
   double bin_omega_ = 0.0;
+  std::vector<double> band_omega_;  // rad/s per band bin
   double min_sine_elevation_ = 0.0;
   double max_jump_cosine_ = 1.0;
   // Per mic, for the current candidate.
@@ -79,8 +86,13 @@ class GroundEcho {
   std::vector<double> delay_s_;
   std::vector<double> level_;
   std::vector<std::complex<double>> rotation_;  // remove(): one mic's band
-  // Per mic recurrences over a run (coherence()).
-  std::vector<std::complex<double>> direct_, direct_step_, echo_, echo_step_;
+  // prepare(): per search bin, its angular frequency and weight, and per bin and mic the unit
+  // aligned on the direct path (bin-major).
+  int search_bins_ = 0;
+  std::vector<double> search_omega_;
+  std::vector<double> search_weight_;
+  std::vector<std::complex<double>> aligned_;
+  std::vector<int> candidates_;  // scratch: band indices with a large enough weight
 
   bool locked_ = false;
   double curvature_per_m_ = 0.0;

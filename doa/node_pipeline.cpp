@@ -362,11 +362,14 @@ void NodePipeline::Impl::find_further_sources() {
 // The first source's ground reflection, found on its own bins (the others' dropped), divided out
 // of the mics' phases; its TDOAs are then measured again.
 void NodePipeline::Impl::remove_ground_echo() {
-  gcc.restore_whitened();
-  for (int s = 1; s < candidate_count; ++s)
-    bin_mask.drop(gcc, std::span<const PairTdoa>(
-                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
   const Eigen::Vector3d direction = candidates[0].solution.direction_site;
+  if (ground_echo->search_due(direction)) {
+    // The search reads the first source's bins: the frame's, minus the other sources'.
+    gcc.restore_whitened();
+    for (int s = 1; s < candidate_count; ++s)
+      bin_mask.drop(gcc, std::span<const PairTdoa>(
+                             candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  }
   if (!ground_echo->observe(gcc, direction)) return;
   ground_echo->remove(gcc, direction);
   remeasure_primary();
