@@ -361,7 +361,7 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
     }
     index -= (kLanes - bins % kLanes) % kLanes;  // back to the next run's first bin
   }
-  const auto total = [](Wide v) {
+  const auto total = [](const Wide& v) {
     return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
   };
   TaylorSums sums;
