@@ -62,7 +62,7 @@ inline Lanes inverse_sqrt(Lanes x) {
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-#define DRONETRACK_WIDE_DIRECT 1
+#define DRONETRACK_WIDE_SIMD 1
 // With AVX-512 the lag grid summed directly over the kept bins beats the inverse FFT even over
 // the whole band (doa_bench BM_PipelineStage 2 and 4 on a Zen 4: 342 bins x 31 lags x 6 pairs
 // in ~6.5 us against ~9 us for six single-precision c2r transforms of 2048 points, and 4x the
@@ -297,7 +297,7 @@ TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
   return sums;
 }
 
-#ifdef DRONETRACK_WIDE_DIRECT
+#ifdef DRONETRACK_WIDE_SIMD
 // taylor_sums() eight bins per vector: lane l holds bin first + l of a run (rotation e^{j w_k
 // tau} advanced by step^8), a run's last partial vector has zero phasors in the unused lanes.
 __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
@@ -507,14 +507,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   lag_stride_ = (lag_rows_ + kLagStrideMultiple - 1) / kLagStrideMultiple *
                 kLagStrideMultiple;  // whole blocks, zeros after
   wide_simd_ = wide_simd_supported();
-#ifdef DRONETRACK_WIDE_DIRECT
-  const double products_per_fft_point =
-      wide_simd_ ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint;
-#else
-  const double products_per_fft_point = kDirectProductsPerFftPoint;
-#endif
-  max_direct_products_ = products_per_fft_point * correlation_size_ *
-                         std::log2(static_cast<double>(correlation_size_));
+  max_direct_products_ = direct_products_limit();
   // No table when too few kept bins to correlate at all would already cost more than the FFT.
   if (max_direct_products_ / lag_rows_ >= std::max(1.0, kMinKeptShare * band_bins_)) {
     const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);
@@ -540,7 +533,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   }
   kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
-  if (wide_simd_) zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
+  zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftwf_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
@@ -550,6 +543,26 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   inverse_->plan = fftwf_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
                                          inverse_->correlation, FFTW_MEASURE);
   if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
+}
+
+double GccPhat::direct_products_limit() const {
+#ifdef DRONETRACK_WIDE_SIMD
+  const double products_per_fft_point =
+      wide_simd_ ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint;
+#else
+  const double products_per_fft_point = kDirectProductsPerFftPoint;
+#endif
+  return products_per_fft_point * correlation_size_ *
+         std::log2(static_cast<double>(correlation_size_));
+}
+
+bool GccPhat::wide_simd_available() { return wide_simd_supported(); }
+
+void GccPhat::set_wide_simd(bool on) {
+  wide_simd_ = on && wide_simd_supported();
+  // Without a lag table (built in the constructor when direct sums could ever pay) the FFT
+  // stays the only way.
+  if (!lag_table_.empty()) max_direct_products_ = direct_products_limit();
 }
 
 GccPhat::~GccPhat() {
@@ -629,7 +642,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     // One pass per mic, two bins per step: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit
     // X / |X|. A silent bin (X = 0) gets the unit phasor 0.
     std::size_t index = 0;
-#ifdef DRONETRACK_WIDE_DIRECT
+#ifdef DRONETRACK_WIDE_SIMD
     if (wide_simd_) index = wide_units(x, band_fft_bins_.data(), bins, level, unit_re, unit_im);
 #endif
     for (; index + 2 <= bins; index += 2) {
@@ -682,7 +695,7 @@ void GccPhat::pair_phasors(bool masked) {
     const Lanes one{1.0, 1.0};
     const Lanes zero{0.0, 0.0};
     std::size_t n = 0;
-#ifdef DRONETRACK_WIDE_DIRECT
+#ifdef DRONETRACK_WIDE_SIMD
     if (wide_simd_)
       n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
                              masked ? keep_.data() : nullptr, bins, out, magnitude);
@@ -870,7 +883,7 @@ void GccPhat::direct_grids(double normalisation) {
   // bins. Per pair and block of kLagBlock lags the sums stay in registers over all kept bins.
   const auto stride = static_cast<std::size_t>(lag_stride_);
   const auto bins = static_cast<std::size_t>(band_bins_);
-#ifdef DRONETRACK_WIDE_DIRECT
+#ifdef DRONETRACK_WIDE_SIMD
   if (wide_simd_) {
     for (std::size_t group = 0; group < pairs_.size(); group += kWideGroup) {
       std::array<const std::complex<double>*, kWideGroup> rows{};
@@ -1063,7 +1076,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   // below kNewtonResidual_s the pass was the last (from the parabola's start, typically the
   // first), else the next pass starts from there.
   for (int iteration = 0; iteration < 6; ++iteration) {
-#ifdef DRONETRACK_WIDE_DIRECT
+#ifdef DRONETRACK_WIDE_SIMD
     const TaylorSums sums = wide_simd_ ? wide_taylor_sums(runs_, bin_omega_, phasor, magnitude, lag)
                                        : taylor_sums(runs_, bin_omega_, phasor, magnitude, lag);
 #else

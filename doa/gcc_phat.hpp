@@ -116,6 +116,13 @@ class GccPhat {
   // correction (GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it.
   void rotate_units(int mic, std::span<const std::complex<double>> rotation);
 
+  // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
+  // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
+  // of other machines (the tests compare the two).
+  static bool wide_simd_available();
+  void set_wide_simd(bool on);
+  bool wide_simd() const { return wide_simd_; }
+
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
   const PairCorrelation& pair(int pair) const { return results_[static_cast<std::size_t>(pair)]; }
@@ -156,6 +163,7 @@ class GccPhat {
   void pair_phasors(bool masked);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
+  double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
 
   double sample_rate_hz_;
   int fft_size_;

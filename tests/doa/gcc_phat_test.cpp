@@ -201,6 +201,68 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   check_grid("restored", 1e-6);
 }
 
+// The AVX-512 kernels (direct lag sums over the whole band, refinement, whitening) and the
+// two-lane code with the FFT give the same grid, peaks and coherence on one frame of two
+// sources, with every bin kept and with few kept.
+TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
+  if (!GccPhat::wide_simd_available()) GTEST_SKIP() << "no AVX-512 on this CPU: one code path";
+  const int length = 2 * 8192;
+  const testing::BandNoise first(length, kRate, 1500.0, 3500.0, 21);
+  const testing::BandNoise second(length, kRate, 1500.0, 3500.0, 22);
+  testing::Recording recording = testing::silent_recording(4, length);
+  recording.add(0, first.delayed(3.3 / kRate, 0.1));
+  recording.add(1, first.delayed(0.0, 0.1));
+  recording.add(2, first.delayed(-5.7 / kRate, 0.1));
+  recording.add(3, first.delayed(9.1 / kRate, 0.1));
+  recording.add(0, second.delayed(-2.0 / kRate, 0.05));
+  recording.add(3, second.delayed(1.5 / kRate, 0.05));
+  testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, 23);
+  Framer framer(4, kFrame, kFrame);
+  MultichannelFft fft(4, kFrame, fftw_friendly_size(kFrame));
+  const double max_lag_s = 0.8 / 343.0;
+  std::vector<MicPairSpec> pairs;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j) pairs.push_back({i, j, max_lag_s});
+  GccPhat wide(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
+  GccPhat two_lane(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
+  two_lane.set_wide_simd(false);
+  ASSERT_TRUE(wide.wide_simd());
+  ASSERT_FALSE(two_lane.wide_simd());
+  bool done = false;
+  framer.push(recording.view(2000, kFrame), [&](const FrameView& frame) {
+    fft.process(frame);
+    wide.whiten(fft);
+    two_lane.whiten(fft);
+    done = true;
+  });
+  ASSERT_TRUE(done);
+  auto compare = [&](const char* what, double grid_tolerance) {
+    for (int p = 0; p < wide.pair_count(); ++p) {
+      const std::span<const double> a = wide.grid(p);
+      const std::span<const double> b = two_lane.grid(p);
+      ASSERT_EQ(a.size(), b.size());
+      for (std::size_t m = 0; m < a.size(); ++m)
+        EXPECT_NEAR(a[m], b[m], grid_tolerance) << what << " pair " << p << " lag " << m;
+      EXPECT_NEAR(wide.pair(p).peak.lag_s, two_lane.pair(p).peak.lag_s, 1e-12) << what << p;
+      EXPECT_NEAR(wide.pair(p).peak.value, two_lane.pair(p).peak.value, 1e-12) << what << p;
+      EXPECT_NEAR(wide.pair(p).coherence, two_lane.pair(p).coherence, 1e-12) << what << p;
+      EXPECT_GT(wide.pair(p).peak.value, 0.1) << what << p;  // a real peak, not two zeros
+    }
+  };
+  wide.save_whitened();
+  two_lane.save_whitened();
+  wide.correlate();
+  two_lane.correlate();  // the whole band: the single-precision FFT on this side
+  compare("all bins kept", 1e-6);
+  for (GccPhat* gcc : {&wide, &two_lane}) {
+    gcc->restore_whitened();
+    const std::span<std::uint8_t> keep = gcc->bin_keep();
+    for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 5 == 0 ? 1 : 0;
+    gcc->correlate(true, false);  // 20 % kept: direct sums on both sides
+  }
+  compare("every 5th bin kept", 1e-12);
+}
+
 TEST(BandRuns, MergesBandsAndRejectsEmpty) {
   const std::vector<BandRun> runs =
       band_runs({{1000, 2000}, {1900, 3000}, {5000, 6000}}, 48000.0, 4800);
