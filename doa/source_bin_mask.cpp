@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <complex>
+#include <cstring>
 
 namespace dronetrack::doa {
 
@@ -72,6 +73,76 @@ int scan_bins(const BinScan& scan, int vectors) {
   return dropped;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+// The scan eight bins per vector (GccPhat::wide_simd()): per pair the rotations of eight
+// consecutive bins, advanced by step^8; pairs summed in order, then the bins' verdicts.
+__attribute__((target("avx512f,fma"))) int wide_scan_bins(const BinScan& scan, int pairs) {
+  using Wide = double __attribute__((vector_size(64)));
+  using Selector = long long __attribute__((vector_size(64)));
+  constexpr int kLanes = 8;
+  Wide rotation_re[kMaxPairs] = {};
+  Wide rotation_im[kMaxPairs] = {};
+  Wide step8_re[kMaxPairs] = {};
+  Wide step8_im[kMaxPairs] = {};
+  for (int p = 0; p < pairs; ++p) {
+    std::complex<double> step8 = std::polar(1.0, scan.bin_omega * kLanes * scan.taus[p]);
+    step8_re[p] = Wide{} + step8.real();
+    step8_im[p] = Wide{} + step8.imag();
+  }
+  int dropped = 0;
+  std::size_t index = 0;
+  for (const BandRun& run : scan.gcc.band()) {
+    for (int p = 0; p < pairs; ++p) {
+      const std::complex<double> step = std::polar(1.0, scan.bin_omega * scan.taus[p]);
+      std::complex<double> rotation =
+          std::polar(1.0, scan.bin_omega * run.first_bin * scan.taus[p]);
+      for (int l = 0; l < kLanes; ++l) {
+        rotation_re[p][l] = rotation.real();
+        rotation_im[p][l] = rotation.imag();
+        rotation *= step;
+      }
+    }
+    const int bins = run.last_bin - run.first_bin + 1;
+    for (int k = 0; k < bins; k += kLanes, index += kLanes) {
+      const int lanes = std::min(kLanes, bins - k);
+      Wide scores{};
+      for (int p = 0; p < pairs; ++p) {
+        const std::complex<double>* w = scan.phasors[p] + index;
+        Wide w_re, w_im;
+        if (lanes == kLanes) {
+          Wide first_half, second_half;
+          std::memcpy(&first_half, w, sizeof first_half);
+          std::memcpy(&second_half, w + 4, sizeof second_half);
+          w_re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
+          w_im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+        } else {
+          for (int l = 0; l < kLanes; ++l) {
+            w_re[l] = l < lanes ? w[l].real() : 0.0;
+            w_im[l] = l < lanes ? w[l].imag() : 0.0;
+          }
+        }
+        scores += w_re * rotation_re[p] - w_im * rotation_im[p];
+        const Wide next_re = rotation_re[p] * step8_re[p] - rotation_im[p] * step8_im[p];
+        rotation_im[p] = rotation_re[p] * step8_im[p] + rotation_im[p] * step8_re[p];
+        rotation_re[p] = next_re;
+      }
+      for (int l = 0; l < lanes; ++l) {
+        const std::size_t bin = index + static_cast<std::size_t>(l);
+        // Phases decide: a weighted correlation left its weights on the phasors.
+        const double scale = scan.gcc.phasor_scale(static_cast<int>(bin));
+        if (scan.keep[bin] != 0 && scores[l] >= scan.threshold * scale) {
+          scan.keep[bin] = 0;
+          ++dropped;
+        }
+      }
+    }
+    index -= static_cast<std::size_t>((kLanes - bins % kLanes) % kLanes);
+  }
+  return dropped;
+}
+#define DRONETRACK_WIDE_SIMD 1
+#endif
+
 }  // namespace
 
 SourceBinMask::SourceBinMask(const GccPhat& gcc, double threshold)
@@ -105,6 +176,9 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
   const double threshold = threshold_ * pairs_used;
   const BinScan scan{
       gcc, bin_omega, phasors.data(), taus.data(), step_re.data(), step_im.data(), threshold, keep};
+#ifdef DRONETRACK_WIDE_SIMD
+  if (gcc.wide_simd()) return wide_scan_bins(scan, pairs_used);
+#endif
   switch (vectors) {
     case 1:
       return scan_bins<1>(scan, vectors);
