@@ -128,12 +128,13 @@ __attribute__((target("avx512f,fma"))) int wide_scan_bins(const BinScan& scan, i
       }
       for (int l = 0; l < lanes; ++l) {
         const std::size_t bin = index + static_cast<std::size_t>(l);
-        // Phases decide: a weighted correlation left its weights on the phasors.
+        // Phases decide: a weighted correlation left its weights on the phasors. No branch:
+        // which bins a source owns is a coin toss to the branch predictor.
         const double scale = scan.gcc.phasor_scale(static_cast<int>(bin));
-        if (scan.keep[bin] != 0 && scores[l] >= scan.threshold * scale) {
-          scan.keep[bin] = 0;
-          ++dropped;
-        }
+        const int owned = scores[l] >= scan.threshold * scale ? 1 : 0;
+        const int was_kept = scan.keep[bin] != 0 ? 1 : 0;
+        dropped += was_kept & owned;
+        scan.keep[bin] = static_cast<std::uint8_t>(was_kept & (1 - owned));
       }
     }
     index -= static_cast<std::size_t>((kLanes - bins % kLanes) % kLanes);
