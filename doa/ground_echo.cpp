@@ -22,6 +22,7 @@ constexpr double kMaxGain = 0.95;
 // The search judges coherence on at most this many bins: the comb's period (1/Delta, 140 Hz and
 // up) spans many 5.9 Hz bins, so a spread subset sees it as well as the whole band does.
 constexpr int kSearchBins = 64;
+constexpr int kMinSearchBins = 24;
 
 // e^{j phase} from a table (linear interpolation, error < 3e-7): the search's inner loop.
 constexpr int kPhaseTableSize = 4096;
@@ -180,6 +181,12 @@ double GroundEcho::coherence(double gain) const {
 void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full) {
   frames_since_search_ = 0;
   prepare(gcc, direction_site);
+  if (search_bins_ < kMinSearchBins) {
+    // Two parameters fitted to a handful of bins fit their noise: a source heard in few bins
+    // (next to a nulled generator, at 0 dB) would lock onto a made-up echo.
+    locked_ = false;
+    return;
+  }
   const double max_curvature = 1.0 / settings_.min_range_m;
   double curvature = curvature_per_m_;
   double gain = locked_ ? gain_ : kAcquisitionGain;
