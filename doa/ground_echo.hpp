@@ -1,5 +1,5 @@
 #pragma once
-// The ground's reflection of the primary source, measured and divided out of the mics' phases.
+// The ground's reflection of one source, measured and divided out of the mics' phases.
 //
 // An array stands a metre or two above flat ground, so every mic hears a drone twice: directly
 // and from its mirror image under the ground, g (0..1) times as loud and later by
