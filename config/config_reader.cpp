@@ -6,13 +6,13 @@
 namespace dronetrack::config {
 namespace {
 const nlohmann::json kEmptyObject = nlohmann::json::object();
+}  // namespace
 
 std::string format_number(double value) {
   std::ostringstream text;
   text << value;
   return text.str();
 }
-}  // namespace
 
 void Diagnostics::error(const std::string& path, const std::string& what) {
   errors.push_back(path.empty() ? what : path + ": " + what);

@@ -73,5 +73,7 @@ class ObjectReader {
 std::optional<Eigen::Vector3d> read_vector3(const nlohmann::json& node, const std::string& path,
                                             Diagnostics& diagnostics);
 std::string describe_json_type(const nlohmann::json& node);
+// A number as an error message shows it (shortest form: 1.5, 0.3, 1e-05).
+std::string format_number(double value);
 
 }  // namespace dronetrack::config

@@ -223,6 +223,20 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       ObjectReader doa_section = root.object("doa");
       parse_doa_params(doa_section, site.doa);
     }
+    if (site.doa.ground_echo) {
+      // The echo model mirrors each mic in the ground: a mic at or under it has no mirror.
+      for (std::size_t i = 0; i < site.arrays.size(); ++i)
+        for (std::size_t mic = 0; mic < site.arrays[i].geometry.mic_count(); ++mic) {
+          const double z = site.arrays[i].geometry.mic_site_m(mic).z();
+          if (z <= site.doa.ground_height_m)
+            diagnostics.error(
+                "arrays[" + std::to_string(i) + "].mics_m[" + std::to_string(mic) + "]",
+                "mic at site z " + format_number(z) +
+                    " m is not above the ground (doa.ground_height_m " +
+                    format_number(site.doa.ground_height_m) +
+                    "); raise it, or set doa.ground_echo false");
+        }
+    }
     {
       ObjectReader fusion_section = root.object("fusion");
       parse_fusion_params(fusion_section, site.fusion);

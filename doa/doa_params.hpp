@@ -57,9 +57,9 @@ struct DoaParams {
   // deg at 0.15, 0.209 at 0.3, 0.199 at 0.5, plain PHAT 0.200; 0 dB far pass: see docs/doa.md).
   double snr_weight_floor = 0.3;
 
-  // Ground reflection removal (doa/ground_echo.hpp), 3-D arrays: the first source's echo off the
-  // ground under the array (its range and the ground's reflection coefficient searched per
-  // frame) is divided out of the mics' phases and its TDOAs measured again. Off: the echo pulls
+  // Ground reflection removal (doa/ground_echo.hpp), 3-D arrays: each source's echo off the
+  // ground under the array (its range and the ground's reflection coefficient searched and
+  // followed) is divided out of the mics' phases and its TDOAs measured again. Off: the echo pulls
   // the elevation by a few tenths of a degree (seed-002 scene: A1's median 0.18 -> 0.10 deg).
   bool ground_echo = true;
   double ground_height_m = 0.0;  // site z of the reflecting ground (flat) under the arrays

@@ -22,6 +22,7 @@ constexpr double kMaxGain = 0.95;
 // The search judges coherence on at most this many bins: the comb's period (1/Delta, 140 Hz and
 // up) spans many 5.9 Hz bins, so a spread subset sees it as well as the whole band does.
 constexpr int kSearchBins = 64;
+constexpr int kMinSearchBins = 24;
 
 // e^{j phase} from a table (linear interpolation, error < 3e-7): the search's inner loop.
 constexpr int kPhaseTableSize = 4096;
@@ -79,7 +80,8 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   search_weight_.assign(kSearchBins, 0.0);
   aligned_.assign(static_cast<std::size_t>(kSearchBins) * mics, {});
   (void)phase_table();  // made here, not in the first frame's search
-  rotation_.assign(static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
+  rotations_.assign(mics * static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
+  undo_.assign(static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
   reset();
@@ -180,6 +182,12 @@ double GroundEcho::coherence(double gain) const {
 void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full) {
   frames_since_search_ = 0;
   prepare(gcc, direction_site);
+  if (search_bins_ < kMinSearchBins) {
+    // Two parameters fitted to a handful of bins fit their noise: a source heard in few bins
+    // (next to a nulled generator, at 0 dB) would lock onto a made-up echo.
+    locked_ = false;
+    return;
+  }
   const double max_curvature = 1.0 / settings_.min_range_m;
   double curvature = curvature_per_m_;
   double gain = locked_ ? gain_ : kAcquisitionGain;
@@ -248,7 +256,9 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
 void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
   if (!locked_) return;
   paths(direction_site, curvature_per_m_);
+  const std::size_t bins = undo_.size();
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
+    std::complex<double>* rotation = rotations_.data() + mic * bins;
     std::size_t index = 0;
     for (const BandRun& run : runs_) {
       std::complex<double> echo =
@@ -257,11 +267,21 @@ void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
       for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
         const std::complex<double> comb = 1.0 + echo;
         const double size = std::sqrt(std::norm(comb));  // not std::abs: hypot is slow
-        rotation_[index] = size > 1e-9 ? std::conj(comb) / size : std::complex<double>(1.0, 0.0);
+        rotation[index] = size > 1e-9 ? std::conj(comb) / size : std::complex<double>(1.0, 0.0);
         echo *= echo_step;
       }
     }
-    gcc.rotate_units(static_cast<int>(mic), rotation_);
+    gcc.rotate_units(static_cast<int>(mic), {rotation, bins});
+  }
+}
+
+void GroundEcho::restore(GccPhat& gcc) {
+  if (!locked_) return;
+  const std::size_t bins = undo_.size();
+  for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
+    const std::complex<double>* rotation = rotations_.data() + mic * bins;
+    for (std::size_t k = 0; k < bins; ++k) undo_[k] = std::conj(rotation[k]);
+    gcc.rotate_units(static_cast<int>(mic), undo_);
   }
 }
 

@@ -1,5 +1,5 @@
 #pragma once
-// The ground's reflection of the primary source, measured and divided out of the mics' phases.
+// The ground's reflection of one source, measured and divided out of the mics' phases.
 //
 // An array stands a metre or two above flat ground, so every mic hears a drone twice: directly
 // and from its mirror image under the ground, g (0..1) times as loud and later by
@@ -51,6 +51,12 @@ class GroundEcho {
   bool search_due(const Eigen::Vector3d& direction_site) const;
   // Divides the locked echo, for the source's direction now, out of every mic's units.
   void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  // Undoes the last remove(): the units as they were, for another source's look.
+  void restore(GccPhat& gcc);
+  // Cosine between `direction_site` and the direction last observed: which source this follows.
+  double alignment(const Eigen::Vector3d& direction_site) const {
+    return direction_site.dot(last_direction_);
+  }
   void reset();
 
   bool locked() const { return locked_; }
@@ -85,7 +91,8 @@ class GroundEcho {
   std::vector<double> arrival_s_;
   std::vector<double> delay_s_;
   std::vector<double> level_;
-  std::vector<std::complex<double>> rotation_;  // remove(): one mic's band
+  std::vector<std::complex<double>> rotations_;  // remove(): per mic, per band bin
+  std::vector<std::complex<double>> undo_;       // restore(): one mic's band
   // prepare(): per search bin, its angular frequency and weight, and per bin and mic the unit
   // aligned on the direct path (bin-major).
   int search_bins_ = 0;

@@ -139,7 +139,8 @@ struct NodePipeline::Impl {
     if (params.ground_echo && solver.rank() >= 3) {
       GroundEchoSettings echo_settings;
       echo_settings.ground_height_m = params.ground_height_m;
-      ground_echo = std::make_unique<GroundEcho>(geometry, gcc, speed_of_sound_mps, echo_settings);
+      ground_echoes.assign(static_cast<std::size_t>(params.max_sources),
+                           GroundEcho(geometry, gcc, speed_of_sound_mps, echo_settings));
     }
   }
 
@@ -158,8 +159,9 @@ struct NodePipeline::Impl {
   void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
-  void remeasure_primary();
-  void remove_ground_echo();
+  void remeasure(int source);
+  void remove_ground_echoes();
+  void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
@@ -189,7 +191,9 @@ struct NodePipeline::Impl {
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<BinSnrWeight> snr_weight;       // noise-only bins faded
-  std::unique_ptr<GroundEcho> ground_echo;        // the first source's ground reflection removed
+  // Each source's ground reflection (its range and strength are its own), following the sources
+  // by direction; empty for arrays that cannot tell the echo from the source.
+  std::vector<GroundEcho> ground_echoes;
   std::unique_ptr<SourceTracks> source_tracks;
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};
@@ -315,7 +319,7 @@ void NodePipeline::Impl::find_candidates() {
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
-  if (ground_echo && candidate_count > 0) remove_ground_echo();
+  if (!ground_echoes.empty()) remove_ground_echoes();
 }
 
 // Each source found takes its bins out of the correlations before the next look: what is left is
@@ -356,37 +360,75 @@ void NodePipeline::Impl::find_further_sources() {
       srp->begin_frame(gcc);
     }
   }
-  if (candidate_count >= 2) remeasure_primary();
+  if (candidate_count >= 2) remeasure(0);
 }
 
-// The first source's ground reflection, found on its own bins (the others' dropped), divided out
-// of the mics' phases; its TDOAs are then measured again.
-void NodePipeline::Impl::remove_ground_echo() {
-  const Eigen::Vector3d direction = candidates[0].solution.direction_site;
-  if (ground_echo->search_due(direction)) {
-    // The search reads the first source's bins: the frame's, minus the other sources'.
+// Every source's ground reflection, found on its own bins (the others' dropped), divided out of
+// the mics' phases; its TDOAs are then measured again and the units put back for the next.
+void NodePipeline::Impl::remove_ground_echoes() {
+  // Each state goes to the source it followed: pairs taken best-aligned first, so a stray look
+  // cannot take the state of a drone that is still there (a new source gets a free state, which
+  // then searches afresh: a jump).
+  std::array<bool, kMaxSources> state_taken{};
+  std::array<int, kMaxSources> state_of_source{};
+  state_of_source.fill(-1);
+  const auto states = static_cast<int>(ground_echoes.size());
+  for (int round = 0; round < std::min(candidate_count, states); ++round) {
+    int best_source = -1;
+    int best_state = -1;
+    double best_alignment = -2.0;
+    for (int s = 0; s < candidate_count; ++s) {
+      if (state_of_source[static_cast<std::size_t>(s)] >= 0) continue;
+      const Eigen::Vector3d& direction =
+          candidates[static_cast<std::size_t>(s)].solution.direction_site;
+      for (int e = 0; e < states; ++e) {
+        const double alignment = ground_echoes[static_cast<std::size_t>(e)].alignment(direction);
+        if (!state_taken[static_cast<std::size_t>(e)] && alignment > best_alignment) {
+          best_alignment = alignment;
+          best_source = s;
+          best_state = e;
+        }
+      }
+    }
+    state_taken[static_cast<std::size_t>(best_state)] = true;
+    state_of_source[static_cast<std::size_t>(best_source)] = best_state;
+  }
+  for (int s = 0; s < candidate_count; ++s)
+    if (const int e = state_of_source[static_cast<std::size_t>(s)]; e >= 0)
+      remove_ground_echo(s, ground_echoes[static_cast<std::size_t>(e)]);
+}
+
+void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
+  const Eigen::Vector3d direction =
+      candidates[static_cast<std::size_t>(source)].solution.direction_site;
+  if (echo.search_due(direction)) {
+    // The search reads this source's bins: the frame's, minus the other sources'.
     gcc.restore_whitened();
-    for (int s = 1; s < candidate_count; ++s)
+    for (int s = 0; s < candidate_count; ++s)
+      if (s != source)
+        bin_mask.drop(gcc, std::span<const PairTdoa>(
+                               candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  }
+  if (!echo.observe(gcc, direction)) return;
+  echo.remove(gcc, direction);
+  remeasure(source);
+  echo.restore(gcc);
+}
+
+// A source was measured with every other source's bins in its correlation (the first), or on a
+// look made for another (SRP): measured again without the others' bins (their lobes no longer
+// pull its peaks), near its own TDOAs.
+void NodePipeline::Impl::remeasure(int source) {
+  gcc.restore_whitened();
+  for (int s = 0; s < candidate_count; ++s)
+    if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
                              candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
-  }
-  if (!ground_echo->observe(gcc, direction)) return;
-  ground_echo->remove(gcc, direction);
-  remeasure_primary();
-}
-
-// The first source was measured with every other source's bins in its correlation: measured
-// again without them (the quieter sources' lobes no longer pull its peaks).
-void NodePipeline::Impl::remeasure_primary() {
-  gcc.restore_whitened();
-  for (int s = 1; s < candidate_count; ++s)
-    bin_mask.drop(gcc, std::span<const PairTdoa>(
-                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
   gcc.correlate(false);
-  Candidate& primary = candidates[0];
+  Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::array<PairTdoa, kMaxPairs> remeasured{};
   for (int p = 0; p < gcc.pair_count(); ++p) {
-    const PairTdoa& before = primary.tdoas[static_cast<std::size_t>(p)];
+    const PairTdoa& before = candidate.tdoas[static_cast<std::size_t>(p)];
     GccPeak peak;
     if (before.variance_s2 > 0.0 && gcc.refine(p, before.tdoa_s, peak) && peak.value > 0.0)
       remeasured[static_cast<std::size_t>(p)] = {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value),
@@ -395,8 +437,8 @@ void NodePipeline::Impl::remeasure_primary() {
   const std::span<const PairTdoa> again(remeasured.data(), tdoas.size());
   const DoaSolution solution = solver.solve(again);
   if (!solution.accepted) return;
-  primary.solution = solution;
-  std::copy(again.begin(), again.end(), primary.tdoas.begin());
+  candidate.solution = solution;
+  std::copy(again.begin(), again.end(), candidate.tdoas.begin());
 }
 
 // Drops the bins a found source owns and correlates what is left (the frame's earlier

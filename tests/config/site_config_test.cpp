@@ -208,6 +208,18 @@ TEST(SiteConfig, ProcessingSectionsValidated) {
   EXPECT_TRUE(has("fusion.confirm_hits: must not exceed confirm_window"));
 }
 
+TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
+  json site = two_array_site();
+  site["doa"] = {{"ground_height_m", 1.4}};
+  // The tetrahedra's three lower mics sit at z 1.5 - 0.167 = 1.333 m.
+  expect_problem(site,
+                 "arrays[0].mics_m[1]: mic at site z 1.333 m is not above the ground "
+                 "(doa.ground_height_m 1.4); raise it, or set doa.ground_echo false");
+  site["doa"]["ground_echo"] = false;
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(parse_site_config(site.dump(), ".", warnings, no_recordings()).doa.ground_echo);
+}
+
 TEST(SiteConfig, TurnModeKeysParseAndValidate) {
   json site = two_array_site();
   site["fusion"] = {{"imm_turn_mode", true},
