@@ -731,7 +731,12 @@ void GccPhat::pair_phasors(bool masked) {
   }
 }
 
-void GccPhat::correlate(bool refine_peaks, bool weighted) {
+void GccPhat::prepare_phasors(bool weighted) {
+  prepare(weighted);
+  for (PairCorrelation& result : results_) result = PairCorrelation{};
+}
+
+bool GccPhat::prepare(bool weighted) {
   // The phasors carry the weights of the last weighted correlate() until whiten() or
   // restore_whitened() makes them again: a change of mind scales each bin by w or 1 / w.
   const bool rescale = weighted != weights_applied_;
@@ -832,6 +837,12 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
   if (!scale && weighted) scale_and_sum.operator()<false, true>();
   if (!scale && !weighted) scale_and_sum.operator()<false, false>();
   weights_applied_ = weighted;
+  enough_bins_ = enough_bins;
+  return enough_bins;
+}
+
+void GccPhat::correlate(bool refine_peaks, bool weighted) {
+  const bool enough_bins = prepare(weighted);
   const double normalisation = 1.0 / kept_weight_;
   const bool direct = static_cast<double>(kept_bins_) * lag_rows_ <= max_direct_products_;
   if (enough_bins && direct) direct_grids(normalisation);
@@ -1064,7 +1075,17 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
   // Newton (quadratic convergence) needs one or two passes over the band.
   GccPeak start;
   refine_parabolic_grid_only(pair, m, start);
-  double lag = start.lag_s;
+  const int found = newton_peak(pair, start.lag_s, grid_lag_s, out);
+  if (found < 0) return refine_parabolic(pair, m, out);
+  return found > 0;
+}
+
+bool GccPhat::refine_from(int pair, double start_lag_s, GccPeak& out) const {
+  return enough_bins_ && newton_peak(pair, start_lag_s, start_lag_s, out) > 0;
+}
+
+int GccPhat::newton_peak(int pair, double start_lag_s, double anchor_lag_s, GccPeak& out) const {
+  double lag = start_lag_s;
   const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
   const std::complex<double>* phasor = phasors_.data() + offset;
   const double* magnitude = magnitudes_.data() + offset;
@@ -1087,7 +1108,7 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
     const double r2 = sums.r[2];
     const double r3 = sums.r[3];
     const double r4 = sums.r[4];
-    if (!(r2 < 0.0)) return refine_parabolic(pair, m, out);
+    if (!(r2 < 0.0)) return -1;
     // Newton on the polynomial's R' = r1 + r2 d + r3 d^2/2 + r4 d^3/6, from the plain step.
     const double reach = 0.5 * lag_step_s_;
     double delta = std::clamp(-r1 / r2, -reach, reach);
@@ -1106,16 +1127,16 @@ bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
     const double residual_s = taylor_bound_ * delta2 * delta2 / (24.0 * std::abs(curvature));
     lag += delta;
     if (residual_s < kNewtonResidual_s || iteration == 5) {
-      if (std::abs(lag - grid_lag_s) > 1.5 * lag_step_s_) return false;
+      if (std::abs(lag - anchor_lag_s) > 1.5 * lag_step_s_) return 0;
       const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
       const double value =
           r0 + delta * (r1 + delta * (0.5 * r2 + delta * (r3 / 6.0 + delta * r4 / 24.0)));
       const double coherent = sums.weighted + delta * sums.slope + 0.5 * delta2 * sums.bend;
       out = {lag, value / kept_weight_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
-      return true;
+      return 1;
     }
   }
-  return false;
+  return 0;
 }
 
 void GccPhat::refine_parabolic_grid_only(int pair, int m, GccPeak& out) const {

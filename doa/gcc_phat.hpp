@@ -77,6 +77,10 @@ class GccPhat {
   // bin_weight() (normalised by the weights' sum); false: every kept bin counts the same
   // (plain PHAT).
   void correlate(bool refine_peaks = true, bool weighted = true);
+  // The phasors made ready (mask, weights, normalisation) as correlate() makes them, without
+  // the lag grids: for peaks that only move a little from known lags (refine_from()). Until the
+  // next correlate(), the grids (grid(), refine(), top_peaks(), grid_value()) are stale.
+  void prepare_phasors(bool weighted = true);
 
   // The band's bins, in the order of phasors()/bin_keep(): runs of FFT bins, ascending.
   const std::vector<BandRun>& band() const { return runs_; }
@@ -142,6 +146,10 @@ class GccPhat {
   // answer per pair is kept until the next whiten()/correlate()/restore_whitened(): asking
   // again for a peak already refined (trackers, static null, SRP) costs a grid climb.
   bool refine(int pair, double start_lag_s, GccPeak& out) const;
+  // The peak near `start_lag_s` by Newton steps on the continuous correlation alone (no grid,
+  // band-limited refinement only): within 1.5 grid steps of the start, else false. For a peak
+  // known to have moved little (after prepare_phasors()).
+  bool refine_from(int pair, double start_lag_s, GccPeak& out) const;
   // Local maxima on the grid, highest first, at most out.size(); returns how many.
   int top_peaks(int pair, std::span<GccPeak> out) const;
   // |G|-weighted correlation at a lag: the share of the in-band power coherent at that lag.
@@ -157,6 +165,13 @@ class GccPhat {
   struct Inverse;
   int climb(int pair, double start_lag_s) const;  // grid index of the local max uphill
   bool refine_band_limited(int pair, int grid_index, GccPeak& out) const;
+  // The Taylor-polynomial Newton passes of refine_band_limited() from `start_lag_s`; false when
+  // R is not concave there or the peak ends farther than 1.5 grid steps from `anchor_lag_s`:
+  // 1 found, 0 out of reach, -1 R not concave at the start.
+  int newton_peak(int pair, double start_lag_s, double anchor_lag_s, GccPeak& out) const;
+  // correlate()'s first half (mask, weights, normalisation on the phasors); false when too few
+  // bins are kept for a correlation.
+  bool prepare(bool weighted);
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
@@ -180,6 +195,7 @@ class GccPhat {
   double kept_sum_w2_omega2_ = 0.0;  // sum_kept w^2 w_k^2
   std::vector<double> weights_;      // bin_weight()
   bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
+  bool enough_bins_ = false;         // the last prepare() kept enough bins for a correlation
   std::vector<std::uint8_t> keep_;   // per band bin
   double taylor_bound_ = 0.0;        // w_top sum_kept w^4: bounds the fifth derivative of R
   double bin_correlation_ = 1.0;     // how many bins share one independent phase (window, padding)

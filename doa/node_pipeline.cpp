@@ -159,7 +159,9 @@ struct NodePipeline::Impl {
   void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
-  void remeasure(int source);
+  // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
+  // a grid step): Newton from the known lags, no lag grids.
+  void remeasure(int source, bool near_known_lags = false);
   void remove_ground_echoes();
   void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
@@ -411,26 +413,31 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
   }
   if (!echo.observe(gcc, direction)) return;
   echo.remove(gcc, direction);
-  remeasure(source);
+  remeasure(source, true);
   echo.restore(gcc);
 }
 
 // A source was measured with every other source's bins in its correlation (the first), or on a
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
-void NodePipeline::Impl::remeasure(int source) {
+void NodePipeline::Impl::remeasure(int source, bool near_known_lags) {
   gcc.restore_whitened();
   for (int s = 0; s < candidate_count; ++s)
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
                              candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
-  gcc.correlate(false);
+  if (near_known_lags)
+    gcc.prepare_phasors();
+  else
+    gcc.correlate(false);
   Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::array<PairTdoa, kMaxPairs> remeasured{};
   for (int p = 0; p < gcc.pair_count(); ++p) {
     const PairTdoa& before = candidate.tdoas[static_cast<std::size_t>(p)];
     GccPeak peak;
-    if (before.variance_s2 > 0.0 && gcc.refine(p, before.tdoa_s, peak) && peak.value > 0.0)
+    const bool found = near_known_lags ? gcc.refine_from(p, before.tdoa_s, peak)
+                                       : gcc.refine(p, before.tdoa_s, peak);
+    if (before.variance_s2 > 0.0 && found && peak.value > 0.0)
       remeasured[static_cast<std::size_t>(p)] = {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value),
                                                  peak.value, peak.coherence};
   }
