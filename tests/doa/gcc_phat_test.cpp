@@ -263,6 +263,37 @@ TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
   compare("every 5th bin kept", 1e-12);
 }
 
+// The grid-less re-measure (prepare_phasors + refine_from) finds the peak correlate() + refine()
+// find, from a start a fraction of a grid step off, and gives up beyond its reach.
+TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
+  const int length = 2 * 8192;
+  const testing::BandNoise source(length, kRate, 1500.0, 3500.0, 31);
+  testing::Recording recording = testing::silent_recording(2, length);
+  recording.add(0, source.delayed(4.37 / kRate, 0.1));
+  recording.add(1, source.delayed(0.0, 0.1));
+  testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.02, 32);
+  Framer framer(2, kFrame, kFrame);
+  MultichannelFft fft(2, kFrame, fftw_friendly_size(kFrame));
+  GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, {{0, 1, 0.8 / 343.0}});
+  framer.push(recording.view(0, kFrame), [&](const FrameView& frame) {
+    fft.process(frame);
+    gcc.whiten(fft);
+  });
+  gcc.correlate();
+  const GccPeak with_grid = gcc.pair(0).peak;
+  EXPECT_NEAR(with_grid.lag_s, 4.37 / kRate, 0.2 / kRate);  // sensor noise at 14 dB
+  gcc.prepare_phasors();
+  for (const double offset_steps : {-0.4, 0.0, 0.3}) {
+    GccPeak from_lag;
+    ASSERT_TRUE(gcc.refine_from(0, with_grid.lag_s + offset_steps * gcc.lag_step_s(), from_lag));
+    EXPECT_NEAR(from_lag.lag_s, with_grid.lag_s, 1e-9) << offset_steps;
+    EXPECT_NEAR(from_lag.value, with_grid.value, 1e-9) << offset_steps;
+  }
+  // Farther than its reach (1.5 grid steps) from the start, no answer rather than a far peak.
+  GccPeak far_start;
+  EXPECT_FALSE(gcc.refine_from(0, with_grid.lag_s + 3.0 * gcc.lag_step_s(), far_start));
+}
+
 TEST(BandRuns, MergesBandsAndRejectsEmpty) {
   const std::vector<BandRun> runs =
       band_runs({{1000, 2000}, {1900, 3000}, {5000, 6000}}, 48000.0, 4800);
