@@ -163,6 +163,7 @@ struct NodePipeline::Impl {
   // a grid step): Newton from the known lags, no lag grids.
   void remeasure(int source, bool near_known_lags = false);
   void remove_ground_echoes();
+  void only_bins_of(int source);
   void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
@@ -365,6 +366,15 @@ void NodePipeline::Impl::find_further_sources() {
   if (candidate_count >= 2) remeasure(0);
 }
 
+// The frame's whitened phasors again, minus every other candidate's bins.
+void NodePipeline::Impl::only_bins_of(int source) {
+  gcc.restore_whitened();
+  for (int s = 0; s < candidate_count; ++s)
+    if (s != source)
+      bin_mask.drop(gcc, std::span<const PairTdoa>(
+                             candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+}
+
 // Every source's ground reflection, found on its own bins (the others' dropped), divided out of
 // the mics' phases; its TDOAs are then measured again and the units put back for the next.
 void NodePipeline::Impl::remove_ground_echoes() {
@@ -405,11 +415,7 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
       candidates[static_cast<std::size_t>(source)].solution.direction_site;
   if (echo.search_due(direction)) {
     // The search reads this source's bins: the frame's, minus the other sources'.
-    gcc.restore_whitened();
-    for (int s = 0; s < candidate_count; ++s)
-      if (s != source)
-        bin_mask.drop(gcc, std::span<const PairTdoa>(
-                               candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+    only_bins_of(source);
   }
   if (!echo.observe(gcc, direction)) return;
   echo.remove(gcc, direction);
@@ -421,11 +427,7 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
 void NodePipeline::Impl::remeasure(int source, bool near_known_lags) {
-  gcc.restore_whitened();
-  for (int s = 0; s < candidate_count; ++s)
-    if (s != source)
-      bin_mask.drop(gcc, std::span<const PairTdoa>(
-                             candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  only_bins_of(source);
   if (near_known_lags)
     gcc.prepare_phasors();
   else
