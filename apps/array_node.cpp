@@ -23,7 +23,8 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
       array_index_(array_index),
       source_(std::move(source)),
       pipeline_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry, array_index,
-                site.doa, source_->sample_rate_hz(), site.speed_of_sound_mps),
+                site.doa_params(static_cast<std::size_t>(array_index)), source_->sample_rate_hz(),
+                site.speed_of_sound_mps),
       sample_rate_hz_(source_->sample_rate_hz()) {
   if (source_->channels() !=
       static_cast<int>(site.arrays[static_cast<std::size_t>(array_index)].geometry.mic_count())) {

@@ -80,6 +80,8 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
     array.recording = recording_path.is_absolute() ? recording_path : base_dir / recording_path;
   }
   array.device = reader.optional_integer("device", 0, 100000);
+  if (reader.has("ground_height_m"))
+    array.ground_height_m = reader.number("ground_height_m", 0.0, -10000.0, 10000.0);
   if (auto map = reader.numbers("channel_map", 0, false)) {
     std::set<int> seen;
     for (std::size_t i = 0; i < map->size(); ++i) {
@@ -225,17 +227,21 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
     }
     if (site.doa.ground_echo) {
       // The echo model mirrors each mic in the ground: a mic at or under it has no mirror.
-      for (std::size_t i = 0; i < site.arrays.size(); ++i)
+      for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+        const std::string array_path = "arrays[" + std::to_string(i) + "]";
+        const double ground_m = site.doa_params(i).ground_height_m;
+        const std::string ground_key = site.arrays[i].ground_height_m
+                                           ? array_path + ".ground_height_m"
+                                           : std::string("doa.ground_height_m");
         for (std::size_t mic = 0; mic < site.arrays[i].geometry.mic_count(); ++mic) {
           const double z = site.arrays[i].geometry.mic_site_m(mic).z();
-          if (z <= site.doa.ground_height_m)
-            diagnostics.error(
-                "arrays[" + std::to_string(i) + "].mics_m[" + std::to_string(mic) + "]",
-                "mic at site z " + format_number(z) +
-                    " m is not above the ground (doa.ground_height_m " +
-                    format_number(site.doa.ground_height_m) +
-                    "); raise it, or set doa.ground_echo false");
+          if (z <= ground_m)
+            diagnostics.error(array_path + ".mics_m[" + std::to_string(mic) + "]",
+                              "mic at site z " + format_number(z) + " m is not above the ground (" +
+                                  ground_key + " " + format_number(ground_m) +
+                                  "); raise it, or set doa.ground_echo false");
         }
+      }
     }
     {
       ObjectReader fusion_section = root.object("fusion");
@@ -270,6 +276,13 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
   warnings.insert(warnings.end(), diagnostics.warnings.begin(), diagnostics.warnings.end());
   if (!diagnostics.errors.empty()) throw ConfigError(std::move(diagnostics.errors));
   return site;
+}
+
+doa::DoaParams SiteConfig::doa_params(std::size_t array) const {
+  doa::DoaParams params = doa;
+  if (array < arrays.size() && arrays[array].ground_height_m)
+    params.ground_height_m = *arrays[array].ground_height_m;
+  return params;
 }
 
 SiteConfig load_site_config(const std::filesystem::path& file, std::vector<std::string>& warnings,

@@ -18,6 +18,9 @@ struct ArrayConfig {
   std::filesystem::path recording;  // absolute (resolved against the config file); may be empty
   std::vector<int> channel_map;     // channel_map[mic] = channel of the recording/device
   std::optional<int> device;        // PortAudio device index for live capture
+  // Site z of the ground under this array, where it differs from doa.ground_height_m (a site on
+  // uneven ground): the ground-echo removal mirrors this array's mics in it.
+  std::optional<double> ground_height_m;
 };
 
 struct DdsConfig {
@@ -39,6 +42,8 @@ struct SiteConfig {
   HttpConfig http;
 
   std::vector<doa::ArrayGeometry> geometries() const;
+  // The DSP parameters of one array: `doa` with that array's own ground height, if it has one.
+  doa::DoaParams doa_params(std::size_t array) const;
   // Index of the array with this id, or -1.
   int array_index(const std::string& id) const;
 };

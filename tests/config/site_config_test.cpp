@@ -220,6 +220,21 @@ TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   EXPECT_FALSE(parse_site_config(site.dump(), ".", warnings, no_recordings()).doa.ground_echo);
 }
 
+TEST(SiteConfig, AnArrayMayStandOnItsOwnGround) {
+  json site = two_array_site();
+  site["doa"] = {{"ground_height_m", 0.5}};
+  site["arrays"][1]["position_m"] = {20.0, 0.0, 11.5};  // on a 10 m rise
+  site["arrays"][1]["ground_height_m"] = 10.0;
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  EXPECT_EQ(parsed.doa_params(0).ground_height_m, 0.5);
+  EXPECT_EQ(parsed.doa_params(1).ground_height_m, 10.0);
+  site["arrays"][1]["ground_height_m"] = 11.4;
+  expect_problem(site,
+                 "arrays[1].mics_m[1]: mic at site z 11.333 m is not above the ground "
+                 "(arrays[1].ground_height_m 11.4); raise it, or set doa.ground_echo false");
+}
+
 TEST(SiteConfig, TurnModeKeysParseAndValidate) {
   json site = two_array_site();
   site["fusion"] = {{"imm_turn_mode", true},
