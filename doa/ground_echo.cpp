@@ -48,7 +48,8 @@ std::complex<double> unit_phasor(double phase_rad) {
 }
 
 // Vertex of the parabola through (-step, left), (0, centre), (+step, right), as a multiple of
-// step, clamped to [-limit, limit]; 0 when the three do not make a maximum.
+// step, clamped to [-limit, limit]; when the three make no maximum, limit towards the larger side
+// (0 when flat).
 double parabola_vertex(double left, double centre, double right, double limit) {
   const double curvature = left - 2.0 * centre + right;
   if (!(curvature < 0.0)) return left > right ? -limit : (right > left ? limit : 0.0);
