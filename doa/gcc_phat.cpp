@@ -490,6 +490,8 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   unit_re_.assign(static_cast<std::size_t>(unit_channels_) * static_cast<std::size_t>(band_bins_),
                   0.0);
   unit_im_.assign(unit_re_.size(), 0.0);
+  saved_unit_re_.assign(unit_re_.size(), 0.0);
+  saved_unit_im_.assign(unit_re_.size(), 0.0);
   levels_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
     for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
@@ -610,14 +612,30 @@ std::span<const double> GccPhat::unit_imag(int mic) const {
           static_cast<std::size_t>(band_bins_)};
 }
 
-void GccPhat::rotate_units(int mic, std::span<const std::complex<double>> rotation) {
+void GccPhat::rotate_units(int mic, std::span<const double> cosines,
+                           std::span<const double> sines) {
   const std::size_t row = static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_);
-  for (std::size_t k = 0; k < rotation.size() && k < static_cast<std::size_t>(band_bins_); ++k) {
-    const std::complex<double> unit =
-        std::complex<double>(unit_re_[row + k], unit_im_[row + k]) * rotation[k];
-    unit_re_[row + k] = unit.real();
-    unit_im_[row + k] = unit.imag();
+  const std::size_t bins =
+      std::min({cosines.size(), sines.size(), static_cast<std::size_t>(band_bins_)});
+  double* re = unit_re_.data() + row;
+  double* im = unit_im_.data() + row;
+  // Written out (not std::complex's product, which checks for infinities bin by bin).
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double a = re[k];
+    const double b = im[k];
+    re[k] = a * cosines[k] - b * sines[k];
+    im[k] = a * sines[k] + b * cosines[k];
   }
+}
+
+void GccPhat::save_units() {
+  std::copy(unit_re_.begin(), unit_re_.end(), saved_unit_re_.begin());
+  std::copy(unit_im_.begin(), unit_im_.end(), saved_unit_im_.begin());
+}
+
+void GccPhat::restore_units() {
+  std::copy(saved_unit_re_.begin(), saved_unit_re_.end(), unit_re_.begin());
+  std::copy(saved_unit_im_.begin(), saved_unit_im_.end(), unit_im_.begin());
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {

@@ -116,9 +116,12 @@ class GccPhat {
   // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
   std::span<const double> unit_real(int mic) const;
   std::span<const double> unit_imag(int mic) const;
-  // Multiplies one mic's units by `rotation` (per band bin, unit magnitude): a per-mic phase
-  // correction (GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it.
-  void rotate_units(int mic, std::span<const std::complex<double>> rotation);
+  // Multiplies one mic's units by cos + j sin per band bin (a unit-magnitude per-mic phase
+  // correction: GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it, and
+  // so does restore_units() back to the last save_units().
+  void rotate_units(int mic, std::span<const double> cosines, std::span<const double> sines);
+  void save_units();
+  void restore_units();
 
   // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
   // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
@@ -213,6 +216,8 @@ class GccPhat {
   int unit_channels_ = 0;
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
+  std::vector<double> saved_unit_re_;  // save_units()
+  std::vector<double> saved_unit_im_;
   std::vector<double> levels_;
   std::vector<int> band_fft_bins_;        // FFT bin of each band bin
   std::vector<std::uint8_t> saved_keep_;  // save_whitened()

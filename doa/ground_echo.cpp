@@ -1,6 +1,7 @@
 #include "doa/ground_echo.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -81,8 +82,8 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   search_weight_.assign(kSearchBins, 0.0);
   aligned_.assign(static_cast<std::size_t>(kSearchBins) * mics, {});
   (void)phase_table();  // made here, not in the first frame's search
-  rotations_.assign(mics * static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
-  undo_.assign(static_cast<std::size_t>(gcc.band_bin_count()), {1.0, 0.0});
+  cosines_.assign(static_cast<std::size_t>(gcc.band_bin_count()), 1.0);
+  sines_.assign(static_cast<std::size_t>(gcc.band_bin_count()), 0.0);
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
   reset();
@@ -257,33 +258,51 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
 void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
   if (!locked_) return;
   paths(direction_site, curvature_per_m_);
-  const std::size_t bins = undo_.size();
+  gcc.save_units();
+  constexpr int kLanes = 8;
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
-    std::complex<double>* rotation = rotations_.data() + mic * bins;
+    const double level = gain_ * level_[mic];
+    const double phase_step = -bin_omega_ * delay_s_[mic];
+    // e^{-j w_k Delta} along each run by eight interleaved recurrences: each lane waits only for
+    // its own previous product, so the loop runs in vector lanes, and the error after the band's
+    // few dozen steps per lane is ~1e-14.
+    const double step_re = std::cos(kLanes * phase_step);
+    const double step_im = std::sin(kLanes * phase_step);
     std::size_t index = 0;
     for (const BandRun& run : runs_) {
-      std::complex<double> echo =
-          std::polar(gain_ * level_[mic], -run.first_bin * bin_omega_ * delay_s_[mic]);
-      const std::complex<double> echo_step = std::polar(1.0, -bin_omega_ * delay_s_[mic]);
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        const std::complex<double> comb = 1.0 + echo;
-        const double size = std::sqrt(std::norm(comb));  // not std::abs: hypot is slow
-        rotation[index] = size > 1e-9 ? std::conj(comb) / size : std::complex<double>(1.0, 0.0);
-        echo *= echo_step;
+      std::array<double, kLanes> echo_re{};
+      std::array<double, kLanes> echo_im{};
+      for (int lane = 0; lane < kLanes; ++lane) {
+        echo_re[lane] = std::cos((run.first_bin + lane) * phase_step);
+        echo_im[lane] = std::sin((run.first_bin + lane) * phase_step);
       }
+      const int count = run.last_bin - run.first_bin + 1;
+      for (int block = 0; block < count; block += kLanes) {
+        const int lanes = std::min(kLanes, count - block);
+        for (int lane = 0; lane < lanes; ++lane) {
+          // conj(c) / |c| with c = 1 + g e^{-j w Delta}.
+          const double comb_re = 1.0 + level * echo_re[lane];
+          const double comb_im = level * echo_im[lane];
+          const double norm = comb_re * comb_re + comb_im * comb_im;
+          const double inverse = norm > 1e-18 ? 1.0 / std::sqrt(norm) : 0.0;
+          cosines_[index + static_cast<std::size_t>(block + lane)] =
+              norm > 1e-18 ? comb_re * inverse : 1.0;
+          sines_[index + static_cast<std::size_t>(block + lane)] = -comb_im * inverse;
+        }
+        for (int lane = 0; lane < kLanes; ++lane) {
+          const double re = echo_re[lane];
+          echo_re[lane] = re * step_re - echo_im[lane] * step_im;
+          echo_im[lane] = re * step_im + echo_im[lane] * step_re;
+        }
+      }
+      index += static_cast<std::size_t>(count);
     }
-    gcc.rotate_units(static_cast<int>(mic), {rotation, bins});
+    gcc.rotate_units(static_cast<int>(mic), cosines_, sines_);
   }
 }
 
-void GroundEcho::restore(GccPhat& gcc) {
-  if (!locked_) return;
-  const std::size_t bins = undo_.size();
-  for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
-    const std::complex<double>* rotation = rotations_.data() + mic * bins;
-    for (std::size_t k = 0; k < bins; ++k) undo_[k] = std::conj(rotation[k]);
-    gcc.rotate_units(static_cast<int>(mic), undo_);
-  }
+void GroundEcho::restore(GccPhat& gcc) const {
+  if (locked_) gcc.restore_units();
 }
 
 }  // namespace dronetrack::doa

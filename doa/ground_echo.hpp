@@ -52,7 +52,7 @@ class GroundEcho {
   // Divides the locked echo, for the source's direction now, out of every mic's units.
   void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
   // Undoes the last remove(): the units as they were, for another source's look.
-  void restore(GccPhat& gcc);
+  void restore(GccPhat& gcc) const;
   // Cosine between `direction_site` and the direction last observed: which source this follows.
   double alignment(const Eigen::Vector3d& direction_site) const {
     return direction_site.dot(last_direction_);
@@ -91,8 +91,8 @@ class GroundEcho {
   std::vector<double> arrival_s_;
   std::vector<double> delay_s_;
   std::vector<double> level_;
-  std::vector<std::complex<double>> rotations_;  // remove(): per mic, per band bin
-  std::vector<std::complex<double>> undo_;       // restore(): one mic's band
+  std::vector<double> cosines_;  // remove(): one mic's rotation over the band
+  std::vector<double> sines_;
   // prepare(): per search bin, its angular frequency and weight, and per bin and mic the unit
   // aligned on the direct path (bin-major).
   int search_bins_ = 0;
