@@ -227,13 +227,36 @@ struct TaylorSums {
   double bend = 0.0;
 };
 
+// The Taylor sums over V lanes (two or eight bins, or one): each lane adds its bin's
+// t = W_k e^{j w_k tau} weighted by w_k^n, and by |G_k| for the coherence sums. One body for
+// taylor_sums() and wide_taylor_sums(); inlined into each (by reference: no vector ABI across a
+// call).
+template <class V>
+struct TaylorLanes {
+  V sum0{}, weighted{}, sum1{}, sum2{}, slope{}, sum3{}, sum4{}, bend{};
+  [[gnu::always_inline]] void add(const V& w_re, const V& w_im, const V& size, const V& rotation_re,
+                                  const V& rotation_im, const V& omega) {
+    const V t_re = w_re * rotation_re - w_im * rotation_im;
+    const V t_im = w_re * rotation_im + w_im * rotation_re;
+    const V omega2 = omega * omega;
+    sum0 += t_re;
+    weighted += size * t_re;
+    sum1 -= omega * t_im;
+    slope -= omega * size * t_im;
+    sum2 -= omega2 * t_re;
+    bend -= omega2 * size * t_re;
+    sum3 += omega2 * omega * t_im;
+    sum4 += omega2 * omega2 * t_re;
+  }
+};
+
 TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
                        const std::complex<double>* phasor, const double* magnitude, double lag) {
   // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic,
   // as the two lanes of one vector: half the latency chain through the complex product, two
   // bins per instruction, no complex-multiply NaN checks.
-  Lanes sum0{0.0, 0.0}, weighted{0.0, 0.0}, sum1{0.0, 0.0}, sum2{0.0, 0.0}, slope{0.0, 0.0};
-  Lanes sum3{0.0, 0.0}, sum4{0.0, 0.0}, bend{0.0, 0.0};  // bend: of the weighted sum
+  TaylorLanes<Lanes> lanes;
+  TaylorLanes<double> odd;  // each run's odd bin out
   int index = 0;
   const std::complex<double> step = std::polar(1.0, bin_omega * lag);
   const std::complex<double> step2 = step * step;
@@ -252,48 +275,31 @@ TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
       const Lanes w_re{phasor[index].real(), phasor[index + 1].real()};
       const Lanes w_im{phasor[index].imag(), phasor[index + 1].imag()};
       const Lanes size{magnitude[index], magnitude[index + 1]};
-      const Lanes t_re = w_re * rotation_re - w_im * rotation_im;
-      const Lanes t_im = w_re * rotation_im + w_im * rotation_re;
-      const Lanes omega2 = omega * omega;
-      sum0 += t_re;
-      weighted += size * t_re;
-      sum1 -= omega * t_im;
-      slope -= omega * size * t_im;
-      sum2 -= omega2 * t_re;
-      bend -= omega2 * size * t_re;
-      sum3 += omega2 * omega * t_im;
-      sum4 += omega2 * omega2 * t_re;
+      lanes.add(w_re, w_im, size, rotation_re, rotation_im, omega);
       const Lanes next_re = rotation_re * step2_re - rotation_im * step2_im;
       rotation_im = rotation_re * step2_im + rotation_im * step2_re;
       rotation_re = next_re;
       omega += omega_step;
     }
     if (k < bins) {
-      // The odd bin out: lane 0 only.
-      const double w_re = phasor[index].real(), w_im = phasor[index].imag();
-      const double t_re = w_re * rotation_re[0] - w_im * rotation_im[0];
-      const double t_im = w_re * rotation_im[0] + w_im * rotation_re[0];
-      const double omega2 = omega[0] * omega[0];
-      sum0[0] += t_re;
-      weighted[0] += magnitude[index] * t_re;
-      sum1[0] -= omega[0] * t_im;
-      slope[0] -= omega[0] * magnitude[index] * t_im;
-      sum2[0] -= omega2 * t_re;
-      bend[0] -= omega2 * magnitude[index] * t_re;
-      sum3[0] += omega2 * omega[0] * t_im;
-      sum4[0] += omega2 * omega2 * t_re;
+      const double w_re = phasor[index].real();
+      const double w_im = phasor[index].imag();
+      const double rotation_re0 = rotation_re[0];
+      const double rotation_im0 = rotation_im[0];
+      const double omega0 = omega[0];
+      odd.add(w_re, w_im, magnitude[index], rotation_re0, rotation_im0, omega0);
       ++index;
     }
   }
   TaylorSums sums;
-  sums.r[0] = sum0[0] + sum0[1];
-  sums.r[1] = sum1[0] + sum1[1];
-  sums.r[2] = sum2[0] + sum2[1];
-  sums.r[3] = sum3[0] + sum3[1];
-  sums.r[4] = sum4[0] + sum4[1];
-  sums.weighted = weighted[0] + weighted[1];
-  sums.slope = slope[0] + slope[1];
-  sums.bend = bend[0] + bend[1];
+  sums.r[0] = lanes.sum0[0] + lanes.sum0[1] + odd.sum0;
+  sums.r[1] = lanes.sum1[0] + lanes.sum1[1] + odd.sum1;
+  sums.r[2] = lanes.sum2[0] + lanes.sum2[1] + odd.sum2;
+  sums.r[3] = lanes.sum3[0] + lanes.sum3[1] + odd.sum3;
+  sums.r[4] = lanes.sum4[0] + lanes.sum4[1] + odd.sum4;
+  sums.weighted = lanes.weighted[0] + lanes.weighted[1] + odd.weighted;
+  sums.slope = lanes.slope[0] + lanes.slope[1] + odd.slope;
+  sums.bend = lanes.bend[0] + lanes.bend[1] + odd.bend;
   return sums;
 }
 
@@ -305,7 +311,7 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
     const double* magnitude, double lag) {
   using Wide = double __attribute__((vector_size(64)));
   constexpr int kLanes = 8;
-  Wide sum0{}, weighted{}, sum1{}, sum2{}, slope{}, sum3{}, sum4{}, bend{};
+  TaylorLanes<Wide> lanes;
   const std::complex<double> step = std::polar(1.0, bin_omega * lag);
   std::complex<double> step8 = step * step;
   step8 *= step8;
@@ -343,17 +349,7 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
           size[l] = inside ? magnitude[index + l] : 0.0;
         }
       }
-      const Wide t_re = w_re * rotation_re - w_im * rotation_im;
-      const Wide t_im = w_re * rotation_im + w_im * rotation_re;
-      const Wide omega2 = omega * omega;
-      sum0 += t_re;
-      weighted += size * t_re;
-      sum1 -= omega * t_im;
-      slope -= omega * size * t_im;
-      sum2 -= omega2 * t_re;
-      bend -= omega2 * size * t_re;
-      sum3 += omega2 * omega * t_im;
-      sum4 += omega2 * omega2 * t_re;
+      lanes.add(w_re, w_im, size, rotation_re, rotation_im, omega);
       const Wide next_re = rotation_re * step8_re - rotation_im * step8_im;
       rotation_im = rotation_re * step8_im + rotation_im * step8_re;
       rotation_re = next_re;
@@ -365,14 +361,14 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
     return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
   };
   TaylorSums sums;
-  sums.r[0] = total(sum0);
-  sums.r[1] = total(sum1);
-  sums.r[2] = total(sum2);
-  sums.r[3] = total(sum3);
-  sums.r[4] = total(sum4);
-  sums.weighted = total(weighted);
-  sums.slope = total(slope);
-  sums.bend = total(bend);
+  sums.r[0] = total(lanes.sum0);
+  sums.r[1] = total(lanes.sum1);
+  sums.r[2] = total(lanes.sum2);
+  sums.r[3] = total(lanes.sum3);
+  sums.r[4] = total(lanes.sum4);
+  sums.weighted = total(lanes.weighted);
+  sums.slope = total(lanes.slope);
+  sums.bend = total(lanes.bend);
   return sums;
 }
 #endif
