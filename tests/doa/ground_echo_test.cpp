@@ -99,17 +99,24 @@ double median(std::vector<double> values) {
   return values[values.size() / 2];
 }
 
-// Median DOA error (deg) of the node pipeline over a recording, after its first second.
-double pipeline_error_deg(const ArrayGeometry& geometry, const testing::Recording& recording,
-                          const Eigen::Vector3d& direction, bool ground_echo) {
+// The node pipeline's DOAs over a recording, after its first second (the noise floor settled).
+std::vector<DoaMeasurement> pipeline_doas(const ArrayGeometry& geometry,
+                                          const testing::Recording& recording, bool ground_echo) {
   DoaParams params;
   params.ground_echo = ground_echo;
   NodePipeline pipeline(geometry, 0, params, kRate, kSpeed);
   std::vector<DoaMeasurement> doas;
   pipeline.process(recording.view(0, recording.frames()), doas);
+  std::erase_if(doas, [](const DoaMeasurement& doa) { return doa.time_s < 1.0; });
+  return doas;
+}
+
+// Median DOA error (deg) of the node pipeline over a recording, after its first second.
+double pipeline_error_deg(const ArrayGeometry& geometry, const testing::Recording& recording,
+                          const Eigen::Vector3d& direction, bool ground_echo) {
   std::vector<double> errors;
-  for (const DoaMeasurement& doa : doas)
-    if (doa.time_s > 1.0) errors.push_back(angle_between_deg(doa.direction, direction));
+  for (const DoaMeasurement& doa : pipeline_doas(geometry, recording, ground_echo))
+    errors.push_back(angle_between_deg(doa.direction, direction));
   EXPECT_GT(errors.size(), 40U);
   return median(errors);
 }
@@ -189,15 +196,9 @@ TEST(GroundEcho, EachOfTwoSourcesLosesItsOwnEcho) {
   for (std::size_t n = 0; n < recording.interleaved.size(); ++n)
     recording.interleaved[n] += 0.7F * second.interleaved[n];
   auto errors = [&](bool ground_echo) {
-    DoaParams params;
-    params.ground_echo = ground_echo;
-    NodePipeline pipeline(geometry, 0, params, kRate, kSpeed);
-    std::vector<DoaMeasurement> doas;
-    pipeline.process(recording.view(0, recording.frames()), doas);
     std::vector<double> near_errors;
     std::vector<double> far_errors;
-    for (const DoaMeasurement& doa : doas) {
-      if (doa.time_s < 1.0) continue;
+    for (const DoaMeasurement& doa : pipeline_doas(geometry, recording, ground_echo)) {
       const double to_near = angle_between_deg(doa.direction, near);
       const double to_far = angle_between_deg(doa.direction, far);
       (to_near < to_far ? near_errors : far_errors).push_back(std::min(to_near, to_far));
