@@ -228,11 +228,18 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   gain_ = gain;
 }
 
-bool GroundEcho::search_due(const Eigen::Vector3d& direction_site) const {
-  if (!(direction_site.z() >= min_sine_elevation_)) return false;
+GroundEcho::Search GroundEcho::next_search(const Eigen::Vector3d& direction_site) const {
+  if (!(direction_site.z() >= min_sine_elevation_)) return Search::none;
+  // A jump is another source (or the same after a gap): its range and ground are not known.
   const bool jump = direction_site.dot(last_direction_) < max_jump_cosine_;
-  if (!locked_ || jump) return jump || frames_since_search_ + 1 >= settings_.acquire_every_frames;
-  return frames_since_search_ + 1 >= settings_.search_every_frames;
+  const int frames = (jump ? settings_.acquire_every_frames : frames_since_search_) + 1;
+  if (locked_ && !jump)
+    return frames >= settings_.search_every_frames ? Search::local : Search::none;
+  return frames >= settings_.acquire_every_frames ? Search::full : Search::none;
+}
+
+bool GroundEcho::search_due(const Eigen::Vector3d& direction_site) const {
+  return next_search(direction_site) != Search::none;
 }
 
 bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
@@ -241,17 +248,14 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
     locked_ = false;
     return false;
   }
+  const Search search_now = next_search(direction_site);
   if (direction_site.dot(last_direction_) < max_jump_cosine_) {
-    // Another source (or the same after a gap): its range and ground are not known.
     locked_ = false;
     frames_since_search_ = settings_.acquire_every_frames;
   }
   last_direction_ = direction_site;
   ++frames_since_search_;
-  if (locked_ && frames_since_search_ >= settings_.search_every_frames)
-    search(gcc, direction_site, false);
-  else if (!locked_ && frames_since_search_ >= settings_.acquire_every_frames)
-    search(gcc, direction_site, true);
+  if (search_now != Search::none) search(gcc, direction_site, search_now == Search::full);
   return locked_;
 }
 

@@ -76,6 +76,9 @@ class GroundEcho {
   // as they are), in [0, 1].
   double coherence(double gain) const;
   void search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full);
+  // What observe() will do for this direction: the one place the search schedule is decided.
+  enum class Search { none, local, full };
+  Search next_search(const Eigen::Vector3d& direction_site) const;
 
   GroundEchoSettings settings_;
   double speed_of_sound_mps_;
