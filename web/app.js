@@ -425,7 +425,9 @@
     }
     render();
   }
+  const alertKey = (a) => `${a.t}/${a.zone}/${a.track_id}/${a.event}`;
   function onAlert(a) {
+    if (state.alerts.some((b) => alertKey(b) === alertKey(a))) return;  // already have it
     advance(a.t);
     state.alerts.push(a);
     if (state.alerts.length > 500) state.alerts.shift();
@@ -449,11 +451,23 @@
     onTracks(tracks);
     if (!state.fitted) fitView();
   }
+  // Alerts sent while the stream was down never come again on it: ask for the ones since the
+  // last we have (tracks and nodes are whole snapshots, the next event replaces them).
+  async function catchUpAlerts() {
+    const last = state.alerts.length ? state.alerts[state.alerts.length - 1].t : -1;
+    const doc = await getJson(`/api/alerts?since=${encodeURIComponent(last - 1e-6)}`);
+    for (const a of doc.alerts) onAlert(a);
+  }
   function connect() {
     const status = $('connection');
     const source = new EventSource('/api/stream');
-    source.addEventListener('open', () => { status.dataset.state = 'live'; status.textContent = 'live'; });
-    source.addEventListener('error', () => { status.dataset.state = 'lost'; status.textContent = 'reconnecting…'; });
+    let lost = false;
+    source.addEventListener('open', () => {
+      status.dataset.state = 'live'; status.textContent = 'live';
+      if (lost) catchUpAlerts().catch((err) => console.warn(`alerts after reconnect: ${err.message}`));
+      lost = false;
+    });
+    source.addEventListener('error', () => { lost = true; status.dataset.state = 'lost'; status.textContent = 'reconnecting…'; });
     source.addEventListener('tracks', (e) => onTracks(JSON.parse(e.data)));
     source.addEventListener('doa', (e) => onDoa(JSON.parse(e.data)));
     source.addEventListener('nodes', (e) => onNodes(JSON.parse(e.data)));

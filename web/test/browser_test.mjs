@@ -7,6 +7,7 @@
 // Exit status 0 on success; any failed check prints one line and exits 1.
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
+import http from 'node:http';
 import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
@@ -53,7 +54,7 @@ if (!fs.existsSync(chromiumPath)) {
 }
 
 // A 28 s perimeter scene: four arrays on the corners of a 200 m square, one drone flying east
-// at 8 m/s, 35 m up, entering the 100 m "inner-yard" zone at about x = -50 m (t ~ 10 s). Array
+// at 8 m/s, 35 m up, entering the 100 m "inner-yard" zone at about x = -50 m (t ~ 15 s). Array
 // N4's recording stops at 12 s, so that node goes stale.
 const tetra = [[0, 0, 0.5], [0.4714, 0, -0.1667], [-0.2357, 0.4082, -0.1667], [-0.2357, -0.4082, -0.1667]];
 const scenario = {
@@ -75,7 +76,7 @@ const scenario = {
   sources: [{
     id: 'D1', kind: 'drone', level_db: 95,
     signal: { type: 'rotor', blade_pass_hz: 150, rpm_wander: 0.02, harmonics: 50, slope_db_per_octave: -2, broadband_db: -8 },
-    trajectory: { type: 'straight', start_m: [-130, 10, 35], end_m: [100, 10, 35], speed_mps: 8 },
+    trajectory: { type: 'straight', start_m: [-170, 10, 35], end_m: [100, 10, 35], speed_mps: 8 },
   }],
   noise: { sensor: { level_db: 30 }, ambient: { level_db: 42 }, wind: { level_db: 55 } },
 };
@@ -91,6 +92,27 @@ function freePort() {
   });
 }
 
+// The page talks to the server through this proxy, so the test can cut the network between
+// them (every open connection dropped, new ones refused) while the server goes on.
+function startProxy(targetPort) {
+  const sockets = new Set();
+  let down = false;
+  const server = http.createServer((req, res) => {
+    if (down) { req.socket.destroy(); return; }
+    const upstream = http.request({ host: '127.0.0.1', port: targetPort, path: req.url, method: req.method, headers: req.headers },
+                                  (reply) => { res.writeHead(reply.statusCode, reply.headers); reply.pipe(res); });
+    upstream.on('error', () => res.destroy());
+    res.on('close', () => upstream.destroy());
+    req.pipe(upstream);
+  });
+  server.on('connection', (socket) => { sockets.add(socket); socket.on('close', () => sockets.delete(socket)); });
+  return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve({
+    port: server.address().port,
+    setDown(value) { down = value; if (value) for (const socket of sockets) socket.destroy(); },
+    close() { server.close(); for (const socket of sockets) socket.destroy(); },
+  })));
+}
+
 async function waitFor(what, predicate, timeoutMs, stepMs = 100) {
   const deadline = Date.now() + timeoutMs;
   for (;;) {
@@ -104,6 +126,7 @@ async function waitFor(what, predicate, timeoutMs, stepMs = 100) {
 const work = fs.mkdtempSync(path.join(os.tmpdir(), 'dronetrack-browser-'));
 let replay = null;
 let context = null;
+let proxy = null;
 const replayLog = [];
 try {
   fs.mkdirSync(outDir, { recursive: true });
@@ -115,7 +138,7 @@ try {
   log(`scene synthesised in ${((Date.now() - t0) / 1000).toFixed(1)} s`);
 
   const port = await freePort();
-  const url = `http://127.0.0.1:${port}/`;
+  const serverUrl = `http://127.0.0.1:${port}/`;
   replay = spawn(dronetrack, ['replay', path.join(work, 'scene', 'site.json'), '--realtime',
                               '--http', `127.0.0.1:${port}`, '--tracks-out', path.join(work, 'tracks.jsonl')],
                  { env: { ...process.env, DRONETRACK_WEB_ROOT: webRoot }, stdio: ['ignore', 'pipe', 'pipe'] });
@@ -130,7 +153,9 @@ try {
     return replayLog.join('').includes('serving');
   }, 20000);
   const replayStart = Date.now();
-  log(`replay serving ${url}`);
+  proxy = await startProxy(port);
+  const url = `http://127.0.0.1:${proxy.port}/`;
+  log(`replay serving ${serverUrl}, the page through ${url}`);
 
   context = await chromium.launchPersistentContext(path.join(work, 'profile'), {
     executablePath: chromiumPath,
@@ -142,7 +167,13 @@ try {
   const page = context.pages()[0] || await context.newPage();
   const pageErrors = [];
   page.on('pageerror', (e) => pageErrors.push(e.message));
-  page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(m.text()); });
+  // While the test holds the network down, the browser's failed loads are expected.
+  let networkDown = false;
+  page.on('console', (m) => {
+    if (m.type() !== 'error') return;
+    if (networkDown && m.text().startsWith('Failed to load resource: net::')) return;
+    pageErrors.push(m.text());
+  });
   // Nothing may be fetched from anywhere but this server (the appliance is offline).
   const foreign = [];
   page.on('request', (r) => { if (!r.url().startsWith(url)) foreign.push(r.url()); });
@@ -178,6 +209,18 @@ try {
   if (await page.locator('#plan .track ellipse').count() < 1) fail('no uncertainty ellipse drawn');
   if (await page.locator('#altitude polyline').count() < 1) fail('no altitude line drawn');
 
+  // The network drops before the drone enters the zone; the entry alert is sent on the stream
+  // while the page cannot hear it. Once back, the page must catch up from /api/alerts.
+  const serverHasEntry = async () => {
+    const doc = await (await fetch(`${serverUrl}api/alerts`)).json();
+    return doc.alerts.some((a) => a.zone === 'inner-yard' && a.entered);
+  };
+  if (await serverHasEntry()) fail('the zone alert came before the network drop: the catch-up is not exercised');
+  networkDown = true;
+  proxy.setDown(true);
+  await page.waitForSelector('#connection[data-state="lost"]', { timeout: 10000 });
+  log('network down, page shows the connection lost');
+
   // 3. Selecting it (from the list) fills the panel with plausible numbers.
   await page.click(`#track-list li[data-track-id="${moved.id}"]`);
   await page.waitForSelector(`#selected-track[data-track-id="${moved.id}"]`, { timeout: 3000 });
@@ -212,8 +255,15 @@ try {
     return (await page.getAttribute('#selected-track', 'data-track-id')) === String(moved.id);
   }, 5000, 200);
 
-  // 4. The zone alert reaches the banner.
+  // 4. The zone alert reaches the banner, though it was sent while the network was down.
+  await waitFor('the zone alert at the server', serverHasEntry, 25000, 250);
+  const heardOffline = await page.evaluate(() => window.dronetrack.state.alerts.length);
+  if (heardOffline !== 0) fail(`the page got ${heardOffline} alert(s) while offline`);
+  proxy.setDown(false);
+  log('network back');
   await page.waitForSelector('#alert-banner:not([hidden])[data-zone="inner-yard"][data-event="entered"]', { timeout: 25000 });
+  await page.waitForSelector('#connection[data-state="live"]', { timeout: 10000 });
+  networkDown = false;
   const banner = (await page.textContent('#alert-text')).trim();
   log(`banner: ${banner}`);
   if (await page.locator('#alert-log li[data-zone="inner-yard"]').count() < 1) fail('alert not in the log');
@@ -264,6 +314,7 @@ try {
   if (tail) console.error(`replay output (last lines):\n${tail}`);
 } finally {
   if (context) await context.close().catch(() => {});
+  if (proxy) proxy.close();
   if (replay && replay.exitCode === null) replay.kill('SIGINT');
   if (!keep) fs.rmSync(work, { recursive: true, force: true });
 }
