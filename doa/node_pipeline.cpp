@@ -111,6 +111,7 @@ struct NodePipeline::Impl {
     tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
     tracker_settings.regression_window_frames = params.regression_window_frames;
     tracker_settings.regression_delay_frames = params.regression_delay_frames;
+    tracker_settings.frame_overlap_variance_factor = fft.overlap_variance_factor(hop);
     // The regression smooths each source found per frame (SourceTracks); the grid trackers
     // follow the strongest source on the correlations themselves.
     if (params.tdoa_tracker == TdoaTracker::robust_regression) {

@@ -297,6 +297,21 @@ void MultichannelFft::process(const FrameView& frame) {
   }
 }
 
+double MultichannelFft::overlap_variance_factor(int hop) const {
+  if (hop <= 0) return 1.0;
+  double factor = 1.0;
+  for (int shift = hop; shift < frame_length_; shift += hop) {
+    double overlap = 0.0;
+    for (int n = 0; n + shift < frame_length_; ++n) {
+      overlap +=
+          window_[static_cast<std::size_t>(n)] * window_[static_cast<std::size_t>(n + shift)];
+    }
+    overlap /= window_energy_;
+    factor += 2.0 * overlap * overlap;
+  }
+  return factor;
+}
+
 const std::complex<double>* MultichannelFft::spectrum(int channel) const {
   // fftw_complex is layout-compatible with std::complex<double> (FFTW manual 4.1.1).
   return reinterpret_cast<const std::complex<double>*>(

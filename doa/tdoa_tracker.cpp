@@ -349,8 +349,9 @@ PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& curren
   }
   const double inflation = std::max(1.0, chi2 / std::max(1, used - 3));
   const Eigen::Vector3d at(1.0, -delay_s_, delay_s_ * delay_s_);
-  return {coefficients.dot(at), at.dot(covariance * at) * inflation, peak_sum / used,
-          current.coherence};
+  return {coefficients.dot(at),
+          at.dot(covariance * at) * inflation * settings_.frame_overlap_variance_factor,
+          peak_sum / used, current.coherence};
 }
 
 std::unique_ptr<TdoaEstimator> make_tdoa_estimator(TdoaTracker kind, const GccPhat& gcc,

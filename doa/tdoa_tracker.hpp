@@ -35,6 +35,10 @@ struct TdoaTrackerSettings {
   // the newest. The DOA then carries that earlier frame's time (output_delay_s()).
   int regression_delay_frames = 0;
   double regression_mad_gate = 3.0;
+  // The frames overlap, so their TDOA errors are correlated: the regression's variance, which
+  // treats its points as independent, is multiplied by this
+  // (MultichannelFft::overlap_variance_factor).
+  double frame_overlap_variance_factor = 1.0;
 };
 
 class TdoaEstimator {

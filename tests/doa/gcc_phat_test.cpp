@@ -316,5 +316,20 @@ TEST(FftwFriendlySize, PowerOfTwoOrSmooth) {
   EXPECT_LT(size, 9216);
 }
 
+TEST(MultichannelFft, OverlapVarianceFactorOfHannFrames) {
+  // Hann, w = sin^2: half a frame later the overlap is sum sin^2 cos^2 over half the frame,
+  // N/16, against sum sin^4 = 3N/8, so c = 1/6 and the factor 1 + 2/36.
+  const MultichannelFft fft(1, 8192, 8192);
+  EXPECT_NEAR(fft.overlap_variance_factor(4096), 1.0 + 2.0 / 36.0, 1e-3);
+  EXPECT_DOUBLE_EQ(fft.overlap_variance_factor(8192), 1.0);  // no overlap
+  EXPECT_DOUBLE_EQ(fft.overlap_variance_factor(0), 1.0);
+  // The defaults (0.17 s frames every 0.05 s): a third of the noise shared with each neighbour.
+  const double factor = fft.overlap_variance_factor(2400);
+  std::printf("Hann overlap variance factor, 8192-sample frames every 2400: %.3f\n", factor);
+  EXPECT_GT(factor, 1.5);
+  EXPECT_LT(factor, 1.8);
+  EXPECT_GT(fft.overlap_variance_factor(1200), factor);  // denser frames share more
+}
+
 }  // namespace
 }  // namespace dronetrack::doa
