@@ -1,4 +1,5 @@
 // `dronetrack replay SITE.json --tracks-out T.jsonl --doa-out D.jsonl [--realtime --http A:P]`
+// `dronetrack replay SITE.json --doa-in D.jsonl --tracks-out T.jsonl`: the fusion alone
 #include <memory>
 
 #include "apps/commands.hpp"
@@ -17,7 +18,9 @@ struct ReplayArguments {
 
 int run(ReplayArguments arguments) {
   std::vector<std::string> warnings;
-  const config::SiteConfig site = config::load_site_config(arguments.site, warnings);
+  config::LoadOptions load_options;
+  load_options.check_recordings = arguments.session.doa_in.empty();  // not read then
+  const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
   for (const auto& warning : warnings) log::warn(warning);
   arguments.session.keep_serving = !arguments.exit_when_done;
   return run_replay_session(site, arguments.session);
@@ -36,7 +39,14 @@ void register_replay(CLI::App& root, CommandTable& table) {
                       "Write tracks as JSON lines here ('-' for stdout; default stdout)");
   command->add_option("--doa-out", arguments->session.doa_out,
                       "Write every array's DOAs as JSON lines here");
-  command->add_flag("--realtime", arguments->session.realtime, "Pace the replay at real time");
+  auto* realtime =
+      command->add_flag("--realtime", arguments->session.realtime, "Pace the replay at real time");
+  command
+      ->add_option("--doa-in", arguments->session.doa_in,
+                   "Run the fusion alone on these DOA lines (a replay's --doa-out) instead of the "
+                   "recordings")
+      ->check(CLI::ExistingFile)
+      ->excludes(realtime);
   command->add_option("--http", arguments->session.http,
                       "Serve the web page and JSON API on ADDR:PORT (e.g. 127.0.0.1:8080); keeps "
                       "serving after the recordings end until Ctrl-C");

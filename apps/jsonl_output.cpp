@@ -39,16 +39,20 @@ void OutputFile::flush() { std::fflush(file_); }
 
 int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size) {
   const Eigen::Vector3d& u = doa.direction;
+  const double azimuth_std_rad = std::sqrt(std::max(0.0, doa.azel_covariance_rad2(0, 0)));
+  const double elevation_std_rad = std::sqrt(std::max(0.0, doa.azel_covariance_rad2(1, 1)));
+  const double product = azimuth_std_rad * elevation_std_rad;
+  const double correlation =
+      product > 0.0 ? std::clamp(doa.azel_covariance_rad2(0, 1) / product, -1.0, 1.0) : 0.0;
   return std::snprintf(
       buffer, size,
       R"({"t":%.6f,"array":"%s","direction":[%.9f,%.9f,%.9f],"azimuth_deg":%.5f,)"
       R"("elevation_deg":%.5f,"quality":%.4f,"snr_db":%.2f,"source":%d,"ambiguity":"%s",)"
-      R"("azel_std_deg":[%.5f,%.5f]})",
+      R"("azel_std_deg":[%.6f,%.6f],"azel_correlation":%.6f})",
       doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
       doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
-      doa::to_string(doa.ambiguity),
-      std::sqrt(std::max(0.0, doa.azel_covariance_rad2(0, 0))) * 180.0 / std::numbers::pi,
-      std::sqrt(std::max(0.0, doa.azel_covariance_rad2(1, 1))) * 180.0 / std::numbers::pi);
+      doa::to_string(doa.ambiguity), azimuth_std_rad * 180.0 / std::numbers::pi,
+      elevation_std_rad * 180.0 / std::numbers::pi, correlation);
 }
 
 int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,

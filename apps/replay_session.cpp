@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "apps/doa_file_replay.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/replay_runner.hpp"
@@ -14,6 +15,9 @@
 namespace dronetrack::apps {
 
 int run_replay_session(const config::SiteConfig& site, const ReplaySessionOptions& options) {
+  // Read before any output file is created: bad input must not truncate an earlier result.
+  std::vector<doa::DoaMeasurement> recorded_doas;
+  if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);
   std::vector<std::unique_ptr<FusionObserver>> writers;
   if (!options.doa_out.empty())
     writers.push_back(std::make_unique<DoaLinesWriter>(options.doa_out));
@@ -43,14 +47,21 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     std::fflush(stdout);
   }
 
-  ReplayOptions replay_options;
-  replay_options.realtime = options.realtime;
-  replay_options.max_duration_s = options.max_duration_s;
-  const ReplaySummary summary =
-      run_replay(site, observers, replay_options, &install_stop_handlers());
-  log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
-            summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
-            " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
+  ReplaySummary summary;
+  if (!options.doa_in.empty()) {
+    summary = replay_doas(site, recorded_doas, observers);
+    log::info("replay: ", summary.doas, " DOAs of ", options.doa_in, " (", summary.stream_s,
+              " s) through the fusion in ", summary.wall_s, " s (", summary.doas_accepted,
+              " accepted), ", summary.ticks, " track ticks");
+  } else {
+    ReplayOptions replay_options;
+    replay_options.realtime = options.realtime;
+    replay_options.max_duration_s = options.max_duration_s;
+    summary = run_replay(site, observers, replay_options, &install_stop_handlers());
+    log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
+              summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
+              " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
+  }
   const fusion::FusionCounters& counters = summary.counters;
   log::info("fusion: ", counters.accepted,
             " DOAs accepted; rejected: ", counters.rejected_non_finite, " non-finite, ",

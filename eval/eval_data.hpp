@@ -36,6 +36,13 @@ struct DoaRecord {
   double time_s = 0.0;
   std::string array;
   Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+  // Optional in SPEC 3.2's minimal line; `replay --doa-in` feeds them to the fusion.
+  int source_index = 0;
+  double quality = 0.0;
+  double snr_db = 0.0;
+  std::string ambiguity = "none";               // none | mirror_up_down | cone
+  std::optional<Eigen::Vector2d> azel_std_deg;  // absent: the reader of the file decides
+  double azel_correlation = 0.0;                // of the azimuth and elevation errors
 };
 
 struct TrackRecord {

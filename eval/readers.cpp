@@ -220,6 +220,18 @@ std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& fi
         if (!(record.direction.norm() > 0.5)) {
           diagnostics.error("direction", "expected a unit vector");
         }
+        record.source_index = reader.integer("source", 0, 0, 1000);
+        record.quality = reader.number("quality", 0.0);
+        record.snr_db = reader.number("snr_db", 0.0);
+        record.ambiguity = reader.choice("ambiguity", "none", {"none", "mirror_up_down", "cone"});
+        if (const auto std_deg = reader.numbers("azel_std_deg", 2, false)) {
+          if ((*std_deg)[0] > 0.0 && (*std_deg)[1] > 0.0) {
+            record.azel_std_deg = Eigen::Vector2d((*std_deg)[0], (*std_deg)[1]);
+          } else {
+            diagnostics.error("azel_std_deg", "expected two positive numbers");
+          }
+        }
+        record.azel_correlation = reader.number("azel_correlation", 0.0, -1.0, 1.0);
         for (const auto& item : node.items()) reader.accept(item.key());
       });
 }

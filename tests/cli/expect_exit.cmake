@@ -1,5 +1,5 @@
 # Runs BIN with ARGS ("|"-separated); passes when the exit code is EXPECT_CODE and stderr is
-# exactly one line.
+# exactly one line (matching the regex EXPECT_MATCH, if given).
 string(REPLACE "|" ";" ARGS "${ARGS}")
 execute_process(COMMAND ${BIN} ${ARGS} RESULT_VARIABLE code ERROR_VARIABLE err OUTPUT_VARIABLE out)
 if(NOT code EQUAL EXPECT_CODE)
@@ -10,5 +10,8 @@ string(REGEX MATCHALL "\n" newlines "${err}")
 list(LENGTH newlines extra_lines)
 if(err STREQUAL "" OR extra_lines GREATER 0)
   message(FATAL_ERROR "expected one error line on stderr, got: [${err}]")
+endif()
+if(DEFINED EXPECT_MATCH AND NOT err MATCHES "${EXPECT_MATCH}")
+  message(FATAL_ERROR "the error line does not match '${EXPECT_MATCH}': [${err}]")
 endif()
 message(STATUS "ok: ${err}")

@@ -26,6 +26,27 @@ endforeach()
 message("${out}")
 file(READ "${DIR}/eval.json" report)
 set(failures "")
+
+# The fusion alone on the DOAs the replay wrote (`replay --doa-in`) must give the same tracks, to
+# the precision the DOA lines carry.
+foreach(command
+    "${BIN};--log-level;warn;replay;${DIR}/site.json;--doa-in;${DIR}/doa.jsonl;--tracks-out;${DIR}/tracks_from_doas.jsonl"
+    "${BIN};eval;--truth;${DIR}/truth.json;--tracks;${DIR}/tracks_from_doas.jsonl;--json;${DIR}/eval_from_doas.json;${EVAL_ARGS}")
+  execute_process(COMMAND ${command} RESULT_VARIABLE code OUTPUT_QUIET ERROR_VARIABLE err)
+  if(NOT code EQUAL 0)
+    message(FATAL_ERROR "fusion alone on ${DIR}/doa.jsonl failed (${code}): ${err}")
+  endif()
+endforeach()
+file(READ "${DIR}/eval_from_doas.json" from_doas)
+string(JSON full_rmse GET "${report}" position rmse_3d_m)
+string(JSON alone_rmse GET "${from_doas}" position rmse_3d_m)
+execute_process(COMMAND awk "BEGIN { d = ${full_rmse} - ${alone_rmse}; if (d < 0) d = -d; exit !(d <= 0.02 + 0.05 * ${full_rmse}) }"
+                RESULT_VARIABLE same)
+if(same EQUAL 0)
+  message(STATUS "ok   fusion alone on the DOA lines: RMSE ${alone_rmse} m (full replay ${full_rmse} m)")
+else()
+  list(APPEND failures "fusion alone on the DOA lines: RMSE ${alone_rmse} m, full replay ${full_rmse} m")
+endif()
 foreach(limit IN LISTS LIMITS)
   if(NOT limit MATCHES "^([^<>]+)(<=|>=)(.+)$")
     message(FATAL_ERROR "bad limit: ${limit}")

@@ -122,12 +122,19 @@ TEST(EvalMetrics, DoaErrorAgainstTheNearestSource) {
   truth.sources.push_back(moving_source("D1", {50, 0, 0}, {0, 0, 0}, 2.0));
   truth.sources.push_back(moving_source("D2", {0, 50, 0}, {0, 0, 0}, 2.0));
   std::vector<DoaRecord> doas;
+  const auto add = [&doas](double time_s, const char* array, const Eigen::Vector3d& direction) {
+    DoaRecord record;
+    record.time_s = time_s;
+    record.array = array;
+    record.direction = direction;
+    doas.push_back(record);
+  };
   const double two_deg = 2.0 * M_PI / 180.0;
   for (int k = 0; k < 10; ++k) {
-    doas.push_back({k * 0.1, "A1", {std::cos(two_deg), std::sin(two_deg), 0}});  // D1 + 2 deg
-    doas.push_back({k * 0.1, "A1", {std::sin(two_deg * 2), std::cos(two_deg * 2), 0}});  // D2 - 4
+    add(k * 0.1, "A1", {std::cos(two_deg), std::sin(two_deg), 0});          // D1 + 2 deg
+    add(k * 0.1, "A1", {std::sin(two_deg * 2), std::cos(two_deg * 2), 0});  // D2 - 4
   }
-  doas.push_back({0.5, "A9", {1, 0, 0}});  // no truth for this array
+  add(0.5, "A9", {1, 0, 0});  // no truth for this array
   int unmatched = 0;
   const auto metrics = doa_errors(truth, doas, &unmatched);
   ASSERT_EQ(metrics.size(), 1u);

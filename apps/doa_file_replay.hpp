@@ -1,0 +1,27 @@
+#pragma once
+// `replay --doa-in D.jsonl`: the fusion alone, on DOAs an earlier replay wrote (or any tool
+// writing SPEC 3.2 DOA lines), through the same FusionDriver as the full replay. Tuning the
+// fusion on a long recording then takes seconds instead of re-running every array's DSP.
+#include <filesystem>
+#include <vector>
+
+#include "apps/fusion_observer.hpp"
+#include "apps/replay_runner.hpp"
+#include "config/site_config.hpp"
+#include "doa/doa_measurement.hpp"
+
+namespace dronetrack::apps {
+
+// The file's DOA lines as measurements of this site, in time order. Lines without azel_std_deg
+// (SPEC 3.2's minimal line) get `default_std_deg` on both angles. Throws std::runtime_error,
+// one line naming the file and the line or DOA at fault (an array the site does not have).
+std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::path& file,
+                                                       const config::SiteConfig& site,
+                                                       double default_std_deg = 0.5);
+
+// Feeds the DOAs (time order) to a FusionDriver with these observers, as the replay would.
+ReplaySummary replay_doas(const config::SiteConfig& site,
+                          const std::vector<doa::DoaMeasurement>& doas,
+                          const std::vector<FusionObserver*>& observers);
+
+}  // namespace dronetrack::apps
