@@ -14,12 +14,11 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
+#include "doa/lane_math.hpp"
 
 namespace dronetrack::doa {
 
 namespace {
-// Two doubles in one SIMD register (GCC/Clang vector extension; SSE2 on x86-64, NEON on arm64).
-using Lanes = double __attribute__((vector_size(16)));
 // Below this |X_i X_j*| a bin carries no phase (digital silence): it gets zero weight.
 constexpr double kSilentBin = 1e-30;
 constexpr double kMaxPeakRatio = 100.0;
@@ -42,24 +41,6 @@ constexpr int kLagStrideMultiple = 16;
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
-// 1 / |X| from |X|^2, two bins at once. Square roots and divisions dominated whitening (one
-// each per bin and mic, ~20 cycles per pair of them): 1/sqrt(x) instead starts from the
-// exponent-halving bit estimate (within 3.5 %) and takes four Newton steps (3.5 % -> 2e-3 ->
-// 5e-6 -> 3e-11 -> rounding); then |X| = x / sqrt(x). A silent bin
-// (x = 0) keeps the huge estimate: its unit X / |X| = 0 and |X| = 0, as before.
-inline Lanes inverse_sqrt(Lanes x) {
-  using Bits = unsigned long long __attribute__((vector_size(16)));
-  constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
-  const Bits magic{kMagic, kMagic};
-  Bits bits;
-  std::memcpy(&bits, &x, sizeof bits);
-  bits = magic - (bits >> 1);
-  Lanes y;
-  std::memcpy(&y, &bits, sizeof y);
-  const Lanes half_x = 0.5 * x;
-  for (int step = 0; step < 4; ++step) y = y * (1.5 - half_x * y * y);
-  return y;
-}
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DRONETRACK_WIDE_SIMD 1
@@ -135,9 +116,7 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
                                                               std::size_t count, double* level,
                                                               double* unit_re, double* unit_im) {
   using Wide = double __attribute__((vector_size(64)));
-  using WideBits = unsigned long long __attribute__((vector_size(64)));
   using Selector = long long __attribute__((vector_size(64)));
-  constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
   std::size_t index = 0;
   for (; index + 8 <= count; index += 8) {
     Wide re, im;
@@ -155,13 +134,8 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
       }
     }
     const Wide power = re * re + im * im;
-    WideBits bits;
-    std::memcpy(&bits, &power, sizeof bits);
-    bits = kMagic - (bits >> 1);
     Wide inverse;
-    std::memcpy(&inverse, &bits, sizeof inverse);
-    const Wide half_power = 0.5 * power;
-    for (int step = 0; step < 4; ++step) inverse = inverse * (1.5 - half_power * inverse * inverse);
+    inverse_sqrt(power, inverse);
     const Wide size = power * inverse;
     const Wide unit_real = re * inverse;
     const Wide unit_imag = im * inverse;
@@ -486,8 +460,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   unit_re_.assign(static_cast<std::size_t>(unit_channels_) * static_cast<std::size_t>(band_bins_),
                   0.0);
   unit_im_.assign(unit_re_.size(), 0.0);
-  saved_unit_re_.assign(unit_re_.size(), 0.0);
-  saved_unit_im_.assign(unit_re_.size(), 0.0);
+  corrected_re_.assign(unit_re_.size(), 0.0);
+  corrected_im_.assign(unit_re_.size(), 0.0);
+  corrected_.assign(static_cast<std::size_t>(unit_channels_), 0);
   levels_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
     for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
@@ -608,30 +583,15 @@ std::span<const double> GccPhat::unit_imag(int mic) const {
           static_cast<std::size_t>(band_bins_)};
 }
 
-void GccPhat::rotate_units(int mic, std::span<const double> cosines,
-                           std::span<const double> sines) {
+GccPhat::UnitRows GccPhat::correct_units(int mic) {
   const std::size_t row = static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_);
-  const std::size_t bins =
-      std::min({cosines.size(), sines.size(), static_cast<std::size_t>(band_bins_)});
-  double* re = unit_re_.data() + row;
-  double* im = unit_im_.data() + row;
-  // Written out (not std::complex's product, which checks for infinities bin by bin).
-  for (std::size_t k = 0; k < bins; ++k) {
-    const double a = re[k];
-    const double b = im[k];
-    re[k] = a * cosines[k] - b * sines[k];
-    im[k] = a * sines[k] + b * cosines[k];
-  }
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  corrected_[static_cast<std::size_t>(mic)] = 1;
+  return {{corrected_re_.data() + row, bins}, {corrected_im_.data() + row, bins}};
 }
 
-void GccPhat::save_units() {
-  std::copy(unit_re_.begin(), unit_re_.end(), saved_unit_re_.begin());
-  std::copy(unit_im_.begin(), unit_im_.end(), saved_unit_im_.begin());
-}
-
-void GccPhat::restore_units() {
-  std::copy(saved_unit_re_.begin(), saved_unit_re_.end(), unit_re_.begin());
-  std::copy(saved_unit_im_.begin(), saved_unit_im_.end(), unit_im_.begin());
+void GccPhat::uncorrect_units() {
+  std::fill(corrected_.begin(), corrected_.end(), std::uint8_t{0});
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -665,7 +625,8 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       const Lanes re{x0.real(), x1.real()};
       const Lanes im{x0.imag(), x1.imag()};
       const Lanes power = re * re + im * im;
-      const Lanes inverse = inverse_sqrt(power);
+      Lanes inverse;
+      inverse_sqrt(power, inverse);
       const Lanes size = power * inverse;
       const Lanes unit_real = re * inverse;
       const Lanes unit_imag = im * inverse;
@@ -682,6 +643,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       unit_im[index] = x0.imag() * inverse;
     }
   }
+  uncorrect_units();
   pair_phasors(false);
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
 }
@@ -692,12 +654,14 @@ void GccPhat::pair_phasors(bool masked) {
   weights_applied_ = false;
   const auto bins = static_cast<std::size_t>(band_bins_);
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    const std::size_t row_i = static_cast<std::size_t>(pairs_[p].mic_i) * bins;
-    const std::size_t row_j = static_cast<std::size_t>(pairs_[p].mic_j) * bins;
-    const double* a_re = unit_re_.data() + row_i;
-    const double* a_im = unit_im_.data() + row_i;
-    const double* b_re = unit_re_.data() + row_j;
-    const double* b_im = unit_im_.data() + row_j;
+    const auto mic_i = static_cast<std::size_t>(pairs_[p].mic_i);
+    const auto mic_j = static_cast<std::size_t>(pairs_[p].mic_j);
+    const std::size_t row_i = mic_i * bins;
+    const std::size_t row_j = mic_j * bins;
+    const double* a_re = (corrected_[mic_i] != 0 ? corrected_re_ : unit_re_).data() + row_i;
+    const double* a_im = (corrected_[mic_i] != 0 ? corrected_im_ : unit_im_).data() + row_i;
+    const double* b_re = (corrected_[mic_j] != 0 ? corrected_re_ : unit_re_).data() + row_j;
+    const double* b_im = (corrected_[mic_j] != 0 ? corrected_im_ : unit_im_).data() + row_j;
     const double* level_i = levels_.data() + row_i;
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);

@@ -116,12 +116,18 @@ class GccPhat {
   // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
   std::span<const double> unit_real(int mic) const;
   std::span<const double> unit_imag(int mic) const;
-  // Multiplies one mic's units by cos + j sin per band bin (a unit-magnitude per-mic phase
-  // correction: GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it, and
-  // so does restore_units() back to the last save_units().
-  void rotate_units(int mic, std::span<const double> cosines, std::span<const double> sines);
-  void save_units();
-  void restore_units();
+  // A per-mic phase correction (GroundEcho) kept apart from whiten()'s units, so that nothing
+  // has to be copied back: correct_units(mic) marks the mic corrected and hands out its second
+  // rows (real, imaginary; band bins) for the caller to fill with the corrected units. From the
+  // next restore_whitened() on, the pairs' phasors are made from those rows, until
+  // uncorrect_units() (or whiten()) returns to whiten()'s units. unit_real()/unit_imag() are
+  // always whiten()'s.
+  struct UnitRows {
+    std::span<double> real;
+    std::span<double> imag;
+  };
+  UnitRows correct_units(int mic);
+  void uncorrect_units();
 
   // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
   // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
@@ -216,8 +222,9 @@ class GccPhat {
   int unit_channels_ = 0;
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
-  std::vector<double> saved_unit_re_;  // save_units()
-  std::vector<double> saved_unit_im_;
+  std::vector<double> corrected_re_;  // correct_units(): per mic over the band bins
+  std::vector<double> corrected_im_;
+  std::vector<std::uint8_t> corrected_;  // per mic: pairs made from corrected_re_/_im_
   std::vector<double> levels_;
   std::vector<int> band_fft_bins_;        // FFT bin of each band bin
   std::vector<std::uint8_t> saved_keep_;  // save_whitened()

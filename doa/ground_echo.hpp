@@ -16,7 +16,6 @@
 // direct path. It is kept (locked) only while it explains the frames clearly better than no echo.
 // Range and g change slowly, so once locked a small local search every few frames follows them;
 // the mics' delays are recomputed every frame from the frame's own direction.
-#include <complex>
 #include <span>
 #include <vector>
 
@@ -49,9 +48,10 @@ class GroundEcho {
   // Whether the next observe() searches (reads the units, the kept bins and their weights);
   // otherwise it only follows the direction.
   bool search_due(const Eigen::Vector3d& direction_site) const;
-  // Divides the locked echo, for the source's direction now, out of every mic's units.
+  // Divides the locked echo, for the source's direction now, out of every mic's units (into
+  // GccPhat's corrected rows: whiten()'s units stay as they are).
   void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
-  // Undoes the last remove(): the units as they were, for another source's look.
+  // Undoes the last remove(): the units as whitened, for another source's look.
   void restore(GccPhat& gcc) const;
   // Cosine between `direction_site` and the direction last observed: which source this follows.
   double alignment(const Eigen::Vector3d& direction_site) const {
@@ -72,7 +72,9 @@ class GroundEcho {
   // The search's bins for this frame (the strongest weights, at most kSearchBins spread over
   // the band), their units aligned on the direct path from `direction_site`.
   void prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
-  // Weighted mean coherence of the prepared bins with the current paths' combs removed (gain 0:
+  // paths() for a search candidate, and its echoes at the search bins.
+  void candidate(const Eigen::Vector3d& direction_site, double curvature_per_m);
+  // Weighted mean coherence of the prepared bins with the candidate's combs removed (gain 0:
   // as they are), in [0, 1].
   double coherence(double gain) const;
   void search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full);
@@ -94,15 +96,19 @@ class GroundEcho {
   std::vector<double> arrival_s_;
   std::vector<double> delay_s_;
   std::vector<double> level_;
-  std::vector<double> cosines_;  // remove(): one mic's rotation over the band
-  std::vector<double> sines_;
-  // prepare(): per search bin, its angular frequency and weight, and per bin and mic the unit
-  // aligned on the direct path (bin-major).
+  // prepare(): per search bin, its angular frequency and weight, and per mic and bin (mic-major,
+  // kSearchBins per mic, zero after search_bins_) the unit aligned on the direct path;
+  // candidate(): per mic and bin the echo relative to the direct path, level e^{-j w Delta}.
   int search_bins_ = 0;
+  double search_weight_sum_ = 0.0;
   std::vector<double> search_omega_;
   std::vector<double> search_weight_;
-  std::vector<std::complex<double>> aligned_;
+  std::vector<double> aligned_re_;
+  std::vector<double> aligned_im_;
+  std::vector<double> echo_re_;
+  std::vector<double> echo_im_;
   std::vector<int> candidates_;  // scratch: band indices with a large enough weight
+  bool wide_simd_ = false;       // the AVX-512 kernels (GccPhat::wide_simd())
 
   bool locked_ = false;
   double curvature_per_m_ = 0.0;
