@@ -42,6 +42,63 @@ constexpr int kLagStrideMultiple = 16;
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
 
+// prepare()'s per-bin pass, shared by every pair: the kept bins' sums (weights, their squares,
+// w^2 and w^4 terms for the normalisation, TDOA variance and Taylor bound) and each bin's scale
+// (keep x the weight, its inverse or 1) and keep as doubles.
+struct KeptSums {
+  double w = 0.0;
+  double w2 = 0.0;
+  double omega2 = 0.0;
+  double w2_omega2 = 0.0;
+  double omega4 = 0.0;
+};
+enum class Rescale { none, weight, inverse };
+
+struct KeptRows {
+  const std::uint8_t* keep;
+  const double* weights;
+  const double* omega2;
+  bool weighted;
+  Rescale rescale;
+  double* scales;
+  double* keeps;
+};
+
+// Over V lanes of bins from `first` in whole vectors up to `count`; returns where it stopped.
+template <class V>
+[[gnu::always_inline]] inline std::size_t kept_sums(const KeptRows& rows, std::size_t first,
+                                                    std::size_t count, KeptSums& out) {
+  constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
+  V w_sum{}, w2_sum{}, omega2_sum{}, w2_omega2_sum{}, omega4_sum{};
+  std::size_t n = first;
+  for (; n + kLanes <= count; n += kLanes) {
+    V keep, w, omega2;
+    for (std::size_t l = 0; l < kLanes; ++l) keep[l] = rows.keep[n + l];
+    std::memcpy(&w, rows.weights + n, sizeof w);
+    std::memcpy(&omega2, rows.omega2 + n, sizeof omega2);
+    const V used = rows.weighted ? w : V{} + 1.0;
+    const V kept_w = keep * used;
+    w_sum += kept_w;
+    w2_sum += kept_w * used;
+    omega2_sum += kept_w * omega2;
+    w2_omega2_sum += kept_w * used * omega2;
+    omega4_sum += keep * omega2 * omega2;
+    const V scale = rows.rescale == Rescale::none     ? keep
+                    : rows.rescale == Rescale::weight ? keep * w
+                                                      : keep / w;
+    std::memcpy(rows.scales + n, &scale, sizeof scale);
+    std::memcpy(rows.keeps + n, &keep, sizeof keep);
+  }
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    out.w += w_sum[l];
+    out.w2 += w2_sum[l];
+    out.omega2 += omega2_sum[l];
+    out.w2_omega2 += w2_omega2_sum[l];
+    out.omega4 += omega4_sum[l];
+  }
+  return n;
+}
+
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DRONETRACK_WIDE_SIMD 1
 // With AVX-512 the lag grid summed directly over the kept bins beats the inverse FFT even over
@@ -184,6 +241,55 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     std::memcpy(magnitude + n, &sizes, sizeof sizes);
   }
   return n;
+}
+
+// prepare()'s pass over one pair's band eight bins per vector: phasors times `scales` and
+// magnitudes times `keeps` (when `scale`), and the sum of the magnitudes (times `weights` when
+// given) in eight partial sums. Returns how many bins it did (whole vectors); the caller
+// finishes the rest.
+__attribute__((target("avx512f,fma"))) std::size_t wide_scale_and_sum(
+    std::complex<double>* phasors, double* magnitudes, const double* scales, const double* keeps,
+    const double* weights, bool scale, std::size_t count, double& sum) {
+  using Wide = double __attribute__((vector_size(64)));
+  using Selector = long long __attribute__((vector_size(64)));
+  auto* phasor = reinterpret_cast<double*>(phasors);
+  Wide total{};
+  std::size_t n = 0;
+  for (; n + 8 <= count; n += 8) {
+    Wide magnitude;
+    std::memcpy(&magnitude, magnitudes + n, sizeof magnitude);
+    if (scale) {
+      Wide factor, keep, low, high;
+      std::memcpy(&factor, scales + n, sizeof factor);
+      std::memcpy(&keep, keeps + n, sizeof keep);
+      std::memcpy(&low, phasor + 2 * n, sizeof low);
+      std::memcpy(&high, phasor + 2 * n + 8, sizeof high);
+      // Each bin's factor on its (re, im) pair.
+      low *= __builtin_shuffle(factor, Selector{0, 0, 1, 1, 2, 2, 3, 3});
+      high *= __builtin_shuffle(factor, Selector{4, 4, 5, 5, 6, 6, 7, 7});
+      magnitude *= keep;
+      std::memcpy(phasor + 2 * n, &low, sizeof low);
+      std::memcpy(phasor + 2 * n + 8, &high, sizeof high);
+      std::memcpy(magnitudes + n, &magnitude, sizeof magnitude);
+    }
+    if (weights != nullptr) {
+      Wide w;
+      std::memcpy(&w, weights + n, sizeof w);
+      total += magnitude * w;
+    } else {
+      total += magnitude;
+    }
+  }
+  sum = ((total[0] + total[1]) + (total[2] + total[3])) +
+        ((total[4] + total[5]) + (total[6] + total[7]));
+  return n;
+}
+
+__attribute__((target("avx512f,fma"))) std::size_t wide_kept_sums(const KeptRows& rows,
+                                                                  std::size_t count,
+                                                                  KeptSums& out) {
+  using Wide = double __attribute__((vector_size(64)));
+  return kept_sums<Wide>(rows, 0, count, out);
 }
 
 bool wide_simd_supported() { return __builtin_cpu_supports("avx512f") != 0; }
@@ -505,6 +611,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
     max_direct_products_ = 0.0;
   }
   kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
+  for (const BandRun& run : runs_)
+    for (int k = run.first_bin; k <= run.last_bin; ++k)
+      band_omega2_.push_back((k * bin_omega_) * (k * bin_omega_));
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
@@ -721,29 +830,48 @@ bool GccPhat::prepare(bool weighted) {
   // Weights change only on plain phasors (bin_weight()): bounded once, as they go on.
   if (rescale && weighted)
     for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
-  // Locals, not the members, carry the sums: no store-to-load chain per bin.
-  int kept = 0;
-  double sum_w = 0.0;
-  double sum_w2 = 0.0;
-  double sum_omega2 = 0.0;
-  double sum_w2_omega2 = 0.0;
-  double sum_omega4 = 0.0;
-  {
-    int index = 0;
-    for (const BandRun& run : runs_) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        if (keep_[static_cast<std::size_t>(index)] == 0) continue;
-        kept_indices_[static_cast<std::size_t>(kept++)] = index;
-        const double w = weighted ? weights_[static_cast<std::size_t>(index)] : 1.0;
-        const double omega2 = (k * bin_omega_) * (k * bin_omega_);
-        sum_w += w;
-        sum_w2 += w * w;
-        sum_omega2 += w * omega2;
-        sum_w2_omega2 += w * w * omega2;
-        sum_omega4 += omega2 * omega2;
-      }
-    }
+  // Per bin, vectorised: the kept bins' sums and each bin's scale and keep (bin_scales_,
+  // bin_keeps_; used below when bins are dropped or the weights change).
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  const KeptRows rows{keep_.data(),
+                      weights_.data(),
+                      band_omega2_.data(),
+                      weighted,
+                      !rescale   ? Rescale::none
+                      : weighted ? Rescale::weight
+                                 : Rescale::inverse,
+                      bin_scales_.data(),
+                      bin_keeps_.data()};
+  KeptSums totals;
+  std::size_t done = 0;
+#ifdef DRONETRACK_WIDE_SIMD
+  if (wide_simd_) done = wide_kept_sums(rows, bins, totals);
+#endif
+  done = kept_sums<Lanes>(rows, done, bins, totals);
+  for (; done < bins; ++done) {
+    const double keep = keep_[done];
+    const double w = weighted ? weights_[done] : 1.0;
+    const double omega2 = band_omega2_[done];
+    totals.w += keep * w;
+    totals.w2 += keep * w * w;
+    totals.omega2 += keep * w * omega2;
+    totals.w2_omega2 += keep * w * w * omega2;
+    totals.omega4 += keep * omega2 * omega2;
+    const double scale = !rescale ? 1.0 : weighted ? weights_[done] : 1.0 / weights_[done];
+    bin_scales_[done] = keep * scale;
+    bin_keeps_[done] = keep;
   }
+  // The kept bins' band indices, without a branch per bin.
+  int kept = 0;
+  for (int index = 0; index < band_bins_; ++index) {
+    kept_indices_[static_cast<std::size_t>(kept)] = index;
+    kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
+  }
+  const double sum_w = totals.w;
+  const double sum_w2 = totals.w2;
+  const double sum_omega2 = totals.omega2;
+  const double sum_w2_omega2 = totals.w2_omega2;
+  const double sum_omega4 = totals.omega4;
   kept_bins_ = kept;
   kept_weight_ = sum_w;
   kept_sum_omega2_ = sum_omega2;
@@ -762,16 +890,6 @@ bool GccPhat::prepare(bool weighted) {
   }
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   const bool all_kept = kept == band_bins_;
-  if (!all_kept || rescale) {
-    // One factor per bin for every pair (the division once per bin, not per bin and pair).
-    for (std::size_t index = 0; index < keep_.size(); ++index) {
-      const double keep = keep_[index];
-      const double w = weights_[index];
-      const double scale = !rescale ? 1.0 : weighted ? w : 1.0 / w;
-      bin_scales_[index] = keep * scale;
-      bin_keeps_[index] = keep;
-    }
-  }
   // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
   // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
   // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
@@ -785,6 +903,12 @@ bool GccPhat::prepare(bool weighted) {
       double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
       double sums[4] = {0.0, 0.0, 0.0, 0.0};
       int index = 0;
+#ifdef DRONETRACK_WIDE_SIMD
+      if (wide_simd_)
+        index = static_cast<int>(wide_scale_and_sum(phasor, magnitude, scales, keeps,
+                                                    kWeighted ? w : nullptr, kScale,
+                                                    static_cast<std::size_t>(band_bins_), sums[0]));
+#endif
       for (; index + 4 <= band_bins_; index += 4) {
         for (int lane = 0; lane < 4; ++lane) {
           const int i = index + lane;

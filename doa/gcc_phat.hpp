@@ -227,6 +227,7 @@ class GccPhat {
   std::vector<std::uint8_t> corrected_;  // per mic: pairs made from corrected_re_/_im_
   std::vector<double> levels_;
   std::vector<int> band_fft_bins_;        // FFT bin of each band bin
+  std::vector<double> band_omega2_;       // w_k^2 of each band bin
   std::vector<std::uint8_t> saved_keep_;  // save_whitened()
   std::vector<double> kernel_table_;      // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;
