@@ -226,10 +226,10 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     const Wide size = li * lj;
     Wide live = size > silent ? one : zero;
     if (keep != nullptr) {
-      Wide kept;
-      for (int l = 0; l < 8; ++l)
-        kept[l] = static_cast<double>(keep[n + static_cast<std::size_t>(l)]);
-      live *= kept;
+      using Bytes = std::uint8_t __attribute__((vector_size(8)));
+      Bytes kept;
+      std::memcpy(&kept, keep + n, sizeof kept);
+      live *= __builtin_convertvector(kept, Wide);
     }
     const Wide re = (ar * br + ai * bi) * live;
     const Wide im = (ai * br - ar * bi) * live;
@@ -338,17 +338,13 @@ TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
   TaylorLanes<Lanes> lanes;
   TaylorLanes<double> odd;  // each run's odd bin out
   int index = 0;
-  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
-  const std::complex<double> step2 = step * step;
-  const Lanes step2_re{step2.real(), step2.real()};
-  const Lanes step2_im{step2.imag(), step2.imag()};
+  Lanes step2_re, step2_im;
+  unit_phasor<Lanes>(Lanes{} + 2.0 * bin_omega * lag, step2_re, step2_im);
   const Lanes omega_step{2.0 * bin_omega, 2.0 * bin_omega};
   for (const BandRun& run : runs) {
-    const std::complex<double> first = std::polar(1.0, bin_omega * run.first_bin * lag);
-    const std::complex<double> second = first * step;
-    Lanes rotation_re{first.real(), second.real()};
-    Lanes rotation_im{first.imag(), second.imag()};
     Lanes omega{run.first_bin * bin_omega, (run.first_bin + 1) * bin_omega};
+    Lanes rotation_re, rotation_im;
+    unit_phasor<Lanes>(omega * lag, rotation_re, rotation_im);
     const int bins = run.last_bin - run.first_bin + 1;
     int k = 0;
     for (; k + 2 <= bins; k += 2, index += 2) {
@@ -392,23 +388,16 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
   using Wide = double __attribute__((vector_size(64)));
   constexpr int kLanes = 8;
   TaylorLanes<Wide> lanes;
-  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
-  std::complex<double> step8 = step * step;
-  step8 *= step8;
-  step8 *= step8;
-  const Wide step8_re = Wide{} + step8.real();
-  const Wide step8_im = Wide{} + step8.imag();
+  // The rotations by the polynomial sincos, all lanes at once (no libm call per lane).
+  Wide step8_re, step8_im;
+  unit_phasor<Wide>(Wide{} + kLanes * bin_omega * lag, step8_re, step8_im);
   const Wide omega_step = Wide{} + kLanes * bin_omega;
+  const Wide lane_bins{0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0};
   int index = 0;
   for (const BandRun& run : runs) {
-    Wide rotation_re, rotation_im, omega;
-    std::complex<double> rotation = std::polar(1.0, bin_omega * run.first_bin * lag);
-    for (int l = 0; l < kLanes; ++l) {
-      rotation_re[l] = rotation.real();
-      rotation_im[l] = rotation.imag();
-      omega[l] = (run.first_bin + l) * bin_omega;
-      rotation *= step;
-    }
+    Wide omega = (lane_bins + run.first_bin) * bin_omega;
+    Wide rotation_re, rotation_im;
+    unit_phasor<Wide>(omega * lag, rotation_re, rotation_im);
     const int bins = run.last_bin - run.first_bin + 1;
     for (int k = 0; k < bins; k += kLanes, index += kLanes) {
       Wide w_re, w_im, size;

@@ -41,46 +41,6 @@ double parabola_vertex(double left, double centre, double right, double limit) {
   return std::clamp(0.5 * (left - right) / curvature, -limit, limit);
 }
 
-// e^{j phase} lane by lane: phase reduced to whole turns, the half angle (within +-pi/2) by
-// Taylor polynomials (through x^17 and x^16: error < 1e-13), then the double angle. The search's
-// phases are a few hundred radians at most: the rounding (2^52 trick) is exact there.
-template <class V>
-[[gnu::always_inline]] inline void unit_phasor(const V& phase_rad, V& re, V& im) {
-  constexpr double kRound = 6755399441055744.0;  // 1.5 * 2^52: adding it rounds to an integer
-  const V turns = phase_rad * (0.5 / std::numbers::pi);
-  const V whole = (turns + kRound) - kRound;
-  const V half = (turns - whole) * std::numbers::pi;
-  const V x2 = half * half;
-  // 1/n! for the odd (sine) and even (cosine) terms, highest first.
-  constexpr double kSine[] = {1.0 / 355687428096000.0,
-                              -1.0 / 1307674368000.0,
-                              1.0 / 6227020800.0,
-                              -1.0 / 39916800.0,
-                              1.0 / 362880.0,
-                              -1.0 / 5040.0,
-                              1.0 / 120.0,
-                              -1.0 / 6.0,
-                              1.0};
-  constexpr double kCosine[] = {1.0 / 20922789888000.0,
-                                -1.0 / 87178291200.0,
-                                1.0 / 479001600.0,
-                                -1.0 / 3628800.0,
-                                1.0 / 40320.0,
-                                -1.0 / 720.0,
-                                1.0 / 24.0,
-                                -1.0 / 2.0,
-                                1.0};
-  V sine = V{} + kSine[0];
-  V cosine = V{} + kCosine[0];
-  for (int term = 1; term < 9; ++term) {
-    sine = sine * x2 + kSine[term];
-    cosine = cosine * x2 + kCosine[term];
-  }
-  sine *= half;
-  re = cosine * cosine - sine * sine;
-  im = 2.0 * sine * cosine;
-}
-
 // The search bins' rows for coherence(): per mic, kSearchBins aligned units and echoes.
 struct CoherenceRows {
   const double* aligned_re;
