@@ -204,11 +204,11 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
 }
 
 // pair_phasors()'s products eight bins per vector, (re, im) interleaved on the way out: returns
-// how many bins it did; `keep` null: every bin kept.
+// how many bins it did; `keep` null: every bin kept; `weights` null: the phasors unweighted.
 __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     const double* a_re, const double* a_im, const double* b_re, const double* b_im,
-    const double* level_i, const double* level_j, const std::uint8_t* keep, std::size_t count,
-    double* out, double* magnitude) {
+    const double* level_i, const double* level_j, const std::uint8_t* keep, const double* weights,
+    std::size_t count, double* out, double* magnitude) {
   using Wide = double __attribute__((vector_size(64)));
   using Selector = long long __attribute__((vector_size(64)));
   const Wide silent = Wide{} + kSilentBin;
@@ -231,8 +231,14 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
       std::memcpy(&kept, keep + n, sizeof kept);
       live *= __builtin_convertvector(kept, Wide);
     }
-    const Wide re = (ar * br + ai * bi) * live;
-    const Wide im = (ai * br - ar * bi) * live;
+    Wide scale = live;
+    if (weights != nullptr) {
+      Wide w;
+      std::memcpy(&w, weights + n, sizeof w);
+      scale *= w;
+    }
+    const Wide re = (ar * br + ai * bi) * scale;
+    const Wide im = (ai * br - ar * bi) * scale;
     const Wide low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
     const Wide high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
     const Wide sizes = size * live;
@@ -558,6 +564,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   corrected_re_.assign(unit_re_.size(), 0.0);
   corrected_im_.assign(unit_re_.size(), 0.0);
   corrected_.assign(static_cast<std::size_t>(unit_channels_), 0);
+  phasor_keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   levels_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
     for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
@@ -662,13 +669,13 @@ std::span<const double> GccPhat::magnitudes(int pair) const {
 
 void GccPhat::save_whitened() { std::copy(keep_.begin(), keep_.end(), saved_keep_.begin()); }
 
-void GccPhat::restore_whitened() {
+void GccPhat::restore_whitened(bool weighted) {
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
   // The frame's per-mic units and levels are still here: the pairs' phasors and magnitudes
   // are made again exactly as whiten() made them, the saved mask's dropped bins zero (as
   // correlate() had left them), instead of keeping a copy of every pair's band.
-  pair_phasors(true);
+  pair_phasors(true, weighted);
 }
 
 std::span<const double> GccPhat::unit_real(int mic) const {
@@ -742,15 +749,18 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     }
   }
   uncorrect_units();
-  pair_phasors(false);
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
+  pair_phasors(false);
 }
 
-void GccPhat::pair_phasors(bool masked) {
+void GccPhat::pair_phasors(bool masked, bool weighted) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
-  // dropped in keep_ zero.
-  weights_applied_ = false;
+  // dropped in keep_ zero; `weighted`: the phasors times the bins' weights, as a weighted
+  // prepare() would scale them (the same product: live x w is w or 0).
   const auto bins = static_cast<std::size_t>(band_bins_);
+  if (weighted)
+    for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
+  const double* weights = weighted ? weights_.data() : nullptr;
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
     const auto mic_i = static_cast<std::size_t>(pairs_[p].mic_i);
     const auto mic_j = static_cast<std::size_t>(pairs_[p].mic_j);
@@ -774,7 +784,7 @@ void GccPhat::pair_phasors(bool masked) {
 #ifdef DRONETRACK_WIDE_SIMD
     if (wide_simd_)
       n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
-                             masked ? keep_.data() : nullptr, bins, out, magnitude);
+                             masked ? keep_.data() : nullptr, weights, bins, out, magnitude);
 #endif
     for (; n + 2 <= bins; n += 2) {
       Lanes ar, ai, br, bi, li, lj;
@@ -787,8 +797,9 @@ void GccPhat::pair_phasors(bool masked) {
       const Lanes size = li * lj;
       Lanes live = size > silent ? one : zero;
       if (masked) live *= Lanes{static_cast<double>(keep_[n]), static_cast<double>(keep_[n + 1])};
-      const Lanes re = (ar * br + ai * bi) * live;
-      const Lanes im = (ai * br - ar * bi) * live;
+      const Lanes scale = weighted ? live * Lanes{weights[n], weights[n + 1]} : live;
+      const Lanes re = (ar * br + ai * bi) * scale;
+      const Lanes im = (ai * br - ar * bi) * scale;
       const Lanes first{re[0], im[0]};
       const Lanes second{re[1], im[1]};
       const Lanes sizes = size * live;
@@ -800,11 +811,18 @@ void GccPhat::pair_phasors(bool masked) {
       const double size = level_i[n] * level_j[n];
       const double live =
           (size > kSilentBin ? 1.0 : 0.0) * (masked ? static_cast<double>(keep_[n]) : 1.0);
-      out[2 * n] = live * (a_re[n] * b_re[n] + a_im[n] * b_im[n]);
-      out[2 * n + 1] = live * (a_im[n] * b_re[n] - a_re[n] * b_im[n]);
+      const double scale = weighted ? live * weights[n] : live;
+      out[2 * n] = (a_re[n] * b_re[n] + a_im[n] * b_im[n]) * scale;
+      out[2 * n + 1] = (a_im[n] * b_re[n] - a_re[n] * b_im[n]) * scale;
       magnitude[n] = live * size;
     }
   }
+  weights_applied_ = weighted;
+  // The mask the phasors now carry: prepare() need not scale them again for it.
+  if (masked)
+    std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  else
+    std::fill(phasor_keep_.begin(), phasor_keep_.end(), std::uint8_t{1});
 }
 
 void GccPhat::prepare_phasors(bool weighted) {
@@ -922,7 +940,11 @@ bool GccPhat::prepare(bool weighted) {
       magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
     }
   };
-  const bool scale = !all_kept || rescale;
+  // Dropped bins already zero in the phasors (made under this very mask) need no pass of
+  // their own.
+  const bool masked_already = std::equal(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  const bool scale = (!all_kept && !masked_already) || rescale;
+  if (scale) std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
   if (scale && weighted) scale_and_sum.operator()<true, true>();
   if (scale && !weighted) scale_and_sum.operator()<true, false>();
   if (!scale && weighted) scale_and_sum.operator()<false, true>();

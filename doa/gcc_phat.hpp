@@ -110,9 +110,10 @@ class GccPhat {
   // correlate() drops masked bins from the phasors themselves; these return to the phasors,
   // magnitudes and mask as they were at save_whitened() (the mask is kept, the phasors made
   // again from the frame's per-mic units) to correlate the same frame under another mask
-  // (several sources: each measured without the others' bins).
+  // (several sources: each measured without the others' bins). `weighted`: the phasors made
+  // with bin_weight() on them, as a weighted correlate() would scale them (it then need not).
   void save_whitened();
-  void restore_whitened();
+  void restore_whitened(bool weighted = false);
   // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
   std::span<const double> unit_real(int mic) const;
   std::span<const double> unit_imag(int mic) const;
@@ -184,7 +185,7 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
-  void pair_phasors(bool masked);
+  void pair_phasors(bool masked, bool weighted = false);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
   double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
@@ -200,14 +201,15 @@ class GccPhat {
   int kept_bins_ = 0;
   double kept_weight_ = 0.0;  // sum of the kept bins' weights (kept_bins_ unweighted): R's scale
   int effective_bins_ = 0;
-  double kept_sum_omega2_ = 0.0;     // sum_kept w w_k^2
-  double kept_sum_w2_omega2_ = 0.0;  // sum_kept w^2 w_k^2
-  std::vector<double> weights_;      // bin_weight()
-  bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
-  bool enough_bins_ = false;         // the last prepare() kept enough bins for a correlation
-  std::vector<std::uint8_t> keep_;   // per band bin
-  double taylor_bound_ = 0.0;        // w_top sum_kept w^4: bounds the fifth derivative of R
-  double bin_correlation_ = 1.0;     // how many bins share one independent phase (window, padding)
+  double kept_sum_omega2_ = 0.0;           // sum_kept w w_k^2
+  double kept_sum_w2_omega2_ = 0.0;        // sum_kept w^2 w_k^2
+  std::vector<double> weights_;            // bin_weight()
+  bool weights_applied_ = false;           // the phasors carry weights_ (last correlate() weighted)
+  bool enough_bins_ = false;               // the last prepare() kept enough bins for a correlation
+  std::vector<std::uint8_t> keep_;         // per band bin
+  std::vector<std::uint8_t> phasor_keep_;  // the mask the phasors carry (its dropped bins zero)
+  double taylor_bound_ = 0.0;              // w_top sum_kept w^4: bounds the fifth derivative of R
+  double bin_correlation_ = 1.0;  // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
   std::vector<int> half_spans_;
