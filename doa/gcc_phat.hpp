@@ -114,6 +114,8 @@ class GccPhat {
   // with bin_weight() on them, as a weighted correlate() would scale them (it then need not).
   void save_whitened();
   void restore_whitened(bool weighted = false);
+  // The mask as at save_whitened() (what restore_whitened() returns to).
+  std::span<const std::uint8_t> saved_bin_keep() const { return saved_keep_; }
   // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
   std::span<const double> unit_real(int mic) const;
   std::span<const double> unit_imag(int mic) const;

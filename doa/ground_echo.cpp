@@ -279,18 +279,20 @@ void GroundEcho::paths(const Eigen::Vector3d& direction_site, double curvature_p
   }
 }
 
-void GroundEcho::prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
+void GroundEcho::prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+                         const Eigen::Vector3d& direction_site) {
   const std::span<const double> weights = gcc.bin_weight();
-  const std::span<const std::uint8_t> keep = gcc.bin_keep();
   double strongest = 0.0;
   for (std::size_t k = 0; k < keep.size(); ++k)
-    if (keep[k] != 0) strongest = std::max(strongest, weights[k]);
+    strongest = std::max(strongest, keep[k] != 0 ? weights[k] : 0.0);
   // The source's own bins: the SNR weights' upper half (every kept bin with plain PHAT). Bins
-  // with noise only would add chance coherence, not evidence.
+  // with noise only would add chance coherence, not evidence. Without a branch per bin: which
+  // bins pass is as good as random to a branch predictor.
   int count = 0;
-  for (std::size_t k = 0; k < keep.size(); ++k)
-    if (keep[k] != 0 && weights[k] > 0.0 && weights[k] >= 0.5 * strongest)
-      candidates_[static_cast<std::size_t>(count++)] = static_cast<int>(k);
+  for (std::size_t k = 0; k < keep.size(); ++k) {
+    candidates_[static_cast<std::size_t>(count)] = static_cast<int>(k);
+    count += keep[k] != 0 && weights[k] > 0.0 && weights[k] >= 0.5 * strongest ? 1 : 0;
+  }
   const int stride = std::max(1, (count + kSearchBins - 1) / kSearchBins);
   const std::size_t mics = mics_m_.size();
   for (std::size_t mic = 0; mic < mics; ++mic)
@@ -347,9 +349,10 @@ double GroundEcho::coherence(double gain) const {
   return scale > 0.0 ? total / scale : 0.0;
 }
 
-void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full) {
+void GroundEcho::search(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+                        const Eigen::Vector3d& direction_site, bool full) {
   frames_since_search_ = 0;
-  prepare(gcc, direction_site);
+  prepare(gcc, keep, direction_site);
   if (search_bins_ < kMinSearchBins) {
     // Two parameters fitted to a handful of bins fit their noise: a source heard in few bins
     // (next to a nulled generator, at 0 dB) would lock onto a made-up echo.
@@ -409,6 +412,11 @@ bool GroundEcho::search_due(const Eigen::Vector3d& direction_site) const {
 }
 
 bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
+  return observe(gcc, direction_site, gcc.bin_keep());
+}
+
+bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site,
+                         std::span<const std::uint8_t> keep) {
   if (!(direction_site.z() >= min_sine_elevation_)) {
     // Near the horizon the reflection arrives with the direct path: nothing to separate.
     locked_ = false;
@@ -421,7 +429,7 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
   }
   last_direction_ = direction_site;
   ++frames_since_search_;
-  if (search_now != Search::none) search(gcc, direction_site, search_now == Search::full);
+  if (search_now != Search::none) search(gcc, keep, direction_site, search_now == Search::full);
   return locked_;
 }
 

@@ -16,6 +16,7 @@
 // direct path. It is kept (locked) only while it explains the frames clearly better than no echo.
 // Range and g change slowly, so once locked a small local search every few frames follows them;
 // the mics' delays are recomputed every frame from the frame's own direction.
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -45,6 +46,10 @@ class GroundEcho {
   // array centre) on this frame's per-mic units (kept bins, bin weights). Returns whether an echo
   // is locked; remove() then divides it out.
   bool observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  // The same on the band bins `keep` marks (band order) instead of gcc.bin_keep(): the
+  // source's own bins without remaking the pairs' phasors for them.
+  bool observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site,
+               std::span<const std::uint8_t> keep);
   // Whether the next observe() searches (reads the units, the kept bins and their weights);
   // otherwise it only follows the direction.
   bool search_due(const Eigen::Vector3d& direction_site) const;
@@ -71,13 +76,15 @@ class GroundEcho {
   void paths(const Eigen::Vector3d& direction_site, double curvature_per_m);
   // The search's bins for this frame (the strongest weights, at most kSearchBins spread over
   // the band), their units aligned on the direct path from `direction_site`.
-  void prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  void prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+               const Eigen::Vector3d& direction_site);
   // paths() for a search candidate, and its echoes at the search bins.
   void candidate(const Eigen::Vector3d& direction_site, double curvature_per_m);
   // Weighted mean coherence of the prepared bins with the candidate's combs removed (gain 0:
   // as they are), in [0, 1].
   double coherence(double gain) const;
-  void search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full);
+  void search(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+              const Eigen::Vector3d& direction_site, bool full);
   // What observe() will do for this direction: the one place the search schedule is decided.
   enum class Search { none, local, full };
   Search next_search(const Eigen::Vector3d& direction_site) const;

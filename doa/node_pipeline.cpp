@@ -414,11 +414,11 @@ void NodePipeline::Impl::remove_ground_echoes() {
 void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
   const Eigen::Vector3d direction =
       candidates[static_cast<std::size_t>(source)].solution.direction_site;
-  if (echo.search_due(direction)) {
-    // The search reads this source's bins: the frame's, minus the other sources'.
-    only_bins_of(source);
-  }
-  if (!echo.observe(gcc, direction)) return;
+  // The search reads this source's bins: the frame's, minus the other sources' (when there
+  // are others: their bins found on the remade phasors).
+  const bool others = candidate_count > 1;
+  if (others && echo.search_due(direction)) only_bins_of(source);
+  if (!echo.observe(gcc, direction, others ? gcc.bin_keep() : gcc.saved_bin_keep())) return;
   echo.remove(gcc, direction);
   remeasure(source, true);
   echo.restore(gcc);
