@@ -205,15 +205,17 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
 
 // pair_phasors()'s products eight bins per vector, (re, im) interleaved on the way out: returns
 // how many bins it did; `keep` null: every bin kept; `weights` null: the phasors unweighted.
+// `magnitude_sum`: the magnitudes' sum (times the weights when given).
 __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     const double* a_re, const double* a_im, const double* b_re, const double* b_im,
     const double* level_i, const double* level_j, const std::uint8_t* keep, const double* weights,
-    std::size_t count, double* out, double* magnitude) {
+    std::size_t count, double* out, double* magnitude, double& magnitude_sum) {
   using Wide = double __attribute__((vector_size(64)));
   using Selector = long long __attribute__((vector_size(64)));
   const Wide silent = Wide{} + kSilentBin;
   const Wide one = Wide{} + 1.0;
   const Wide zero = Wide{};
+  Wide total{};
   std::size_t n = 0;
   for (; n + 8 <= count; n += 8) {
     Wide ar, ai, br, bi, li, lj;
@@ -232,8 +234,8 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
       live *= __builtin_convertvector(kept, Wide);
     }
     Wide scale = live;
+    Wide w = one;
     if (weights != nullptr) {
-      Wide w;
       std::memcpy(&w, weights + n, sizeof w);
       scale *= w;
     }
@@ -245,7 +247,10 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     std::memcpy(out + 2 * n, &low, sizeof low);
     std::memcpy(out + 2 * n + 8, &high, sizeof high);
     std::memcpy(magnitude + n, &sizes, sizeof sizes);
+    total += sizes * w;
   }
+  magnitude_sum = ((total[0] + total[1]) + (total[2] + total[3])) +
+                  ((total[4] + total[5]) + (total[6] + total[7]));
   return n;
 }
 
@@ -781,10 +786,13 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
     const Lanes one{1.0, 1.0};
     const Lanes zero{0.0, 0.0};
     std::size_t n = 0;
+    double magnitude_sum = 0.0;
+    Lanes magnitude_lanes{0.0, 0.0};
 #ifdef DRONETRACK_WIDE_SIMD
     if (wide_simd_)
       n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
-                             masked ? keep_.data() : nullptr, weights, bins, out, magnitude);
+                             masked ? keep_.data() : nullptr, weights, bins, out, magnitude,
+                             magnitude_sum);
 #endif
     for (; n + 2 <= bins; n += 2) {
       Lanes ar, ai, br, bi, li, lj;
@@ -797,7 +805,8 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
       const Lanes size = li * lj;
       Lanes live = size > silent ? one : zero;
       if (masked) live *= Lanes{static_cast<double>(keep_[n]), static_cast<double>(keep_[n + 1])};
-      const Lanes scale = weighted ? live * Lanes{weights[n], weights[n + 1]} : live;
+      const Lanes w = weighted ? Lanes{weights[n], weights[n + 1]} : one;
+      const Lanes scale = live * w;
       const Lanes re = (ar * br + ai * bi) * scale;
       const Lanes im = (ai * br - ar * bi) * scale;
       const Lanes first{re[0], im[0]};
@@ -806,7 +815,9 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
       std::memcpy(out + 2 * n, &first, sizeof first);
       std::memcpy(out + 2 * n + 2, &second, sizeof second);
       std::memcpy(magnitude + n, &sizes, sizeof sizes);
+      magnitude_lanes += sizes * w;
     }
+    magnitude_sum += magnitude_lanes[0] + magnitude_lanes[1];
     for (; n < bins; ++n) {
       const double size = level_i[n] * level_j[n];
       const double live =
@@ -815,9 +826,12 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
       out[2 * n] = (a_re[n] * b_re[n] + a_im[n] * b_im[n]) * scale;
       out[2 * n + 1] = (a_im[n] * b_re[n] - a_re[n] * b_im[n]) * scale;
       magnitude[n] = live * size;
+      magnitude_sum += magnitude[n] * (weighted ? weights[n] : 1.0);
     }
+    magnitude_sums_[p] = magnitude_sum;
   }
   weights_applied_ = weighted;
+  sums_weighted_ = weighted;
   // The mask the phasors now carry: prepare() need not scale them again for it.
   if (masked)
     std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
@@ -945,11 +959,14 @@ bool GccPhat::prepare(bool weighted) {
   const bool masked_already = std::equal(keep_.begin(), keep_.end(), phasor_keep_.begin());
   const bool scale = (!all_kept && !masked_already) || rescale;
   if (scale) std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  // Phasors made under this mask and weighting (pair_phasors()) came with their sums.
+  const bool summed = !scale && masked_already && sums_weighted_ && *sums_weighted_ == weighted;
   if (scale && weighted) scale_and_sum.operator()<true, true>();
   if (scale && !weighted) scale_and_sum.operator()<true, false>();
-  if (!scale && weighted) scale_and_sum.operator()<false, true>();
-  if (!scale && !weighted) scale_and_sum.operator()<false, false>();
+  if (!scale && !summed && weighted) scale_and_sum.operator()<false, true>();
+  if (!scale && !summed && !weighted) scale_and_sum.operator()<false, false>();
   weights_applied_ = weighted;
+  sums_weighted_ = weighted;
   enough_bins_ = enough_bins;
   return enough_bins;
 }

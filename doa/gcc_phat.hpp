@@ -17,6 +17,7 @@
 #include <complex>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -222,6 +223,8 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
+  // How magnitude_sums_ were summed last (weighted or not): with the magnitudes they belong to.
+  std::optional<bool> sums_weighted_;
   // whiten(): per mic over the band bins, X / |X| (real and imaginary rows) and |X|.
   int unit_channels_ = 0;
   std::vector<double> unit_re_;
