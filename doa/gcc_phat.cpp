@@ -46,6 +46,7 @@ constexpr double kNewtonResidual_s = 1e-9;
 // w^2 and w^4 terms for the normalisation, TDOA variance and Taylor bound) and each bin's scale
 // (keep x the weight, its inverse or 1) and keep as doubles.
 struct KeptSums {
+  double kept = 0.0;  // how many bins are kept (sums of 0 and 1: exact)
   double w = 0.0;
   double w2 = 0.0;
   double omega2 = 0.0;
@@ -69,15 +70,23 @@ template <class V>
 [[gnu::always_inline]] inline std::size_t kept_sums(const KeptRows& rows, std::size_t first,
                                                     std::size_t count, KeptSums& out) {
   constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
-  V w_sum{}, w2_sum{}, omega2_sum{}, w2_omega2_sum{}, omega4_sum{};
+  V kept_sum{}, w_sum{}, w2_sum{}, omega2_sum{}, w2_omega2_sum{}, omega4_sum{};
   std::size_t n = first;
   for (; n + kLanes <= count; n += kLanes) {
     V keep, w, omega2;
-    for (std::size_t l = 0; l < kLanes; ++l) keep[l] = rows.keep[n + l];
+    if constexpr (kLanes == 8) {
+      using Bytes = std::uint8_t __attribute__((vector_size(8)));
+      Bytes bytes;
+      std::memcpy(&bytes, rows.keep + n, sizeof bytes);
+      keep = __builtin_convertvector(bytes, V);
+    } else {
+      for (std::size_t l = 0; l < kLanes; ++l) keep[l] = rows.keep[n + l];
+    }
     std::memcpy(&w, rows.weights + n, sizeof w);
     std::memcpy(&omega2, rows.omega2 + n, sizeof omega2);
     const V used = rows.weighted ? w : V{} + 1.0;
     const V kept_w = keep * used;
+    kept_sum += keep;
     w_sum += kept_w;
     w2_sum += kept_w * used;
     omega2_sum += kept_w * omega2;
@@ -90,6 +99,7 @@ template <class V>
     std::memcpy(rows.keeps + n, &keep, sizeof keep);
   }
   for (std::size_t l = 0; l < kLanes; ++l) {
+    out.kept += kept_sum[l];
     out.w += w_sum[l];
     out.w2 += w2_sum[l];
     out.omega2 += omega2_sum[l];
@@ -873,6 +883,7 @@ bool GccPhat::prepare(bool weighted) {
     const double keep = keep_[done];
     const double w = weighted ? weights_[done] : 1.0;
     const double omega2 = band_omega2_[done];
+    totals.kept += keep;
     totals.w += keep * w;
     totals.w2 += keep * w * w;
     totals.omega2 += keep * w * omega2;
@@ -882,12 +893,7 @@ bool GccPhat::prepare(bool weighted) {
     bin_scales_[done] = keep * scale;
     bin_keeps_[done] = keep;
   }
-  // The kept bins' band indices, without a branch per bin.
-  int kept = 0;
-  for (int index = 0; index < band_bins_; ++index) {
-    kept_indices_[static_cast<std::size_t>(kept)] = index;
-    kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
-  }
+  const int kept = static_cast<int>(totals.kept + 0.5);
   const double sum_w = totals.w;
   const double sum_w2 = totals.w2;
   const double sum_omega2 = totals.omega2;
@@ -1022,6 +1028,12 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
 void GccPhat::direct_grids(double normalisation) {
   // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) over the kept
   // bins. Per pair and block of kLagBlock lags the sums stay in registers over all kept bins.
+  // The kept bins' band indices first (only the direct sums use them), without a branch per bin.
+  int kept = 0;
+  for (int index = 0; index < band_bins_; ++index) {
+    kept_indices_[static_cast<std::size_t>(kept)] = index;
+    kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
+  }
   const auto stride = static_cast<std::size_t>(lag_stride_);
   const auto bins = static_cast<std::size_t>(band_bins_);
 #ifdef DRONETRACK_WIDE_SIMD

@@ -245,7 +245,7 @@ class GccPhat {
   int lag_stride_ = 0;  // lag_rows_ rounded up to whole blocks
   // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
   std::vector<double> lag_table_;
-  std::vector<int> kept_indices_;     // band indices of the kept bins (correlate())
+  std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
