@@ -14,12 +14,11 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
+#include "doa/lane_math.hpp"
 
 namespace dronetrack::doa {
 
 namespace {
-// Two doubles in one SIMD register (GCC/Clang vector extension; SSE2 on x86-64, NEON on arm64).
-using Lanes = double __attribute__((vector_size(16)));
 // Below this |X_i X_j*| a bin carries no phase (digital silence): it gets zero weight.
 constexpr double kSilentBin = 1e-30;
 constexpr double kMaxPeakRatio = 100.0;
@@ -42,23 +41,72 @@ constexpr int kLagStrideMultiple = 16;
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
-// 1 / |X| from |X|^2, two bins at once. Square roots and divisions dominated whitening (one
-// each per bin and mic, ~20 cycles per pair of them): 1/sqrt(x) instead starts from the
-// exponent-halving bit estimate (within 3.5 %) and takes four Newton steps (3.5 % -> 2e-3 ->
-// 5e-6 -> 3e-11 -> rounding); then |X| = x / sqrt(x). A silent bin
-// (x = 0) keeps the huge estimate: its unit X / |X| = 0 and |X| = 0, as before.
-inline Lanes inverse_sqrt(Lanes x) {
-  using Bits = unsigned long long __attribute__((vector_size(16)));
-  constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
-  const Bits magic{kMagic, kMagic};
-  Bits bits;
-  std::memcpy(&bits, &x, sizeof bits);
-  bits = magic - (bits >> 1);
-  Lanes y;
-  std::memcpy(&y, &bits, sizeof y);
-  const Lanes half_x = 0.5 * x;
-  for (int step = 0; step < 4; ++step) y = y * (1.5 - half_x * y * y);
-  return y;
+
+// prepare()'s per-bin pass, shared by every pair: the kept bins' sums (weights, their squares,
+// w^2 and w^4 terms for the normalisation, TDOA variance and Taylor bound) and each bin's scale
+// (keep x the weight, its inverse or 1) and keep as doubles.
+struct KeptSums {
+  double kept = 0.0;  // how many bins are kept (sums of 0 and 1: exact)
+  double w = 0.0;
+  double w2 = 0.0;
+  double omega2 = 0.0;
+  double w2_omega2 = 0.0;
+  double omega4 = 0.0;
+};
+enum class Rescale { none, weight, inverse };
+
+struct KeptRows {
+  const std::uint8_t* keep;
+  const double* weights;
+  const double* omega2;
+  bool weighted;
+  Rescale rescale;
+  double* scales;
+  double* keeps;
+};
+
+// Over V lanes of bins from `first` in whole vectors up to `count`; returns where it stopped.
+template <class V>
+[[gnu::always_inline]] inline std::size_t kept_sums(const KeptRows& rows, std::size_t first,
+                                                    std::size_t count, KeptSums& out) {
+  constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
+  V kept_sum{}, w_sum{}, w2_sum{}, omega2_sum{}, w2_omega2_sum{}, omega4_sum{};
+  std::size_t n = first;
+  for (; n + kLanes <= count; n += kLanes) {
+    V keep, w, omega2;
+    if constexpr (kLanes == 8) {
+      using Bytes = std::uint8_t __attribute__((vector_size(8)));
+      Bytes bytes;
+      std::memcpy(&bytes, rows.keep + n, sizeof bytes);
+      keep = __builtin_convertvector(bytes, V);
+    } else {
+      for (std::size_t l = 0; l < kLanes; ++l) keep[l] = rows.keep[n + l];
+    }
+    std::memcpy(&w, rows.weights + n, sizeof w);
+    std::memcpy(&omega2, rows.omega2 + n, sizeof omega2);
+    const V used = rows.weighted ? w : V{} + 1.0;
+    const V kept_w = keep * used;
+    kept_sum += keep;
+    w_sum += kept_w;
+    w2_sum += kept_w * used;
+    omega2_sum += kept_w * omega2;
+    w2_omega2_sum += kept_w * used * omega2;
+    omega4_sum += keep * omega2 * omega2;
+    const V scale = rows.rescale == Rescale::none     ? keep
+                    : rows.rescale == Rescale::weight ? keep * w
+                                                      : keep / w;
+    std::memcpy(rows.scales + n, &scale, sizeof scale);
+    std::memcpy(rows.keeps + n, &keep, sizeof keep);
+  }
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    out.kept += kept_sum[l];
+    out.w += w_sum[l];
+    out.w2 += w2_sum[l];
+    out.omega2 += omega2_sum[l];
+    out.w2_omega2 += w2_omega2_sum[l];
+    out.omega4 += omega4_sum[l];
+  }
+  return n;
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -135,9 +183,7 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
                                                               std::size_t count, double* level,
                                                               double* unit_re, double* unit_im) {
   using Wide = double __attribute__((vector_size(64)));
-  using WideBits = unsigned long long __attribute__((vector_size(64)));
   using Selector = long long __attribute__((vector_size(64)));
-  constexpr unsigned long long kMagic = 0x5FE6EB50C7B537A9ULL;
   std::size_t index = 0;
   for (; index + 8 <= count; index += 8) {
     Wide re, im;
@@ -155,13 +201,8 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
       }
     }
     const Wide power = re * re + im * im;
-    WideBits bits;
-    std::memcpy(&bits, &power, sizeof bits);
-    bits = kMagic - (bits >> 1);
     Wide inverse;
-    std::memcpy(&inverse, &bits, sizeof inverse);
-    const Wide half_power = 0.5 * power;
-    for (int step = 0; step < 4; ++step) inverse = inverse * (1.5 - half_power * inverse * inverse);
+    inverse_sqrt(power, inverse);
     const Wide size = power * inverse;
     const Wide unit_real = re * inverse;
     const Wide unit_imag = im * inverse;
@@ -173,16 +214,18 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
 }
 
 // pair_phasors()'s products eight bins per vector, (re, im) interleaved on the way out: returns
-// how many bins it did; `keep` null: every bin kept.
+// how many bins it did; `keep` null: every bin kept; `weights` null: the phasors unweighted.
+// `magnitude_sum`: the magnitudes' sum (times the weights when given).
 __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     const double* a_re, const double* a_im, const double* b_re, const double* b_im,
-    const double* level_i, const double* level_j, const std::uint8_t* keep, std::size_t count,
-    double* out, double* magnitude) {
+    const double* level_i, const double* level_j, const std::uint8_t* keep, const double* weights,
+    std::size_t count, double* out, double* magnitude, double& magnitude_sum) {
   using Wide = double __attribute__((vector_size(64)));
   using Selector = long long __attribute__((vector_size(64)));
   const Wide silent = Wide{} + kSilentBin;
   const Wide one = Wide{} + 1.0;
   const Wide zero = Wide{};
+  Wide total{};
   std::size_t n = 0;
   for (; n + 8 <= count; n += 8) {
     Wide ar, ai, br, bi, li, lj;
@@ -195,21 +238,79 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
     const Wide size = li * lj;
     Wide live = size > silent ? one : zero;
     if (keep != nullptr) {
-      Wide kept;
-      for (int l = 0; l < 8; ++l)
-        kept[l] = static_cast<double>(keep[n + static_cast<std::size_t>(l)]);
-      live *= kept;
+      using Bytes = std::uint8_t __attribute__((vector_size(8)));
+      Bytes kept;
+      std::memcpy(&kept, keep + n, sizeof kept);
+      live *= __builtin_convertvector(kept, Wide);
     }
-    const Wide re = (ar * br + ai * bi) * live;
-    const Wide im = (ai * br - ar * bi) * live;
+    Wide scale = live;
+    Wide w = one;
+    if (weights != nullptr) {
+      std::memcpy(&w, weights + n, sizeof w);
+      scale *= w;
+    }
+    const Wide re = (ar * br + ai * bi) * scale;
+    const Wide im = (ai * br - ar * bi) * scale;
     const Wide low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
     const Wide high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
     const Wide sizes = size * live;
     std::memcpy(out + 2 * n, &low, sizeof low);
     std::memcpy(out + 2 * n + 8, &high, sizeof high);
     std::memcpy(magnitude + n, &sizes, sizeof sizes);
+    total += sizes * w;
   }
+  magnitude_sum = ((total[0] + total[1]) + (total[2] + total[3])) +
+                  ((total[4] + total[5]) + (total[6] + total[7]));
   return n;
+}
+
+// prepare()'s pass over one pair's band eight bins per vector: phasors times `scales` and
+// magnitudes times `keeps` (when `scale`), and the sum of the magnitudes (times `weights` when
+// given) in eight partial sums. Returns how many bins it did (whole vectors); the caller
+// finishes the rest.
+__attribute__((target("avx512f,fma"))) std::size_t wide_scale_and_sum(
+    std::complex<double>* phasors, double* magnitudes, const double* scales, const double* keeps,
+    const double* weights, bool scale, std::size_t count, double& sum) {
+  using Wide = double __attribute__((vector_size(64)));
+  using Selector = long long __attribute__((vector_size(64)));
+  auto* phasor = reinterpret_cast<double*>(phasors);
+  Wide total{};
+  std::size_t n = 0;
+  for (; n + 8 <= count; n += 8) {
+    Wide magnitude;
+    std::memcpy(&magnitude, magnitudes + n, sizeof magnitude);
+    if (scale) {
+      Wide factor, keep, low, high;
+      std::memcpy(&factor, scales + n, sizeof factor);
+      std::memcpy(&keep, keeps + n, sizeof keep);
+      std::memcpy(&low, phasor + 2 * n, sizeof low);
+      std::memcpy(&high, phasor + 2 * n + 8, sizeof high);
+      // Each bin's factor on its (re, im) pair.
+      low *= __builtin_shuffle(factor, Selector{0, 0, 1, 1, 2, 2, 3, 3});
+      high *= __builtin_shuffle(factor, Selector{4, 4, 5, 5, 6, 6, 7, 7});
+      magnitude *= keep;
+      std::memcpy(phasor + 2 * n, &low, sizeof low);
+      std::memcpy(phasor + 2 * n + 8, &high, sizeof high);
+      std::memcpy(magnitudes + n, &magnitude, sizeof magnitude);
+    }
+    if (weights != nullptr) {
+      Wide w;
+      std::memcpy(&w, weights + n, sizeof w);
+      total += magnitude * w;
+    } else {
+      total += magnitude;
+    }
+  }
+  sum = ((total[0] + total[1]) + (total[2] + total[3])) +
+        ((total[4] + total[5]) + (total[6] + total[7]));
+  return n;
+}
+
+__attribute__((target("avx512f,fma"))) std::size_t wide_kept_sums(const KeptRows& rows,
+                                                                  std::size_t count,
+                                                                  KeptSums& out) {
+  using Wide = double __attribute__((vector_size(64)));
+  return kept_sums<Wide>(rows, 0, count, out);
 }
 
 bool wide_simd_supported() { return __builtin_cpu_supports("avx512f") != 0; }
@@ -258,17 +359,13 @@ TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
   TaylorLanes<Lanes> lanes;
   TaylorLanes<double> odd;  // each run's odd bin out
   int index = 0;
-  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
-  const std::complex<double> step2 = step * step;
-  const Lanes step2_re{step2.real(), step2.real()};
-  const Lanes step2_im{step2.imag(), step2.imag()};
+  Lanes step2_re, step2_im;
+  unit_phasor<Lanes>(Lanes{} + 2.0 * bin_omega * lag, step2_re, step2_im);
   const Lanes omega_step{2.0 * bin_omega, 2.0 * bin_omega};
   for (const BandRun& run : runs) {
-    const std::complex<double> first = std::polar(1.0, bin_omega * run.first_bin * lag);
-    const std::complex<double> second = first * step;
-    Lanes rotation_re{first.real(), second.real()};
-    Lanes rotation_im{first.imag(), second.imag()};
     Lanes omega{run.first_bin * bin_omega, (run.first_bin + 1) * bin_omega};
+    Lanes rotation_re, rotation_im;
+    unit_phasor<Lanes>(omega * lag, rotation_re, rotation_im);
     const int bins = run.last_bin - run.first_bin + 1;
     int k = 0;
     for (; k + 2 <= bins; k += 2, index += 2) {
@@ -312,23 +409,16 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
   using Wide = double __attribute__((vector_size(64)));
   constexpr int kLanes = 8;
   TaylorLanes<Wide> lanes;
-  const std::complex<double> step = std::polar(1.0, bin_omega * lag);
-  std::complex<double> step8 = step * step;
-  step8 *= step8;
-  step8 *= step8;
-  const Wide step8_re = Wide{} + step8.real();
-  const Wide step8_im = Wide{} + step8.imag();
+  // The rotations by the polynomial sincos, all lanes at once (no libm call per lane).
+  Wide step8_re, step8_im;
+  unit_phasor<Wide>(Wide{} + kLanes * bin_omega * lag, step8_re, step8_im);
   const Wide omega_step = Wide{} + kLanes * bin_omega;
+  const Wide lane_bins{0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0};
   int index = 0;
   for (const BandRun& run : runs) {
-    Wide rotation_re, rotation_im, omega;
-    std::complex<double> rotation = std::polar(1.0, bin_omega * run.first_bin * lag);
-    for (int l = 0; l < kLanes; ++l) {
-      rotation_re[l] = rotation.real();
-      rotation_im[l] = rotation.imag();
-      omega[l] = (run.first_bin + l) * bin_omega;
-      rotation *= step;
-    }
+    Wide omega = (lane_bins + run.first_bin) * bin_omega;
+    Wide rotation_re, rotation_im;
+    unit_phasor<Wide>(omega * lag, rotation_re, rotation_im);
     const int bins = run.last_bin - run.first_bin + 1;
     for (int k = 0; k < bins; k += kLanes, index += kLanes) {
       Wide w_re, w_im, size;
@@ -486,8 +576,10 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   unit_re_.assign(static_cast<std::size_t>(unit_channels_) * static_cast<std::size_t>(band_bins_),
                   0.0);
   unit_im_.assign(unit_re_.size(), 0.0);
-  saved_unit_re_.assign(unit_re_.size(), 0.0);
-  saved_unit_im_.assign(unit_re_.size(), 0.0);
+  corrected_re_.assign(unit_re_.size(), 0.0);
+  corrected_im_.assign(unit_re_.size(), 0.0);
+  corrected_.assign(static_cast<std::size_t>(unit_channels_), 0);
+  phasor_keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   levels_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
     for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
@@ -530,6 +622,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
     max_direct_products_ = 0.0;
   }
   kept_indices_.assign(static_cast<std::size_t>(band_bins_), 0);
+  for (const BandRun& run : runs_)
+    for (int k = run.first_bin; k <= run.last_bin; ++k)
+      band_omega2_.push_back((k * bin_omega_) * (k * bin_omega_));
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
@@ -589,13 +684,13 @@ std::span<const double> GccPhat::magnitudes(int pair) const {
 
 void GccPhat::save_whitened() { std::copy(keep_.begin(), keep_.end(), saved_keep_.begin()); }
 
-void GccPhat::restore_whitened() {
+void GccPhat::restore_whitened(bool weighted) {
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
   // The frame's per-mic units and levels are still here: the pairs' phasors and magnitudes
   // are made again exactly as whiten() made them, the saved mask's dropped bins zero (as
   // correlate() had left them), instead of keeping a copy of every pair's band.
-  pair_phasors(true);
+  pair_phasors(true, weighted);
 }
 
 std::span<const double> GccPhat::unit_real(int mic) const {
@@ -608,30 +703,15 @@ std::span<const double> GccPhat::unit_imag(int mic) const {
           static_cast<std::size_t>(band_bins_)};
 }
 
-void GccPhat::rotate_units(int mic, std::span<const double> cosines,
-                           std::span<const double> sines) {
+GccPhat::UnitRows GccPhat::correct_units(int mic) {
   const std::size_t row = static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_);
-  const std::size_t bins =
-      std::min({cosines.size(), sines.size(), static_cast<std::size_t>(band_bins_)});
-  double* re = unit_re_.data() + row;
-  double* im = unit_im_.data() + row;
-  // Written out (not std::complex's product, which checks for infinities bin by bin).
-  for (std::size_t k = 0; k < bins; ++k) {
-    const double a = re[k];
-    const double b = im[k];
-    re[k] = a * cosines[k] - b * sines[k];
-    im[k] = a * sines[k] + b * cosines[k];
-  }
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  corrected_[static_cast<std::size_t>(mic)] = 1;
+  return {{corrected_re_.data() + row, bins}, {corrected_im_.data() + row, bins}};
 }
 
-void GccPhat::save_units() {
-  std::copy(unit_re_.begin(), unit_re_.end(), saved_unit_re_.begin());
-  std::copy(unit_im_.begin(), unit_im_.end(), saved_unit_im_.begin());
-}
-
-void GccPhat::restore_units() {
-  std::copy(saved_unit_re_.begin(), saved_unit_re_.end(), unit_re_.begin());
-  std::copy(saved_unit_im_.begin(), saved_unit_im_.end(), unit_im_.begin());
+void GccPhat::uncorrect_units() {
+  std::fill(corrected_.begin(), corrected_.end(), std::uint8_t{0});
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -665,7 +745,8 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       const Lanes re{x0.real(), x1.real()};
       const Lanes im{x0.imag(), x1.imag()};
       const Lanes power = re * re + im * im;
-      const Lanes inverse = inverse_sqrt(power);
+      Lanes inverse;
+      inverse_sqrt(power, inverse);
       const Lanes size = power * inverse;
       const Lanes unit_real = re * inverse;
       const Lanes unit_imag = im * inverse;
@@ -682,22 +763,28 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       unit_im[index] = x0.imag() * inverse;
     }
   }
-  pair_phasors(false);
+  uncorrect_units();
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
+  pair_phasors(false);
 }
 
-void GccPhat::pair_phasors(bool masked) {
+void GccPhat::pair_phasors(bool masked, bool weighted) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
-  // dropped in keep_ zero.
-  weights_applied_ = false;
+  // dropped in keep_ zero; `weighted`: the phasors times the bins' weights, as a weighted
+  // prepare() would scale them (the same product: live x w is w or 0).
   const auto bins = static_cast<std::size_t>(band_bins_);
+  if (weighted)
+    for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
+  const double* weights = weighted ? weights_.data() : nullptr;
   for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    const std::size_t row_i = static_cast<std::size_t>(pairs_[p].mic_i) * bins;
-    const std::size_t row_j = static_cast<std::size_t>(pairs_[p].mic_j) * bins;
-    const double* a_re = unit_re_.data() + row_i;
-    const double* a_im = unit_im_.data() + row_i;
-    const double* b_re = unit_re_.data() + row_j;
-    const double* b_im = unit_im_.data() + row_j;
+    const auto mic_i = static_cast<std::size_t>(pairs_[p].mic_i);
+    const auto mic_j = static_cast<std::size_t>(pairs_[p].mic_j);
+    const std::size_t row_i = mic_i * bins;
+    const std::size_t row_j = mic_j * bins;
+    const double* a_re = (corrected_[mic_i] != 0 ? corrected_re_ : unit_re_).data() + row_i;
+    const double* a_im = (corrected_[mic_i] != 0 ? corrected_im_ : unit_im_).data() + row_i;
+    const double* b_re = (corrected_[mic_j] != 0 ? corrected_re_ : unit_re_).data() + row_j;
+    const double* b_im = (corrected_[mic_j] != 0 ? corrected_im_ : unit_im_).data() + row_j;
     const double* level_i = levels_.data() + row_i;
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
@@ -709,10 +796,13 @@ void GccPhat::pair_phasors(bool masked) {
     const Lanes one{1.0, 1.0};
     const Lanes zero{0.0, 0.0};
     std::size_t n = 0;
+    double magnitude_sum = 0.0;
+    Lanes magnitude_lanes{0.0, 0.0};
 #ifdef DRONETRACK_WIDE_SIMD
     if (wide_simd_)
       n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
-                             masked ? keep_.data() : nullptr, bins, out, magnitude);
+                             masked ? keep_.data() : nullptr, weights, bins, out, magnitude,
+                             magnitude_sum);
 #endif
     for (; n + 2 <= bins; n += 2) {
       Lanes ar, ai, br, bi, li, lj;
@@ -725,24 +815,38 @@ void GccPhat::pair_phasors(bool masked) {
       const Lanes size = li * lj;
       Lanes live = size > silent ? one : zero;
       if (masked) live *= Lanes{static_cast<double>(keep_[n]), static_cast<double>(keep_[n + 1])};
-      const Lanes re = (ar * br + ai * bi) * live;
-      const Lanes im = (ai * br - ar * bi) * live;
+      const Lanes w = weighted ? Lanes{weights[n], weights[n + 1]} : one;
+      const Lanes scale = live * w;
+      const Lanes re = (ar * br + ai * bi) * scale;
+      const Lanes im = (ai * br - ar * bi) * scale;
       const Lanes first{re[0], im[0]};
       const Lanes second{re[1], im[1]};
       const Lanes sizes = size * live;
       std::memcpy(out + 2 * n, &first, sizeof first);
       std::memcpy(out + 2 * n + 2, &second, sizeof second);
       std::memcpy(magnitude + n, &sizes, sizeof sizes);
+      magnitude_lanes += sizes * w;
     }
+    magnitude_sum += magnitude_lanes[0] + magnitude_lanes[1];
     for (; n < bins; ++n) {
       const double size = level_i[n] * level_j[n];
       const double live =
           (size > kSilentBin ? 1.0 : 0.0) * (masked ? static_cast<double>(keep_[n]) : 1.0);
-      out[2 * n] = live * (a_re[n] * b_re[n] + a_im[n] * b_im[n]);
-      out[2 * n + 1] = live * (a_im[n] * b_re[n] - a_re[n] * b_im[n]);
+      const double scale = weighted ? live * weights[n] : live;
+      out[2 * n] = (a_re[n] * b_re[n] + a_im[n] * b_im[n]) * scale;
+      out[2 * n + 1] = (a_im[n] * b_re[n] - a_re[n] * b_im[n]) * scale;
       magnitude[n] = live * size;
+      magnitude_sum += magnitude[n] * (weighted ? weights[n] : 1.0);
     }
+    magnitude_sums_[p] = magnitude_sum;
   }
+  weights_applied_ = weighted;
+  sums_weighted_ = weighted;
+  // The mask the phasors now carry: prepare() need not scale them again for it.
+  if (masked)
+    std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  else
+    std::fill(phasor_keep_.begin(), phasor_keep_.end(), std::uint8_t{1});
 }
 
 void GccPhat::prepare_phasors(bool weighted) {
@@ -757,29 +861,44 @@ bool GccPhat::prepare(bool weighted) {
   // Weights change only on plain phasors (bin_weight()): bounded once, as they go on.
   if (rescale && weighted)
     for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
-  // Locals, not the members, carry the sums: no store-to-load chain per bin.
-  int kept = 0;
-  double sum_w = 0.0;
-  double sum_w2 = 0.0;
-  double sum_omega2 = 0.0;
-  double sum_w2_omega2 = 0.0;
-  double sum_omega4 = 0.0;
-  {
-    int index = 0;
-    for (const BandRun& run : runs_) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        if (keep_[static_cast<std::size_t>(index)] == 0) continue;
-        kept_indices_[static_cast<std::size_t>(kept++)] = index;
-        const double w = weighted ? weights_[static_cast<std::size_t>(index)] : 1.0;
-        const double omega2 = (k * bin_omega_) * (k * bin_omega_);
-        sum_w += w;
-        sum_w2 += w * w;
-        sum_omega2 += w * omega2;
-        sum_w2_omega2 += w * w * omega2;
-        sum_omega4 += omega2 * omega2;
-      }
-    }
+  // Per bin, vectorised: the kept bins' sums and each bin's scale and keep (bin_scales_,
+  // bin_keeps_; used below when bins are dropped or the weights change).
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  const KeptRows rows{keep_.data(),
+                      weights_.data(),
+                      band_omega2_.data(),
+                      weighted,
+                      !rescale   ? Rescale::none
+                      : weighted ? Rescale::weight
+                                 : Rescale::inverse,
+                      bin_scales_.data(),
+                      bin_keeps_.data()};
+  KeptSums totals;
+  std::size_t done = 0;
+#ifdef DRONETRACK_WIDE_SIMD
+  if (wide_simd_) done = wide_kept_sums(rows, bins, totals);
+#endif
+  done = kept_sums<Lanes>(rows, done, bins, totals);
+  for (; done < bins; ++done) {
+    const double keep = keep_[done];
+    const double w = weighted ? weights_[done] : 1.0;
+    const double omega2 = band_omega2_[done];
+    totals.kept += keep;
+    totals.w += keep * w;
+    totals.w2 += keep * w * w;
+    totals.omega2 += keep * w * omega2;
+    totals.w2_omega2 += keep * w * w * omega2;
+    totals.omega4 += keep * omega2 * omega2;
+    const double scale = !rescale ? 1.0 : weighted ? weights_[done] : 1.0 / weights_[done];
+    bin_scales_[done] = keep * scale;
+    bin_keeps_[done] = keep;
   }
+  const int kept = static_cast<int>(totals.kept + 0.5);
+  const double sum_w = totals.w;
+  const double sum_w2 = totals.w2;
+  const double sum_omega2 = totals.omega2;
+  const double sum_w2_omega2 = totals.w2_omega2;
+  const double sum_omega4 = totals.omega4;
   kept_bins_ = kept;
   kept_weight_ = sum_w;
   kept_sum_omega2_ = sum_omega2;
@@ -798,16 +917,6 @@ bool GccPhat::prepare(bool weighted) {
   }
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   const bool all_kept = kept == band_bins_;
-  if (!all_kept || rescale) {
-    // One factor per bin for every pair (the division once per bin, not per bin and pair).
-    for (std::size_t index = 0; index < keep_.size(); ++index) {
-      const double keep = keep_[index];
-      const double w = weights_[index];
-      const double scale = !rescale ? 1.0 : weighted ? w : 1.0 / w;
-      bin_scales_[index] = keep * scale;
-      bin_keeps_[index] = keep;
-    }
-  }
   // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
   // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
   // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
@@ -821,6 +930,12 @@ bool GccPhat::prepare(bool weighted) {
       double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
       double sums[4] = {0.0, 0.0, 0.0, 0.0};
       int index = 0;
+#ifdef DRONETRACK_WIDE_SIMD
+      if (wide_simd_)
+        index = static_cast<int>(wide_scale_and_sum(phasor, magnitude, scales, keeps,
+                                                    kWeighted ? w : nullptr, kScale,
+                                                    static_cast<std::size_t>(band_bins_), sums[0]));
+#endif
       for (; index + 4 <= band_bins_; index += 4) {
         for (int lane = 0; lane < 4; ++lane) {
           const int i = index + lane;
@@ -845,12 +960,19 @@ bool GccPhat::prepare(bool weighted) {
       magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
     }
   };
-  const bool scale = !all_kept || rescale;
+  // Dropped bins already zero in the phasors (made under this very mask) need no pass of
+  // their own.
+  const bool masked_already = std::equal(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  const bool scale = (!all_kept && !masked_already) || rescale;
+  if (scale) std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
+  // Phasors made under this mask and weighting (pair_phasors()) came with their sums.
+  const bool summed = !scale && masked_already && sums_weighted_ && *sums_weighted_ == weighted;
   if (scale && weighted) scale_and_sum.operator()<true, true>();
   if (scale && !weighted) scale_and_sum.operator()<true, false>();
-  if (!scale && weighted) scale_and_sum.operator()<false, true>();
-  if (!scale && !weighted) scale_and_sum.operator()<false, false>();
+  if (!scale && !summed && weighted) scale_and_sum.operator()<false, true>();
+  if (!scale && !summed && !weighted) scale_and_sum.operator()<false, false>();
   weights_applied_ = weighted;
+  sums_weighted_ = weighted;
   enough_bins_ = enough_bins;
   return enough_bins;
 }
@@ -906,6 +1028,12 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
 void GccPhat::direct_grids(double normalisation) {
   // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) over the kept
   // bins. Per pair and block of kLagBlock lags the sums stay in registers over all kept bins.
+  // The kept bins' band indices first (only the direct sums use them), without a branch per bin.
+  int kept = 0;
+  for (int index = 0; index < band_bins_; ++index) {
+    kept_indices_[static_cast<std::size_t>(kept)] = index;
+    kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
+  }
   const auto stride = static_cast<std::size_t>(lag_stride_);
   const auto bins = static_cast<std::size_t>(band_bins_);
 #ifdef DRONETRACK_WIDE_SIMD

@@ -17,6 +17,7 @@
 #include <complex>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -110,18 +111,27 @@ class GccPhat {
   // correlate() drops masked bins from the phasors themselves; these return to the phasors,
   // magnitudes and mask as they were at save_whitened() (the mask is kept, the phasors made
   // again from the frame's per-mic units) to correlate the same frame under another mask
-  // (several sources: each measured without the others' bins).
+  // (several sources: each measured without the others' bins). `weighted`: the phasors made
+  // with bin_weight() on them, as a weighted correlate() would scale them (it then need not).
   void save_whitened();
-  void restore_whitened();
+  void restore_whitened(bool weighted = false);
+  // The mask as at save_whitened() (what restore_whitened() returns to).
+  std::span<const std::uint8_t> saved_bin_keep() const { return saved_keep_; }
   // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
   std::span<const double> unit_real(int mic) const;
   std::span<const double> unit_imag(int mic) const;
-  // Multiplies one mic's units by cos + j sin per band bin (a unit-magnitude per-mic phase
-  // correction: GroundEcho). Takes effect at the next restore_whitened(); whiten() undoes it, and
-  // so does restore_units() back to the last save_units().
-  void rotate_units(int mic, std::span<const double> cosines, std::span<const double> sines);
-  void save_units();
-  void restore_units();
+  // A per-mic phase correction (GroundEcho) kept apart from whiten()'s units, so that nothing
+  // has to be copied back: correct_units(mic) marks the mic corrected and hands out its second
+  // rows (real, imaginary; band bins) for the caller to fill with the corrected units. From the
+  // next restore_whitened() on, the pairs' phasors are made from those rows, until
+  // uncorrect_units() (or whiten()) returns to whiten()'s units. unit_real()/unit_imag() are
+  // always whiten()'s.
+  struct UnitRows {
+    std::span<double> real;
+    std::span<double> imag;
+  };
+  UnitRows correct_units(int mic);
+  void uncorrect_units();
 
   // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
   // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
@@ -178,7 +188,7 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
-  void pair_phasors(bool masked);
+  void pair_phasors(bool masked, bool weighted = false);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
   double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
@@ -194,14 +204,15 @@ class GccPhat {
   int kept_bins_ = 0;
   double kept_weight_ = 0.0;  // sum of the kept bins' weights (kept_bins_ unweighted): R's scale
   int effective_bins_ = 0;
-  double kept_sum_omega2_ = 0.0;     // sum_kept w w_k^2
-  double kept_sum_w2_omega2_ = 0.0;  // sum_kept w^2 w_k^2
-  std::vector<double> weights_;      // bin_weight()
-  bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
-  bool enough_bins_ = false;         // the last prepare() kept enough bins for a correlation
-  std::vector<std::uint8_t> keep_;   // per band bin
-  double taylor_bound_ = 0.0;        // w_top sum_kept w^4: bounds the fifth derivative of R
-  double bin_correlation_ = 1.0;     // how many bins share one independent phase (window, padding)
+  double kept_sum_omega2_ = 0.0;           // sum_kept w w_k^2
+  double kept_sum_w2_omega2_ = 0.0;        // sum_kept w^2 w_k^2
+  std::vector<double> weights_;            // bin_weight()
+  bool weights_applied_ = false;           // the phasors carry weights_ (last correlate() weighted)
+  bool enough_bins_ = false;               // the last prepare() kept enough bins for a correlation
+  std::vector<std::uint8_t> keep_;         // per band bin
+  std::vector<std::uint8_t> phasor_keep_;  // the mask the phasors carry (its dropped bins zero)
+  double taylor_bound_ = 0.0;              // w_top sum_kept w^4: bounds the fifth derivative of R
+  double bin_correlation_ = 1.0;  // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
   std::vector<MicPairSpec> pairs_;
   std::vector<int> half_spans_;
@@ -212,14 +223,18 @@ class GccPhat {
   std::vector<std::complex<double>> phasors_;
   std::vector<double> magnitudes_;
   std::vector<double> magnitude_sums_;
+  // How magnitude_sums_ were summed last (weighted or not): with the magnitudes they belong to.
+  std::optional<bool> sums_weighted_;
   // whiten(): per mic over the band bins, X / |X| (real and imaginary rows) and |X|.
   int unit_channels_ = 0;
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
-  std::vector<double> saved_unit_re_;  // save_units()
-  std::vector<double> saved_unit_im_;
+  std::vector<double> corrected_re_;  // correct_units(): per mic over the band bins
+  std::vector<double> corrected_im_;
+  std::vector<std::uint8_t> corrected_;  // per mic: pairs made from corrected_re_/_im_
   std::vector<double> levels_;
   std::vector<int> band_fft_bins_;        // FFT bin of each band bin
+  std::vector<double> band_omega2_;       // w_k^2 of each band bin
   std::vector<std::uint8_t> saved_keep_;  // save_whitened()
   std::vector<double> kernel_table_;      // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;
@@ -230,7 +245,7 @@ class GccPhat {
   int lag_stride_ = 0;  // lag_rows_ rounded up to whole blocks
   // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
   std::vector<double> lag_table_;
-  std::vector<int> kept_indices_;     // band indices of the kept bins (correlate())
+  std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper

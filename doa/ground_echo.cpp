@@ -1,10 +1,13 @@
 #include "doa/ground_echo.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
+#include <complex>
+#include <cstring>
 #include <limits>
 #include <numbers>
+
+#include "doa/lane_math.hpp"
 
 namespace dronetrack::doa {
 
@@ -24,29 +27,10 @@ constexpr double kMaxGain = 0.95;
 // up) spans many 5.9 Hz bins, so a spread subset sees it as well as the whole band does.
 constexpr int kSearchBins = 64;
 constexpr int kMinSearchBins = 24;
-
-// e^{j phase} from a table (linear interpolation, error < 3e-7): the search's inner loop.
-constexpr int kPhaseTableSize = 4096;
-const std::vector<std::complex<double>>& phase_table() {
-  static const std::vector<std::complex<double>> table = [] {
-    std::vector<std::complex<double>> values(kPhaseTableSize + 1);
-    for (int i = 0; i <= kPhaseTableSize; ++i)
-      values[static_cast<std::size_t>(i)] =
-          std::polar(1.0, 2.0 * std::numbers::pi * i / kPhaseTableSize);
-    return values;
-  }();
-  return table;
-}
-
-std::complex<double> unit_phasor(double phase_rad) {
-  const double position = phase_rad * (kPhaseTableSize / (2.0 * std::numbers::pi));
-  const double floor = std::floor(position);
-  const double fraction = position - floor;
-  const auto index =
-      static_cast<std::size_t>(static_cast<std::int64_t>(floor) & (kPhaseTableSize - 1));
-  const std::vector<std::complex<double>>& table = phase_table();
-  return table[index] + fraction * (table[index + 1] - table[index]);
-}
+// The search's rows are whole vectors of the wide kernels' eight lanes (a multiple of the
+// two-lane ones').
+constexpr int kVector = 8;
+static_assert(kSearchBins % kVector == 0);
 
 // Vertex of the parabola through (-step, left), (0, centre), (+step, right), as a multiple of
 // step, clamped to [-limit, limit]; when the three make no maximum, limit towards the larger side
@@ -56,6 +40,177 @@ double parabola_vertex(double left, double centre, double right, double limit) {
   if (!(curvature < 0.0)) return left > right ? -limit : (right > left ? limit : 0.0);
   return std::clamp(0.5 * (left - right) / curvature, -limit, limit);
 }
+
+// The search bins' rows for coherence(): per mic, kSearchBins aligned units and echoes.
+struct CoherenceRows {
+  const double* aligned_re;
+  const double* aligned_im;
+  const double* echo_re;
+  const double* echo_im;
+  const double* weight;
+  std::size_t mics;
+  int bins;  // search bins rounded up to whole vectors (the rest: zero units and weights)
+};
+
+// sum_bins weight |sum_mics aligned conj(c) / |c||^2 with c = 1 + gain echo, over V lanes of
+// bins. |c| >= 1 - gain level >= 1 - kMaxGain: the inverse square root needs no guard.
+template <class V>
+[[gnu::always_inline]] inline double coherence_sum(const CoherenceRows& rows, double gain) {
+  constexpr int kLanes = sizeof(V) / sizeof(double);
+  V total{};
+  for (int bin = 0; bin < rows.bins; bin += kLanes) {
+    V sum_re{};
+    V sum_im{};
+    for (std::size_t mic = 0; mic < rows.mics; ++mic) {
+      const std::size_t at = mic * kSearchBins + static_cast<std::size_t>(bin);
+      V a_re, a_im;
+      std::memcpy(&a_re, rows.aligned_re + at, sizeof a_re);
+      std::memcpy(&a_im, rows.aligned_im + at, sizeof a_im);
+      if (gain <= 0.0) {
+        sum_re += a_re;
+        sum_im += a_im;
+        continue;
+      }
+      V e_re, e_im;
+      std::memcpy(&e_re, rows.echo_re + at, sizeof e_re);
+      std::memcpy(&e_im, rows.echo_im + at, sizeof e_im);
+      const V c_re = 1.0 + gain * e_re;
+      const V c_im = gain * e_im;
+      V inverse;
+      inverse_sqrt(c_re * c_re + c_im * c_im, inverse);
+      sum_re += (a_re * c_re + a_im * c_im) * inverse;
+      sum_im += (a_im * c_re - a_re * c_im) * inverse;
+    }
+    V weight;
+    std::memcpy(&weight, rows.weight + bin, sizeof weight);
+    total += weight * (sum_re * sum_re + sum_im * sum_im);
+  }
+  double sum = 0.0;
+  for (int lane = 0; lane < kLanes; ++lane) sum += total[lane];
+  return sum;
+}
+
+// One mic's units times conj(c) / |c| over the band, c = 1 + level e^{j k phase_step} at FFT
+// bin k: the echo by V interleaved recurrences per run (each lane waits only for its own
+// previous product; the error after the band's few dozen steps per lane is ~1e-14).
+struct CombRows {
+  const BandRun* runs;
+  std::size_t run_count;
+  const double* unit_re;
+  const double* unit_im;
+  double* out_re;
+  double* out_im;
+  double level;
+  double phase_step;
+};
+
+template <class V>
+[[gnu::always_inline]] inline void comb_divide(const CombRows& rows) {
+  constexpr int kLanes = sizeof(V) / sizeof(double);
+  V step_re, step_im;
+  unit_phasor<V>(V{} + kLanes * rows.phase_step, step_re, step_im);
+  V lanes{};
+  for (int lane = 0; lane < kLanes; ++lane) lanes[lane] = lane;
+  std::size_t index = 0;
+  for (std::size_t r = 0; r < rows.run_count; ++r) {
+    const BandRun& run = rows.runs[r];
+    V echo_re, echo_im;
+    unit_phasor<V>((lanes + run.first_bin) * rows.phase_step, echo_re, echo_im);
+    const int count = run.last_bin - run.first_bin + 1;
+    int k = 0;
+    for (; k + kLanes <= count; k += kLanes, index += kLanes) {
+      const V c_re = 1.0 + rows.level * echo_re;
+      const V c_im = rows.level * echo_im;
+      V inverse;
+      inverse_sqrt(c_re * c_re + c_im * c_im, inverse);
+      V u_re, u_im;
+      std::memcpy(&u_re, rows.unit_re + index, sizeof u_re);
+      std::memcpy(&u_im, rows.unit_im + index, sizeof u_im);
+      const V out_re = (u_re * c_re + u_im * c_im) * inverse;
+      const V out_im = (u_im * c_re - u_re * c_im) * inverse;
+      std::memcpy(rows.out_re + index, &out_re, sizeof out_re);
+      std::memcpy(rows.out_im + index, &out_im, sizeof out_im);
+      const V next_re = echo_re * step_re - echo_im * step_im;
+      echo_im = echo_re * step_im + echo_im * step_re;
+      echo_re = next_re;
+    }
+    for (int lane = 0; k < count; ++k, ++lane, ++index) {
+      const double c_re = 1.0 + rows.level * echo_re[lane];
+      const double c_im = rows.level * echo_im[lane];
+      const double inverse = 1.0 / std::sqrt(c_re * c_re + c_im * c_im);
+      const double u_re = rows.unit_re[index];
+      const double u_im = rows.unit_im[index];
+      rows.out_re[index] = (u_re * c_re + u_im * c_im) * inverse;
+      rows.out_im[index] = (u_im * c_re - u_re * c_im) * inverse;
+    }
+  }
+}
+
+// Per bin (whole vectors of V lanes) out = level e^{j omega time}, times (in_re + j in_im) when
+// given.
+struct PhasorRows {
+  const double* omega;
+  int bins;
+  double time_s;
+  double level;
+  const double* in_re;  // nullptr: level e^{j omega time} alone
+  const double* in_im;
+  double* out_re;
+  double* out_im;
+};
+
+template <class V>
+[[gnu::always_inline]] inline void phasor_rows(const PhasorRows& rows) {
+  constexpr int kLanes = sizeof(V) / sizeof(double);
+  for (int bin = 0; bin < rows.bins; bin += kLanes) {
+    V omega;
+    std::memcpy(&omega, rows.omega + bin, sizeof omega);
+    V re, im;
+    unit_phasor<V>(omega * rows.time_s, re, im);
+    if (rows.in_re != nullptr) {
+      V a_re, a_im;
+      std::memcpy(&a_re, rows.in_re + bin, sizeof a_re);
+      std::memcpy(&a_im, rows.in_im + bin, sizeof a_im);
+      const V product_re = a_re * re - a_im * im;
+      im = a_re * im + a_im * re;
+      re = product_re;
+    }
+    re *= rows.level;
+    im *= rows.level;
+    std::memcpy(rows.out_re + bin, &re, sizeof re);
+    std::memcpy(rows.out_im + bin, &im, sizeof im);
+  }
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DRONETRACK_WIDE_SIMD 1
+using Wide = double __attribute__((vector_size(64)));
+__attribute__((target("avx512f,fma"))) double wide_coherence_sum(const CoherenceRows& rows,
+                                                                 double gain) {
+  return coherence_sum<Wide>(rows, gain);
+}
+__attribute__((target("avx512f,fma"))) void wide_comb_divide(const CombRows& rows) {
+  comb_divide<Wide>(rows);
+}
+__attribute__((target("avx512f,fma"))) void wide_phasor_rows(const PhasorRows& rows) {
+  phasor_rows<Wide>(rows);
+}
+#endif
+
+void phasors(bool wide_simd, const PhasorRows& rows) {
+#ifdef DRONETRACK_WIDE_SIMD
+  if (wide_simd) {
+    wide_phasor_rows(rows);
+    return;
+  }
+#else
+  (void)wide_simd;
+#endif
+  phasor_rows<Lanes>(rows);
+}
+
+// Search bins rounded up to whole vectors.
+int vector_bins(int bins) { return (bins + kVector - 1) / kVector * kVector; }
 
 }  // namespace
 
@@ -80,10 +235,10 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   candidates_.assign(band_omega_.size(), 0);
   search_omega_.assign(kSearchBins, 0.0);
   search_weight_.assign(kSearchBins, 0.0);
-  aligned_.assign(static_cast<std::size_t>(kSearchBins) * mics, {});
-  (void)phase_table();  // made here, not in the first frame's search
-  cosines_.assign(static_cast<std::size_t>(gcc.band_bin_count()), 1.0);
-  sines_.assign(static_cast<std::size_t>(gcc.band_bin_count()), 0.0);
+  aligned_re_.assign(static_cast<std::size_t>(kSearchBins) * mics, 0.0);
+  aligned_im_.assign(aligned_re_.size(), 0.0);
+  echo_re_.assign(aligned_re_.size(), 0.0);
+  echo_im_.assign(aligned_re_.size(), 0.0);
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
   reset();
@@ -124,66 +279,80 @@ void GroundEcho::paths(const Eigen::Vector3d& direction_site, double curvature_p
   }
 }
 
-void GroundEcho::prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
+void GroundEcho::prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+                         const Eigen::Vector3d& direction_site) {
   const std::span<const double> weights = gcc.bin_weight();
-  const std::span<const std::uint8_t> keep = gcc.bin_keep();
   double strongest = 0.0;
   for (std::size_t k = 0; k < keep.size(); ++k)
-    if (keep[k] != 0) strongest = std::max(strongest, weights[k]);
+    strongest = std::max(strongest, keep[k] != 0 ? weights[k] : 0.0);
   // The source's own bins: the SNR weights' upper half (every kept bin with plain PHAT). Bins
-  // with noise only would add chance coherence, not evidence.
+  // with noise only would add chance coherence, not evidence. Without a branch per bin: which
+  // bins pass is as good as random to a branch predictor.
   int count = 0;
-  for (std::size_t k = 0; k < keep.size(); ++k)
-    if (keep[k] != 0 && weights[k] > 0.0 && weights[k] >= 0.5 * strongest)
-      candidates_[static_cast<std::size_t>(count++)] = static_cast<int>(k);
+  for (std::size_t k = 0; k < keep.size(); ++k) {
+    candidates_[static_cast<std::size_t>(count)] = static_cast<int>(k);
+    count += keep[k] != 0 && weights[k] > 0.0 && weights[k] >= 0.5 * strongest ? 1 : 0;
+  }
   const int stride = std::max(1, (count + kSearchBins - 1) / kSearchBins);
   const std::size_t mics = mics_m_.size();
   for (std::size_t mic = 0; mic < mics; ++mic)
     arrival_s_[mic] = -direction_site.dot(mics_m_[mic]) / speed_of_sound_mps_;
+  wide_simd_ = gcc.wide_simd();
   search_bins_ = 0;
+  search_weight_sum_ = 0.0;
+  std::fill(search_omega_.begin(), search_omega_.end(), 0.0);
+  std::fill(search_weight_.begin(), search_weight_.end(), 0.0);
+  std::fill(aligned_re_.begin(), aligned_re_.end(), 0.0);
+  std::fill(aligned_im_.begin(), aligned_im_.end(), 0.0);
   for (int c = 0; c < count; c += stride) {
-    const int index = candidates_[static_cast<std::size_t>(c)];
+    const auto index = static_cast<std::size_t>(candidates_[static_cast<std::size_t>(c)]);
     const auto slot = static_cast<std::size_t>(search_bins_++);
-    search_omega_[slot] = band_omega_[static_cast<std::size_t>(index)];
-    search_weight_[slot] = weights[static_cast<std::size_t>(index)];
+    search_omega_[slot] = band_omega_[index];
+    search_weight_[slot] = weights[index];
+    search_weight_sum_ += weights[index];
     for (std::size_t mic = 0; mic < mics; ++mic) {
-      const int m = static_cast<int>(mic);
-      // e^{+j w t_i} undoes the direct path's delay: aligned units add up in phase.
-      aligned_[slot * mics + mic] =
-          std::complex<double>(gcc.unit_real(m)[static_cast<std::size_t>(index)],
-                               gcc.unit_imag(m)[static_cast<std::size_t>(index)]) *
-          unit_phasor(search_omega_[slot] * arrival_s_[mic]);
+      aligned_re_[mic * kSearchBins + slot] = gcc.unit_real(static_cast<int>(mic))[index];
+      aligned_im_[mic * kSearchBins + slot] = gcc.unit_imag(static_cast<int>(mic))[index];
     }
+  }
+  // e^{+j w t_i} undoes the direct path's delay: aligned units add up in phase.
+  for (std::size_t mic = 0; mic < mics; ++mic) {
+    const std::size_t row = mic * kSearchBins;
+    phasors(wide_simd_, {search_omega_.data(), vector_bins(search_bins_), arrival_s_[mic], 1.0,
+                         aligned_re_.data() + row, aligned_im_.data() + row,
+                         aligned_re_.data() + row, aligned_im_.data() + row});
+  }
+}
+
+void GroundEcho::candidate(const Eigen::Vector3d& direction_site, double curvature_per_m) {
+  paths(direction_site, curvature_per_m);
+  for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
+    const std::size_t row = mic * kSearchBins;
+    phasors(wide_simd_,
+            {search_omega_.data(), vector_bins(search_bins_), -delay_s_[mic], level_[mic], nullptr,
+             nullptr, echo_re_.data() + row, echo_im_.data() + row});
   }
 }
 
 double GroundEcho::coherence(double gain) const {
   const std::size_t mics = mics_m_.size();
-  double total = 0.0;
-  double weight_sum = 0.0;
-  for (std::size_t bin = 0; bin < static_cast<std::size_t>(search_bins_); ++bin) {
-    const std::complex<double>* aligned = aligned_.data() + bin * mics;
-    std::complex<double> sum(0.0, 0.0);
-    for (std::size_t mic = 0; mic < mics; ++mic) {
-      if (gain <= 0.0) {
-        sum += aligned[mic];
-        continue;
-      }
-      const std::complex<double> comb =
-          1.0 + gain * level_[mic] * unit_phasor(-search_omega_[bin] * delay_s_[mic]);
-      const double size = std::sqrt(std::norm(comb));  // not std::abs: hypot is slow
-      sum += size > 1e-9 ? aligned[mic] * std::conj(comb) / size : aligned[mic];
-    }
-    total += search_weight_[bin] * std::norm(sum);
-    weight_sum += search_weight_[bin];
-  }
-  const double scale = weight_sum * static_cast<double>(mics * mics);
+  const CoherenceRows rows{aligned_re_.data(),       aligned_im_.data(),    echo_re_.data(),
+                           echo_im_.data(),          search_weight_.data(), mics,
+                           vector_bins(search_bins_)};
+#ifdef DRONETRACK_WIDE_SIMD
+  const double total =
+      wide_simd_ ? wide_coherence_sum(rows, gain) : coherence_sum<Lanes>(rows, gain);
+#else
+  const double total = coherence_sum<Lanes>(rows, gain);
+#endif
+  const double scale = search_weight_sum_ * static_cast<double>(mics * mics);
   return scale > 0.0 ? total / scale : 0.0;
 }
 
-void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full) {
+void GroundEcho::search(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+                        const Eigen::Vector3d& direction_site, bool full) {
   frames_since_search_ = 0;
-  prepare(gcc, direction_site);
+  prepare(gcc, keep, direction_site);
   if (search_bins_ < kMinSearchBins) {
     // Two parameters fitted to a handful of bins fit their noise: a source heard in few bins
     // (next to a nulled generator, at 0 dB) would lock onto a made-up echo.
@@ -196,7 +365,7 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   if (full) {
     double best = -1.0;
     for (double candidate = 0.0; candidate <= max_curvature + 1e-12; candidate += kScanStep_per_m) {
-      paths(direction_site, candidate);
+      this->candidate(direction_site, candidate);
       const double value = coherence(gain);
       if (value > best) {
         best = value;
@@ -207,7 +376,7 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   // Local: a parabola in curvature at the current gain, then one in gain there.
   const double step = kLocalCurvatureStep_per_m;
   auto at_curvature = [&](double value) {
-    paths(direction_site, std::clamp(value, 0.0, max_curvature));
+    candidate(direction_site, std::clamp(value, 0.0, max_curvature));
     return coherence(gain);
   };
   const double left = at_curvature(curvature - step);
@@ -215,7 +384,7 @@ void GroundEcho::search(const GccPhat& gcc, const Eigen::Vector3d& direction_sit
   const double centre = at_curvature(curvature);
   curvature =
       std::clamp(curvature + step * parabola_vertex(left, centre, right, 2.0), 0.0, max_curvature);
-  paths(direction_site, curvature);
+  candidate(direction_site, curvature);
   const double lower = coherence(std::max(kMinGain, gain - kLocalGainStep));
   const double upper = coherence(std::min(kMaxGain, gain + kLocalGainStep));
   const double middle = coherence(gain);
@@ -243,6 +412,11 @@ bool GroundEcho::search_due(const Eigen::Vector3d& direction_site) const {
 }
 
 bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site) {
+  return observe(gcc, direction_site, gcc.bin_keep());
+}
+
+bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site,
+                         std::span<const std::uint8_t> keep) {
   if (!(direction_site.z() >= min_sine_elevation_)) {
     // Near the horizon the reflection arrives with the direct path: nothing to separate.
     locked_ = false;
@@ -255,58 +429,38 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
   }
   last_direction_ = direction_site;
   ++frames_since_search_;
-  if (search_now != Search::none) search(gcc, direction_site, search_now == Search::full);
+  if (search_now != Search::none) search(gcc, keep, direction_site, search_now == Search::full);
   return locked_;
 }
 
 void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
   if (!locked_) return;
   paths(direction_site, curvature_per_m_);
-  gcc.save_units();
-  constexpr int kLanes = 8;
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
-    const double level = gain_ * level_[mic];
-    const double phase_step = -bin_omega_ * delay_s_[mic];
-    // e^{-j w_k Delta} along each run by eight interleaved recurrences: each lane waits only for
-    // its own previous product, so the loop runs in vector lanes, and the error after the band's
-    // few dozen steps per lane is ~1e-14.
-    const double step_re = std::cos(kLanes * phase_step);
-    const double step_im = std::sin(kLanes * phase_step);
-    std::size_t index = 0;
-    for (const BandRun& run : runs_) {
-      std::array<double, kLanes> echo_re{};
-      std::array<double, kLanes> echo_im{};
-      for (int lane = 0; lane < kLanes; ++lane) {
-        echo_re[lane] = std::cos((run.first_bin + lane) * phase_step);
-        echo_im[lane] = std::sin((run.first_bin + lane) * phase_step);
-      }
-      const int count = run.last_bin - run.first_bin + 1;
-      for (int block = 0; block < count; block += kLanes) {
-        const int lanes = std::min(kLanes, count - block);
-        for (int lane = 0; lane < lanes; ++lane) {
-          // conj(c) / |c| with c = 1 + g e^{-j w Delta}.
-          const double comb_re = 1.0 + level * echo_re[lane];
-          const double comb_im = level * echo_im[lane];
-          const double norm = comb_re * comb_re + comb_im * comb_im;
-          const double inverse = norm > 1e-18 ? 1.0 / std::sqrt(norm) : 0.0;
-          cosines_[index + static_cast<std::size_t>(block + lane)] =
-              norm > 1e-18 ? comb_re * inverse : 1.0;
-          sines_[index + static_cast<std::size_t>(block + lane)] = -comb_im * inverse;
-        }
-        for (int lane = 0; lane < kLanes; ++lane) {
-          const double re = echo_re[lane];
-          echo_re[lane] = re * step_re - echo_im[lane] * step_im;
-          echo_im[lane] = re * step_im + echo_im[lane] * step_re;
-        }
-      }
-      index += static_cast<std::size_t>(count);
-    }
-    gcc.rotate_units(static_cast<int>(mic), cosines_, sines_);
+    const int m = static_cast<int>(mic);
+    const GccPhat::UnitRows corrected = gcc.correct_units(m);
+    // conj(c) / |c| with c = 1 + g e^{-j w Delta}; |c| >= 1 - kMaxGain.
+    const CombRows rows{runs_.data(),
+                        runs_.size(),
+                        gcc.unit_real(m).data(),
+                        gcc.unit_imag(m).data(),
+                        corrected.real.data(),
+                        corrected.imag.data(),
+                        gain_ * level_[mic],
+                        -bin_omega_ * delay_s_[mic]};
+#ifdef DRONETRACK_WIDE_SIMD
+    if (gcc.wide_simd())
+      wide_comb_divide(rows);
+    else
+      comb_divide<Lanes>(rows);
+#else
+    comb_divide<Lanes>(rows);
+#endif
   }
 }
 
 void GroundEcho::restore(GccPhat& gcc) const {
-  if (locked_) gcc.restore_units();
+  if (locked_) gcc.uncorrect_units();
 }
 
 }  // namespace dronetrack::doa

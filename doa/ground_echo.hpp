@@ -16,7 +16,7 @@
 // direct path. It is kept (locked) only while it explains the frames clearly better than no echo.
 // Range and g change slowly, so once locked a small local search every few frames follows them;
 // the mics' delays are recomputed every frame from the frame's own direction.
-#include <complex>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -46,12 +46,17 @@ class GroundEcho {
   // array centre) on this frame's per-mic units (kept bins, bin weights). Returns whether an echo
   // is locked; remove() then divides it out.
   bool observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
+  // The same on the band bins `keep` marks (band order) instead of gcc.bin_keep(): the
+  // source's own bins without remaking the pairs' phasors for them.
+  bool observe(const GccPhat& gcc, const Eigen::Vector3d& direction_site,
+               std::span<const std::uint8_t> keep);
   // Whether the next observe() searches (reads the units, the kept bins and their weights);
   // otherwise it only follows the direction.
   bool search_due(const Eigen::Vector3d& direction_site) const;
-  // Divides the locked echo, for the source's direction now, out of every mic's units.
+  // Divides the locked echo, for the source's direction now, out of every mic's units (into
+  // GccPhat's corrected rows: whiten()'s units stay as they are).
   void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
-  // Undoes the last remove(): the units as they were, for another source's look.
+  // Undoes the last remove(): the units as whitened, for another source's look.
   void restore(GccPhat& gcc) const;
   // Cosine between `direction_site` and the direction last observed: which source this follows.
   double alignment(const Eigen::Vector3d& direction_site) const {
@@ -71,11 +76,15 @@ class GroundEcho {
   void paths(const Eigen::Vector3d& direction_site, double curvature_per_m);
   // The search's bins for this frame (the strongest weights, at most kSearchBins spread over
   // the band), their units aligned on the direct path from `direction_site`.
-  void prepare(const GccPhat& gcc, const Eigen::Vector3d& direction_site);
-  // Weighted mean coherence of the prepared bins with the current paths' combs removed (gain 0:
+  void prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+               const Eigen::Vector3d& direction_site);
+  // paths() for a search candidate, and its echoes at the search bins.
+  void candidate(const Eigen::Vector3d& direction_site, double curvature_per_m);
+  // Weighted mean coherence of the prepared bins with the candidate's combs removed (gain 0:
   // as they are), in [0, 1].
   double coherence(double gain) const;
-  void search(const GccPhat& gcc, const Eigen::Vector3d& direction_site, bool full);
+  void search(const GccPhat& gcc, std::span<const std::uint8_t> keep,
+              const Eigen::Vector3d& direction_site, bool full);
   // What observe() will do for this direction: the one place the search schedule is decided.
   enum class Search { none, local, full };
   Search next_search(const Eigen::Vector3d& direction_site) const;
@@ -94,15 +103,19 @@ class GroundEcho {
   std::vector<double> arrival_s_;
   std::vector<double> delay_s_;
   std::vector<double> level_;
-  std::vector<double> cosines_;  // remove(): one mic's rotation over the band
-  std::vector<double> sines_;
-  // prepare(): per search bin, its angular frequency and weight, and per bin and mic the unit
-  // aligned on the direct path (bin-major).
+  // prepare(): per search bin, its angular frequency and weight, and per mic and bin (mic-major,
+  // kSearchBins per mic, zero after search_bins_) the unit aligned on the direct path;
+  // candidate(): per mic and bin the echo relative to the direct path, level e^{-j w Delta}.
   int search_bins_ = 0;
+  double search_weight_sum_ = 0.0;
   std::vector<double> search_omega_;
   std::vector<double> search_weight_;
-  std::vector<std::complex<double>> aligned_;
+  std::vector<double> aligned_re_;
+  std::vector<double> aligned_im_;
+  std::vector<double> echo_re_;
+  std::vector<double> echo_im_;
   std::vector<int> candidates_;  // scratch: band indices with a large enough weight
+  bool wide_simd_ = false;       // the AVX-512 kernels (GccPhat::wide_simd())
 
   bool locked_ = false;
   double curvature_per_m_ = 0.0;

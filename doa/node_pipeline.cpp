@@ -164,7 +164,8 @@ struct NodePipeline::Impl {
   // a grid step): Newton from the known lags, no lag grids.
   void remeasure(int source, bool near_known_lags = false);
   void remove_ground_echoes();
-  void only_bins_of(int source);
+  // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
+  void only_bins_of(int source, bool weighted = false);
   void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
   bool was_detecting(double time_s) const;
@@ -368,8 +369,8 @@ void NodePipeline::Impl::find_further_sources() {
 }
 
 // The frame's whitened phasors again, minus every other candidate's bins.
-void NodePipeline::Impl::only_bins_of(int source) {
-  gcc.restore_whitened();
+void NodePipeline::Impl::only_bins_of(int source, bool weighted) {
+  gcc.restore_whitened(weighted);
   for (int s = 0; s < candidate_count; ++s)
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
@@ -414,11 +415,11 @@ void NodePipeline::Impl::remove_ground_echoes() {
 void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
   const Eigen::Vector3d direction =
       candidates[static_cast<std::size_t>(source)].solution.direction_site;
-  if (echo.search_due(direction)) {
-    // The search reads this source's bins: the frame's, minus the other sources'.
-    only_bins_of(source);
-  }
-  if (!echo.observe(gcc, direction)) return;
+  // The search reads this source's bins: the frame's, minus the other sources' (when there
+  // are others: their bins found on the remade phasors).
+  const bool others = candidate_count > 1;
+  if (others && echo.search_due(direction)) only_bins_of(source);
+  if (!echo.observe(gcc, direction, others ? gcc.bin_keep() : gcc.saved_bin_keep())) return;
   echo.remove(gcc, direction);
   remeasure(source, true);
   echo.restore(gcc);
@@ -428,7 +429,7 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
 void NodePipeline::Impl::remeasure(int source, bool near_known_lags) {
-  only_bins_of(source);
+  only_bins_of(source, true);
   if (near_known_lags)
     gcc.prepare_phasors();
   else
