@@ -66,6 +66,107 @@ struct KeptRows {
 };
 
 // Over V lanes of bins from `first` in whole vectors up to `count`; returns where it stopped.
+// Companion vector types of a vector of doubles (vector_size cannot depend on a template
+// parameter): shuffle selectors of its width, and one byte per lane.
+template <std::size_t kBytes>
+struct LaneCompanions;
+template <>
+struct LaneCompanions<16> {
+  using Selector = long long __attribute__((vector_size(16)));
+  using Bytes = std::uint8_t __attribute__((vector_size(2)));
+};
+template <>
+struct LaneCompanions<64> {
+  using Selector = long long __attribute__((vector_size(64)));
+  using Bytes = std::uint8_t __attribute__((vector_size(8)));
+};
+
+// V lanes of keep bytes (0 or 1) from `keep` as doubles. By reference and inlined: no vector
+// crosses a call.
+template <class V>
+[[gnu::always_inline]] inline void load_keep(const std::uint8_t* keep, V& out) {
+  typename LaneCompanions<sizeof(V)>::Bytes bytes;
+  std::memcpy(&bytes, keep, sizeof bytes);
+  out = __builtin_convertvector(bytes, V);
+}
+
+// The lanes' sum: a tree for eight (the order the wide kernels have always summed in).
+template <class V>
+[[gnu::always_inline]] inline double lane_sum(const V& v) {
+  if constexpr (sizeof(V) == 64) {
+    return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
+  } else {
+    return v[0] + v[1];
+  }
+}
+
+// One pair's rows for pair_products(): unit phasors and levels of its two mics, the bins'
+// keep bytes (null: all kept) and weights (null: unweighted), and where the products go.
+struct PairRows {
+  const double* a_re;
+  const double* a_im;
+  const double* b_re;
+  const double* b_im;
+  const double* level_i;
+  const double* level_j;
+  const std::uint8_t* keep;
+  const double* weights;
+  double* out;  // (re, im) interleaved
+  double* magnitude;
+};
+
+// W = u_i u_j* (times live x w) and |G| = |X_i| |X_j| (times live) over V lanes of bins from
+// `first` in whole vectors up to `count`; adds the magnitudes (times w) to `magnitude_sum` and
+// returns where it stopped. Below kSilentBin a bin carries no phase: zero weight, as when a
+// channel is silent. One body for pair_phasors() and wide_pair_products().
+template <class V>
+[[gnu::always_inline]] inline std::size_t pair_products(const PairRows& rows, std::size_t first,
+                                                        std::size_t count, double& magnitude_sum) {
+  constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
+  using Selector = typename LaneCompanions<sizeof(V)>::Selector;
+  const V silent = V{} + kSilentBin;
+  const V one = V{} + 1.0;
+  const V zero = V{};
+  V total{};
+  std::size_t n = first;
+  for (; n + kLanes <= count; n += kLanes) {
+    V ar, ai, br, bi, li, lj;
+    std::memcpy(&ar, rows.a_re + n, sizeof ar);
+    std::memcpy(&ai, rows.a_im + n, sizeof ai);
+    std::memcpy(&br, rows.b_re + n, sizeof br);
+    std::memcpy(&bi, rows.b_im + n, sizeof bi);
+    std::memcpy(&li, rows.level_i + n, sizeof li);
+    std::memcpy(&lj, rows.level_j + n, sizeof lj);
+    const V size = li * lj;
+    V live = size > silent ? one : zero;
+    if (rows.keep != nullptr) {
+      V keep;
+      load_keep(rows.keep + n, keep);
+      live *= keep;
+    }
+    V w = one;
+    if (rows.weights != nullptr) std::memcpy(&w, rows.weights + n, sizeof w);
+    const V scale = live * w;
+    const V re = (ar * br + ai * bi) * scale;
+    const V im = (ai * br - ar * bi) * scale;
+    V low, high;  // bins' (re, im) pairs, first and second half of the lanes
+    if constexpr (kLanes == 8) {
+      low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
+      high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
+    } else {
+      low = __builtin_shuffle(re, im, Selector{0, 2});
+      high = __builtin_shuffle(re, im, Selector{1, 3});
+    }
+    const V sizes = size * live;
+    std::memcpy(rows.out + 2 * n, &low, sizeof low);
+    std::memcpy(rows.out + 2 * n + kLanes, &high, sizeof high);
+    std::memcpy(rows.magnitude + n, &sizes, sizeof sizes);
+    total += sizes * w;
+  }
+  magnitude_sum += lane_sum(total);
+  return n;
+}
+
 template <class V>
 [[gnu::always_inline]] inline std::size_t kept_sums(const KeptRows& rows, std::size_t first,
                                                     std::size_t count, KeptSums& out) {
@@ -74,14 +175,7 @@ template <class V>
   std::size_t n = first;
   for (; n + kLanes <= count; n += kLanes) {
     V keep, w, omega2;
-    if constexpr (kLanes == 8) {
-      using Bytes = std::uint8_t __attribute__((vector_size(8)));
-      Bytes bytes;
-      std::memcpy(&bytes, rows.keep + n, sizeof bytes);
-      keep = __builtin_convertvector(bytes, V);
-    } else {
-      for (std::size_t l = 0; l < kLanes; ++l) keep[l] = rows.keep[n + l];
-    }
+    load_keep(rows.keep + n, keep);
     std::memcpy(&w, rows.weights + n, sizeof w);
     std::memcpy(&omega2, rows.omega2 + n, sizeof omega2);
     const V used = rows.weighted ? w : V{} + 1.0;
@@ -213,55 +307,12 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
   return index;
 }
 
-// pair_phasors()'s products eight bins per vector, (re, im) interleaved on the way out: returns
-// how many bins it did; `keep` null: every bin kept; `weights` null: the phasors unweighted.
-// `magnitude_sum`: the magnitudes' sum (times the weights when given).
-__attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(
-    const double* a_re, const double* a_im, const double* b_re, const double* b_im,
-    const double* level_i, const double* level_j, const std::uint8_t* keep, const double* weights,
-    std::size_t count, double* out, double* magnitude, double& magnitude_sum) {
+// pair_phasors()'s products eight bins per vector: returns how many bins it did.
+__attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(const PairRows& rows,
+                                                                      std::size_t count,
+                                                                      double& magnitude_sum) {
   using Wide = double __attribute__((vector_size(64)));
-  using Selector = long long __attribute__((vector_size(64)));
-  const Wide silent = Wide{} + kSilentBin;
-  const Wide one = Wide{} + 1.0;
-  const Wide zero = Wide{};
-  Wide total{};
-  std::size_t n = 0;
-  for (; n + 8 <= count; n += 8) {
-    Wide ar, ai, br, bi, li, lj;
-    std::memcpy(&ar, a_re + n, sizeof ar);
-    std::memcpy(&ai, a_im + n, sizeof ai);
-    std::memcpy(&br, b_re + n, sizeof br);
-    std::memcpy(&bi, b_im + n, sizeof bi);
-    std::memcpy(&li, level_i + n, sizeof li);
-    std::memcpy(&lj, level_j + n, sizeof lj);
-    const Wide size = li * lj;
-    Wide live = size > silent ? one : zero;
-    if (keep != nullptr) {
-      using Bytes = std::uint8_t __attribute__((vector_size(8)));
-      Bytes kept;
-      std::memcpy(&kept, keep + n, sizeof kept);
-      live *= __builtin_convertvector(kept, Wide);
-    }
-    Wide scale = live;
-    Wide w = one;
-    if (weights != nullptr) {
-      std::memcpy(&w, weights + n, sizeof w);
-      scale *= w;
-    }
-    const Wide re = (ar * br + ai * bi) * scale;
-    const Wide im = (ai * br - ar * bi) * scale;
-    const Wide low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
-    const Wide high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
-    const Wide sizes = size * live;
-    std::memcpy(out + 2 * n, &low, sizeof low);
-    std::memcpy(out + 2 * n + 8, &high, sizeof high);
-    std::memcpy(magnitude + n, &sizes, sizeof sizes);
-    total += sizes * w;
-  }
-  magnitude_sum = ((total[0] + total[1]) + (total[2] + total[3])) +
-                  ((total[4] + total[5]) + (total[6] + total[7]));
-  return n;
+  return pair_products<Wide>(rows, 0, count, magnitude_sum);
 }
 
 // prepare()'s pass over one pair's band eight bins per vector: phasors times `scales` and
@@ -789,45 +840,17 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
     double* magnitude = magnitudes_.data() + p * bins;
-    // Two bins per step in vector lanes (the compiler cannot tell the rows from the output
-    // apart, so plain loops stay scalar). Below kSilentBin a bin carries no phase: zero
-    // weight, as when a channel is silent.
-    const Lanes silent{kSilentBin, kSilentBin};
-    const Lanes one{1.0, 1.0};
-    const Lanes zero{0.0, 0.0};
+    const PairRows rows{
+        a_re,    a_im, b_re,     b_im, level_i, level_j, masked ? keep_.data() : nullptr,
+        weights, out,  magnitude};
+    // In vector lanes (the compiler cannot tell the rows from the output apart, so plain loops
+    // stay scalar): eight bins per step on AVX-512, then two, then the odd one out.
     std::size_t n = 0;
     double magnitude_sum = 0.0;
-    Lanes magnitude_lanes{0.0, 0.0};
 #ifdef DRONETRACK_WIDE_SIMD
-    if (wide_simd_)
-      n = wide_pair_products(a_re, a_im, b_re, b_im, level_i, level_j,
-                             masked ? keep_.data() : nullptr, weights, bins, out, magnitude,
-                             magnitude_sum);
+    if (wide_simd_) n = wide_pair_products(rows, bins, magnitude_sum);
 #endif
-    for (; n + 2 <= bins; n += 2) {
-      Lanes ar, ai, br, bi, li, lj;
-      std::memcpy(&ar, a_re + n, sizeof ar);
-      std::memcpy(&ai, a_im + n, sizeof ai);
-      std::memcpy(&br, b_re + n, sizeof br);
-      std::memcpy(&bi, b_im + n, sizeof bi);
-      std::memcpy(&li, level_i + n, sizeof li);
-      std::memcpy(&lj, level_j + n, sizeof lj);
-      const Lanes size = li * lj;
-      Lanes live = size > silent ? one : zero;
-      if (masked) live *= Lanes{static_cast<double>(keep_[n]), static_cast<double>(keep_[n + 1])};
-      const Lanes w = weighted ? Lanes{weights[n], weights[n + 1]} : one;
-      const Lanes scale = live * w;
-      const Lanes re = (ar * br + ai * bi) * scale;
-      const Lanes im = (ai * br - ar * bi) * scale;
-      const Lanes first{re[0], im[0]};
-      const Lanes second{re[1], im[1]};
-      const Lanes sizes = size * live;
-      std::memcpy(out + 2 * n, &first, sizeof first);
-      std::memcpy(out + 2 * n + 2, &second, sizeof second);
-      std::memcpy(magnitude + n, &sizes, sizeof sizes);
-      magnitude_lanes += sizes * w;
-    }
-    magnitude_sum += magnitude_lanes[0] + magnitude_lanes[1];
+    n = pair_products<Lanes>(rows, n, bins, magnitude_sum);
     for (; n < bins; ++n) {
       const double size = level_i[n] * level_j[n];
       const double live =
