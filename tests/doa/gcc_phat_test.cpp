@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <span>
 #include <vector>
 
@@ -17,6 +18,19 @@ namespace {
 
 constexpr double kRate = 48000.0;
 constexpr int kFrame = 8160;  // 0.17 s
+
+// Whitens the frame of `recording` starting at sample `start` into each of `gccs` (one FFT).
+void whiten_frame(const testing::Recording& recording, std::size_t start, MultichannelFft& fft,
+                  std::initializer_list<GccPhat*> gccs) {
+  Framer framer(fft.channels(), kFrame, kFrame);
+  bool done = false;
+  framer.push(recording.view(start, kFrame), [&](const FrameView& frame) {
+    fft.process(frame);
+    for (GccPhat* gcc : gccs) gcc->whiten(fft);
+    done = true;
+  });
+  ASSERT_TRUE(done);
+}
 
 struct Estimate {
   double lag_s;
@@ -157,18 +171,11 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   recording.add(0, second.delayed(-2.0 / kRate, 0.05));
   recording.add(2, second.delayed(1.5 / kRate, 0.05));
   testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, 13);
-  Framer framer(3, kFrame, kFrame);
   MultichannelFft fft(3, kFrame, fftw_friendly_size(kFrame));
   const double max_lag_s = 0.8 / 343.0;
   GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}},
               {{0, 1, max_lag_s}, {0, 2, max_lag_s}, {1, 2, max_lag_s}});
-  bool done = false;
-  framer.push(recording.view(2000, kFrame), [&](const FrameView& frame) {
-    fft.process(frame);
-    gcc.whiten(fft);
-    done = true;
-  });
-  ASSERT_TRUE(done);
+  ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&gcc}));
   auto check_grid = [&](const char* what, double tolerance) {
     for (int p = 0; p < gcc.pair_count(); ++p) {
       const std::span<const double> values = gcc.grid(p);
@@ -217,7 +224,6 @@ TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
   recording.add(0, second.delayed(-2.0 / kRate, 0.05));
   recording.add(3, second.delayed(1.5 / kRate, 0.05));
   testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, 23);
-  Framer framer(4, kFrame, kFrame);
   MultichannelFft fft(4, kFrame, fftw_friendly_size(kFrame));
   const double max_lag_s = 0.8 / 343.0;
   std::vector<MicPairSpec> pairs;
@@ -228,14 +234,7 @@ TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
   two_lane.set_wide_simd(false);
   ASSERT_TRUE(wide.wide_simd());
   ASSERT_FALSE(two_lane.wide_simd());
-  bool done = false;
-  framer.push(recording.view(2000, kFrame), [&](const FrameView& frame) {
-    fft.process(frame);
-    wide.whiten(fft);
-    two_lane.whiten(fft);
-    done = true;
-  });
-  ASSERT_TRUE(done);
+  ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&wide, &two_lane}));
   auto compare = [&](const char* what, double grid_tolerance) {
     for (int p = 0; p < wide.pair_count(); ++p) {
       const std::span<const double> a = wide.grid(p);
@@ -272,13 +271,9 @@ TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   recording.add(0, source.delayed(4.37 / kRate, 0.1));
   recording.add(1, source.delayed(0.0, 0.1));
   testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.02, 32);
-  Framer framer(2, kFrame, kFrame);
   MultichannelFft fft(2, kFrame, fftw_friendly_size(kFrame));
   GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, {{0, 1, 0.8 / 343.0}});
-  framer.push(recording.view(0, kFrame), [&](const FrameView& frame) {
-    fft.process(frame);
-    gcc.whiten(fft);
-  });
+  ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 0, fft, {&gcc}));
   gcc.correlate();
   const GccPeak with_grid = gcc.pair(0).peak;
   EXPECT_NEAR(with_grid.lag_s, 4.37 / kRate, 0.2 / kRate);  // sensor noise at 14 dB
