@@ -41,12 +41,14 @@ void register_replay(CLI::App& root, CommandTable& table) {
                       "Write every array's DOAs as JSON lines here");
   auto* realtime =
       command->add_flag("--realtime", arguments->session.realtime, "Pace the replay at real time");
-  command
-      ->add_option("--doa-in", arguments->session.doa_in,
-                   "Run the fusion alone on these DOA lines (a replay's --doa-out) instead of the "
-                   "recordings")
-      ->check(CLI::ExistingFile)
-      ->excludes(realtime);
+  auto* doa_in =
+      command
+          ->add_option(
+              "--doa-in", arguments->session.doa_in,
+              "Run the fusion alone on these DOA lines (a replay's --doa-out) instead of the "
+              "recordings")
+          ->check(CLI::ExistingFile)
+          ->excludes(realtime);
   command->add_option("--http", arguments->session.http,
                       "Serve the web page and JSON API on ADDR:PORT (e.g. 127.0.0.1:8080); keeps "
                       "serving after the recordings end until Ctrl-C");
@@ -55,7 +57,8 @@ void register_replay(CLI::App& root, CommandTable& table) {
   command
       ->add_option("--max-duration-s", arguments->session.max_duration_s,
                    "Stop after this many seconds of recording")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->excludes(doa_in);
   table.add(command, [arguments]() { return run(*arguments); });
 }
 

@@ -60,7 +60,7 @@ struct FusionParams {
   std::vector<double> imm_jerk_std_mps3{0.2, 3.0, 30.0};
   // Mean time a motion mode lasts (Markov switching). It also sets how much weight the modes not
   // in play keep: ~1/sojourn per second flows into each, and at 300 m those modes' estimates
-  // wander by tens of metres (docs/fusion.md: far pass 3.14 m at 20 s, 2.91 m at 60 s).
+  // wander by tens of metres (docs/fusion.md: far pass 3.25 m at 20 s, 2.97 m at 60 s).
   double imm_sojourn_s = 60.0;
   // Coordinated-turn IMM modes (CoordinatedTurnModel on the same 9 states: v_h and a_h rotate at
   // omega = (v x a)_z / |v_h|^2, the position follows the arc) when imm_turn_mode is on, one per
