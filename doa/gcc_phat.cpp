@@ -100,6 +100,21 @@ template <class V>
   }
 }
 
+// |X| and X / |X| of V lanes of bins (re, im) stored at `level`, `unit_re`, `unit_im`.
+template <class V>
+[[gnu::always_inline]] inline void store_units(const V& re, const V& im, double* level,
+                                               double* unit_re, double* unit_im) {
+  const V power = re * re + im * im;
+  V inverse;
+  inverse_sqrt(power, inverse);
+  const V size = power * inverse;
+  const V unit_real = re * inverse;
+  const V unit_imag = im * inverse;
+  std::memcpy(level, &size, sizeof size);
+  std::memcpy(unit_re, &unit_real, sizeof unit_real);
+  std::memcpy(unit_im, &unit_imag, sizeof unit_imag);
+}
+
 // One pair's rows for pair_products(): unit phasors and levels of its two mics, the bins'
 // keep bytes (null: all kept) and weights (null: unweighted), and where the products go.
 struct PairRows {
@@ -294,15 +309,7 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
         im[l] = x[fft_bins[index + l]].imag();
       }
     }
-    const Wide power = re * re + im * im;
-    Wide inverse;
-    inverse_sqrt(power, inverse);
-    const Wide size = power * inverse;
-    const Wide unit_real = re * inverse;
-    const Wide unit_imag = im * inverse;
-    std::memcpy(level + index, &size, sizeof size);
-    std::memcpy(unit_re + index, &unit_real, sizeof unit_real);
-    std::memcpy(unit_im + index, &unit_imag, sizeof unit_imag);
+    store_units(re, im, level + index, unit_re + index, unit_im + index);
   }
   return index;
 }
@@ -795,15 +802,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
       const std::complex<double> x1 = x[band_fft_bins_[index + 1]];
       const Lanes re{x0.real(), x1.real()};
       const Lanes im{x0.imag(), x1.imag()};
-      const Lanes power = re * re + im * im;
-      Lanes inverse;
-      inverse_sqrt(power, inverse);
-      const Lanes size = power * inverse;
-      const Lanes unit_real = re * inverse;
-      const Lanes unit_imag = im * inverse;
-      std::memcpy(level + index, &size, sizeof size);
-      std::memcpy(unit_re + index, &unit_real, sizeof unit_real);
-      std::memcpy(unit_im + index, &unit_imag, sizeof unit_imag);
+      store_units(re, im, level + index, unit_re + index, unit_im + index);
     }
     for (; index < bins; ++index) {
       const std::complex<double> x0 = x[band_fft_bins_[index]];
