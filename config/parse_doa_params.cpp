@@ -2,7 +2,39 @@
 
 #include "config/parse_sections.hpp"
 
+using dronetrack::doa::HarmonicCombSettings;
+
 namespace dronetrack::config {
+
+namespace {
+
+// "doa.acoustic": the per-source features for the classifier (docs/classification.md).
+void parse_acoustic_settings(ObjectReader& section, doa::AcousticSettings& settings) {
+  Diagnostics& diagnostics = section.diagnostics();
+  settings.enabled = section.boolean("enabled", settings.enabled);
+  if (const auto band = section.numbers("band_hz", 2, false)) {
+    settings.band_hz = {(*band)[0], (*band)[1]};
+    if (!(settings.band_hz.low_hz >= 0.0 && settings.band_hz.high_hz > settings.band_hz.low_hz))
+      diagnostics.error(section.path_of("band_hz"), "expected 0 <= low_hz < high_hz");
+  }
+  settings.analysis_every_frames =
+      section.integer("analysis_every_frames", settings.analysis_every_frames, 1, 100);
+  settings.comb_memory_s = section.number("comb_memory_s", settings.comb_memory_s, 0.05, 60.0);
+  settings.history_s = section.number("history_s", settings.history_s, 0.2, 60.0);
+  settings.min_bin_coherence =
+      section.number("min_bin_coherence", settings.min_bin_coherence, 0.0, 1.0);
+  HarmonicCombSettings& comb = settings.comb;
+  comb.min_fundamental_hz =
+      section.number("min_fundamental_hz", comb.min_fundamental_hz, 5.0, 5000.0);
+  comb.max_fundamental_hz =
+      section.number("max_fundamental_hz", comb.max_fundamental_hz, 10.0, 10000.0);
+  if (!(comb.max_fundamental_hz > comb.min_fundamental_hz))
+    diagnostics.error(section.path_of("max_fundamental_hz"), "must exceed min_fundamental_hz");
+  comb.min_strength = section.number("min_comb_strength", comb.min_strength, 0.0, 1.0);
+  comb.min_harmonics = section.integer("min_harmonics", comb.min_harmonics, 2, 100);
+}
+
+}  // namespace
 
 // Keys, units and defaults: docs/doa.md ("Configuration").
 void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
@@ -87,6 +119,10 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("static_null_tolerance_us", params.static_null_tolerance_us, 0.1, 1000.0);
   params.static_null_max_sources =
       section.integer("static_null_max_sources", params.static_null_max_sources, 0, 4);
+  if (section.has("acoustic")) {
+    ObjectReader acoustic = section.object("acoustic");
+    parse_acoustic_settings(acoustic, params.acoustic);
+  }
 }
 
 }  // namespace dronetrack::config

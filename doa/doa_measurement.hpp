@@ -32,6 +32,21 @@ inline const char* to_string(DoaAmbiguity ambiguity) {
   return "none";
 }
 
+// What the source's own spectrum says (doa/acoustic_features.hpp), for the fusion's classifier.
+// The comb figures are from the source's bins in the analysis bands.
+struct AcousticFeatures {
+  bool valid = false;            // measured (false: no analysis yet, or features off)
+  double fundamental_hz = 0.0;   // harmonic comb spacing over the last ~second; 0: no comb
+  double comb_strength = 0.0;    // salience autocorrelation at that spacing, 0..1
+  int harmonic_count = 0;        // lines on the comb in the latest spectrum
+  double broadband_share = 1.0;  // share of the source's band power off the comb's lines, 0..1
+  // Over the last seconds of this source (the node's source track):
+  double comb_persistence = 0.0;     // share of its analyses with a comb, 0..1
+  double fundamental_spread = 0.0;   // relative std of the comb spacing (0.01 = 1 %)
+  double level_modulation_db = 0.0;  // std of its in-band level
+  double history_s = 0.0;            // the span those figures cover
+};
+
 struct DoaMeasurement {
   std::string array_id;
   int array_index = -1;  // index into the site's arrays
@@ -46,6 +61,7 @@ struct DoaMeasurement {
   DoaAmbiguity ambiguity = DoaAmbiguity::none;
   int pair_count = 0;
   std::array<double, kMaxPairs> tdoa_s{};  // per mic pair (i<j in lexicographic order)
+  AcousticFeatures acoustic;
 };
 
 }  // namespace dronetrack::doa

@@ -5,11 +5,28 @@
 #include <string>
 #include <vector>
 
+#include "doa/harmonic_comb.hpp"
+
 namespace dronetrack::doa {
 
 struct FrequencyBand {
   double low_hz = 1500.0;
   double high_hz = 3500.0;
+};
+
+// Acoustic evidence per source (doa/acoustic_features.hpp), the "doa.acoustic" config section.
+struct AcousticSettings {
+  bool enabled = true;
+  // Where the comb is looked for (clamped to the spectrum). From 800 Hz: in the seed's 1.5-3.5 kHz
+  // a real quadcopter's four rotors' combs smear (tests/doa/harmonic_comb_test.cpp).
+  FrequencyBand band_hz{800.0, 3500.0};
+  int analysis_every_frames = 4;  // 0.2 s at the default hop: features move over seconds
+  double comb_memory_s = 1.0;     // time constant of the mean comb autocorrelation
+  double history_s = 3.0;         // span of the over-the-last-seconds features
+  // A bin is a source's when steering to it makes the mics' phasors this coherent (|sum|^2 over
+  // M sum |X|^2: 1 for one plane wave, 1/M for incoherent noise) and no other source's more.
+  double min_bin_coherence = 0.5;
+  HarmonicCombSettings comb;
 };
 
 enum class TdoaTracker { per_frame, bayesian_grid, multi_peak, robust_regression };
@@ -23,7 +40,11 @@ struct DoaParams {
   double frame_s = 0.17;  // analysis frame length; FFT size = next FFTW-friendly size >= frame
   double hop_s = 0.05;    // about 20 DOAs per second
   TdoaTracker tdoa_tracker = TdoaTracker::robust_regression;  // best on the scenes (docs/doa.md)
-  int max_sources = 2;                                        // DOAs per frame (SRP-PHAT peaks)
+  // Sources per frame (SRP-PHAT peaks, each on the bins the louder ones leave): a capacity, not
+  // a design. The search stops at the first look under the detection floor, so a quiet site
+  // pays for one failed look; a site with a generator, a road and an aircraft besides two drones
+  // needs all of them (issue 14). Cost per source: docs/doa.md.
+  int max_sources = 4;
   double detection_snr_db = 0.0;  // in-band level over the adaptive noise floor to publish
 
   // Added with the DSP (issue 4); all optional keys of the "doa" config section.
@@ -73,6 +94,8 @@ struct DoaParams {
   double static_null_max_elevation_deg = 3.0;  // never null anything higher (hovering drones)
   double static_null_tolerance_us = 20.0;      // per pair: "the same TDOA" from frame to frame
   int static_null_max_sources = 2;             // nulled at once
+
+  AcousticSettings acoustic;  // features of each source's spectrum for the classifier (issue 14)
 };
 
 }  // namespace dronetrack::doa

@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "doa/acoustic_features.hpp"
 #include "doa/bin_snr_weight.hpp"
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
@@ -132,6 +133,10 @@ struct NodePipeline::Impl {
       snr_weight =
           std::make_unique<BinSnrWeight>(gcc.band(), tracker_settings.hop_s,
                                          params.snr_noise_rise_db_per_s, params.snr_weight_floor);
+    if (params.acoustic.enabled)
+      acoustic = std::make_unique<AcousticFeatureExtractor>(geometry, fft.fft_size(),
+                                                            sample_rate_hz, speed_of_sound_mps,
+                                                            tracker_settings.hop_s, params.acoustic);
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
@@ -150,6 +155,7 @@ struct NodePipeline::Impl {
     std::array<PairTdoa, kMaxPairs> tdoas{};
     double coherence = 0.0;
     double time_offset_s = 0.0;  // the tracker's output delay (primary only)
+    int slot = -1;               // its acoustic history (source track slot, or its index)
   };
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
@@ -168,13 +174,16 @@ struct NodePipeline::Impl {
   void only_bins_of(int source, bool weighted = false);
   void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
+  // This frame's sources' spectra into their slots' acoustic histories (every few frames).
+  // acoustic_directions/slots/generations hold `count` sources.
+  void measure_acoustics(int count);
   bool was_detecting(double time_s) const;
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
   double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
   double mean_coherence(std::span<const PairTdoa> used) const;
   double inband_power() const;
-  bool publish(const DoaSolution& solution, double time_s, std::span<const PairTdoa> used,
-               int source_index, std::vector<DoaMeasurement>& out);
+  bool publish(const Candidate& candidate, double time_s, int source_index,
+               std::vector<DoaMeasurement>& out);
 
   ArrayGeometry geometry;
   int array_index;
@@ -196,6 +205,11 @@ struct NodePipeline::Impl {
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
   std::unique_ptr<BinSnrWeight> snr_weight;       // noise-only bins faded
+  std::unique_ptr<AcousticFeatureExtractor> acoustic;  // each source's spectral features
+  bool acoustic_due = false;                           // this frame is measured
+  std::array<Eigen::Vector3d, kMaxSources> acoustic_directions{};
+  std::array<int, kMaxSources> acoustic_slots{};
+  std::array<std::uint32_t, kMaxSources> acoustic_generations{};
   // Each source's ground reflection (its range and strength are its own), following the sources
   // by direction; empty for arrays that cannot tell the echo from the source.
   std::vector<GroundEcho> ground_echoes;
@@ -255,9 +269,10 @@ double NodePipeline::Impl::inband_power() const {
   return 2.0 * total / (static_cast<double>(fft.fft_size()) * fft.window_energy() * fft.channels());
 }
 
-bool NodePipeline::Impl::publish(const DoaSolution& solution, double time_s,
-                                 std::span<const PairTdoa> used, int source_index,
+bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int source_index,
                                  std::vector<DoaMeasurement>& out) {
+  const DoaSolution& solution = candidate.solution;
+  const std::span<const PairTdoa> used(candidate.tdoas.data(), tdoas.size());
   DoaMeasurement measurement;
   measurement.array_id = geometry.id;
   measurement.array_index = array_index;
@@ -271,6 +286,7 @@ bool NodePipeline::Impl::publish(const DoaSolution& solution, double time_s,
   measurement.pair_count = solver.pair_count();
   for (int p = 0; p < solver.pair_count(); ++p)
     measurement.tdoa_s[static_cast<std::size_t>(p)] = used[static_cast<std::size_t>(p)].tdoa_s;
+  if (acoustic && candidate.slot >= 0) measurement.acoustic = acoustic->features(candidate.slot);
   out.push_back(std::move(measurement));
   ++diagnostics.doas_published;
   return true;
@@ -474,6 +490,19 @@ void NodePipeline::Impl::smooth_candidates(double time_s) {
   }
   const int estimate_count = source_tracks->update(
       time_s, std::span<const SourceObservation>(observations.data(), candidate_count), estimates);
+  if (acoustic_due) {
+    int count = 0;
+    for (int slot = 0; slot < source_tracks->slot_count() && count < kMaxSources; ++slot) {
+      const int observation = source_tracks->observation_of(slot);
+      if (observation < 0) continue;
+      acoustic_directions[static_cast<std::size_t>(count)] =
+          candidates[static_cast<std::size_t>(observation)].solution.direction_site;
+      acoustic_slots[static_cast<std::size_t>(count)] = slot;
+      acoustic_generations[static_cast<std::size_t>(count)] = source_tracks->generation(slot);
+      ++count;
+    }
+    measure_acoustics(count);
+  }
   candidate_count = 0;
   for (int e = 0; e < estimate_count && candidate_count < params.max_sources; ++e) {
     const SourceEstimate& estimate = estimates[static_cast<std::size_t>(e)];
@@ -486,8 +515,16 @@ void NodePipeline::Impl::smooth_candidates(double time_s) {
     std::copy(smoothed.begin(), smoothed.end(), candidate.tdoas.begin());
     candidate.coherence = mean_coherence(smoothed);
     candidate.time_offset_s = source_tracks->output_delay_s();
+    candidate.slot = estimate.track;
     ++candidate_count;
   }
+}
+
+void NodePipeline::Impl::measure_acoustics(int count) {
+  const auto n = static_cast<std::size_t>(count);
+  acoustic->analyse(fft, std::span<const Eigen::Vector3d>(acoustic_directions.data(), n),
+                    std::span<const int>(acoustic_slots.data(), n),
+                    std::span<const std::uint32_t>(acoustic_generations.data(), n));
 }
 
 bool NodePipeline::Impl::was_detecting(double time_s) const {
@@ -538,6 +575,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   }
   tracker->update(time_s, gcc, sharp, tdoas);
   candidate_count = 0;
+  acoustic_due = acoustic && acoustic->due(diagnostics.frames_processed);
   if (sharp) find_candidates();
   if (null_wanted && !null_observed) null_own_look();
   double coherent_share = 0.0;
@@ -555,12 +593,21 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
     smooth_candidates(time_s);
     // The estimates are for an earlier frame: that frame's gate decides.
     if (candidate_count > 0 && !was_detecting(time_s - source_tracks->output_delay_s())) return;
-  } else if (!detecting) {
-    return;
+  } else {
+    // The per-pair trackers' sources have no identity over frames but their rank.
+    for (int s = 0; s < candidate_count; ++s) {
+      Candidate& candidate = candidates[static_cast<std::size_t>(s)];
+      candidate.slot = s;
+      acoustic_directions[static_cast<std::size_t>(s)] = candidate.solution.direction_site;
+      acoustic_slots[static_cast<std::size_t>(s)] = s;
+      acoustic_generations[static_cast<std::size_t>(s)] = 0;
+    }
+    if (acoustic_due) measure_acoustics(candidate_count);
+    if (!detecting) return;
   }
   for (int s = 0; s < candidate_count; ++s) {
     const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
-    publish(candidate.solution, time_s - candidate.time_offset_s, candidate.tdoas, s, out);
+    publish(candidate, time_s - candidate.time_offset_s, s, out);
   }
 }
 

@@ -69,6 +69,7 @@ int SourceTracks::update(double time_s, std::span<const SourceObservation> obser
         std::find_if(tracks_.begin(), tracks_.end(), [](const Track& t) { return !t.live; });
     if (free_slot == tracks_.end()) break;
     free_slot->live = true;
+    ++free_slot->generation;
     free_slot->regression.clear();
     free_slot->observation = static_cast<int>(o);
   }

@@ -6,6 +6,7 @@
 // whichever source it belongs to: the strongest source and the second drone are never mixed
 // between "now" and "0.3 s ago", and no source is reported twice for one frame.
 #include <array>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -41,6 +42,13 @@ class SourceTracks {
              std::span<SourceEstimate> out);
   double output_delay_s() const { return delay_s_; }
   int live_tracks() const;
+  int slot_count() const { return static_cast<int>(tracks_.size()); }
+  // After update(): the index of this frame's observation the slot took (-1: none), and how many
+  // tracks the slot has started (a new source in an old slot has a new generation).
+  int observation_of(int slot) const { return tracks_[static_cast<std::size_t>(slot)].observation; }
+  std::uint32_t generation(int slot) const {
+    return tracks_[static_cast<std::size_t>(slot)].generation;
+  }
 
  private:
   struct Track {
@@ -51,6 +59,7 @@ class SourceTracks {
     double last_time_s = 0.0;
     bool live = false;
     int observation = -1;  // this frame's observation, -1 if none
+    std::uint32_t generation = 0;
   };
 
   int pair_count_;

@@ -1,0 +1,175 @@
+#include "doa/harmonic_comb.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace dronetrack::doa {
+
+namespace {
+
+// Vertex of the parabola through (-1, left), (0, centre), (1, right), in [-0.5, 0.5].
+double parabolic_offset(double left, double centre, double right) {
+  const double curvature = left - 2.0 * centre + right;
+  if (!(curvature < 0.0)) return 0.0;
+  return std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5);
+}
+
+bool has_power(double power) { return power > 0.0 && std::isfinite(power); }
+
+}  // namespace
+
+HarmonicCombDetector::HarmonicCombDetector(int first_bin, int bin_count, double bin_hz,
+                                           const HarmonicCombSettings& settings)
+    : settings_(settings), first_bin_(first_bin), bin_count_(bin_count), bin_hz_(bin_hz) {
+  auto fail = [](const std::string& what) {
+    throw std::invalid_argument("harmonic comb: " + what);
+  };
+  if (first_bin < 0) fail("first_bin must be >= 0");
+  if (!(bin_hz > 0.0) || !std::isfinite(bin_hz)) fail("bin_hz must be > 0");
+  if (!(settings.min_fundamental_hz > 0.0) ||
+      !(settings.max_fundamental_hz > settings.min_fundamental_hz))
+    fail("need 0 < min_fundamental_hz < max_fundamental_hz");
+  if (!(settings.envelope_half_width_hz > 0.0)) fail("envelope_half_width_hz must be > 0");
+  if (settings.min_harmonics < 2) fail("min_harmonics must be >= 2");
+  const int min_lag =
+      std::max(2, static_cast<int>(std::floor(settings.min_fundamental_hz / bin_hz)));
+  // At least two spacings inside the bins.
+  const int max_lag =
+      std::min(bin_count / 2, static_cast<int>(std::ceil(settings.max_fundamental_hz / bin_hz)));
+  if (max_lag < min_lag + 2)
+    fail("the bins (" + std::to_string(bin_count) + " of " + std::to_string(bin_hz) +
+         " Hz) hold fewer than two spacings of the largest fundamental searched");
+  first_lag_ = min_lag - 1;
+  last_lag_ = max_lag + 1;
+  envelope_half_width_bins_ =
+      std::max(2, static_cast<int>(std::lround(settings.envelope_half_width_hz / bin_hz)));
+  const auto size = static_cast<std::size_t>(bin_count);
+  power_.resize(size);
+  log_power_.resize(size);
+  prefix_.resize(size + 1);
+  prefix_count_.resize(size + 1);
+  salience_.resize(size);
+  autocorrelation_.resize(static_cast<std::size_t>(lag_count()));
+}
+
+void HarmonicCombDetector::autocorrelate(std::span<const double> power,
+                                         std::span<double> autocorrelation) {
+  const int n = bin_count_;
+  std::fill(autocorrelation.begin(), autocorrelation.end(), 0.0);
+  valid_ = false;
+  // Envelope: mean log power of the bins with power within +-W (prefix sums), so the salience
+  // is each bin's standing above its neighbourhood in dB.
+  prefix_[0] = 0.0;
+  prefix_count_[0] = 0;
+  total_power_ = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double p = i < static_cast<int>(power.size()) ? power[static_cast<std::size_t>(i)] : 0.0;
+    const bool valid = has_power(p);
+    power_[i] = valid ? p : 0.0;
+    log_power_[i] = valid ? 10.0 * std::log10(p) : 0.0;
+    prefix_[i + 1] = prefix_[i] + log_power_[i];
+    prefix_count_[i + 1] = prefix_count_[i] + (valid ? 1 : 0);
+    total_power_ += power_[i];
+  }
+  if (prefix_count_[n] < 2 * (first_lag_ + 1) || !(total_power_ > 0.0)) return;
+  double salience_sum = 0.0;
+  for (int i = 0; i < n; ++i) {
+    if (power_[i] == 0.0) {
+      salience_[i] = 0.0;
+      continue;
+    }
+    const int low = std::max(0, i - envelope_half_width_bins_);
+    const int high = std::min(n, i + envelope_half_width_bins_ + 1);
+    const int count = prefix_count_[high] - prefix_count_[low];
+    const double envelope = (prefix_[high] - prefix_[low]) / std::max(count, 1);
+    salience_[i] = std::max(0.0, log_power_[i] - envelope);
+    salience_sum += salience_[i];
+  }
+  salience_mean_ = salience_sum / n;
+  double energy = 0.0;
+  for (int i = 0; i < n; ++i) {
+    salience_[i] -= salience_mean_;
+    energy += salience_[i] * salience_[i];
+  }
+  if (!(energy > 0.0)) return;
+  valid_ = true;
+  // Normalised; n / (n - L) undoes the shrinking overlap.
+  for (int lag = first_lag_; lag <= last_lag_; ++lag) {
+    double sum = 0.0;
+    for (int i = 0; i + lag < n; ++i) sum += salience_[i] * salience_[i + lag];
+    autocorrelation[static_cast<std::size_t>(lag - first_lag_)] =
+        sum / energy * n / static_cast<double>(n - lag);
+  }
+}
+
+HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation) const {
+  HarmonicComb comb;
+  if (static_cast<int>(autocorrelation.size()) < lag_count()) return comb;
+  const auto at = [&](int lag) { return autocorrelation[static_cast<std::size_t>(lag - first_lag_)]; };
+  const int min_lag = first_lag_ + 1;
+  const int max_lag = last_lag_ - 1;
+  int best_lag = min_lag;
+  for (int lag = min_lag; lag <= max_lag; ++lag)
+    if (at(lag) > at(best_lag)) best_lag = lag;
+  const double best = at(best_lag);
+  if (!(best > 0.0)) return comb;
+  // The comb's own spacing, not a multiple of it: the smallest local maximum near the best.
+  int lag = best_lag;
+  for (int candidate = min_lag; candidate < best_lag; ++candidate) {
+    const double value = at(candidate);
+    if (value >= 0.85 * best && value >= at(candidate - 1) && value >= at(candidate + 1)) {
+      lag = candidate;
+      break;
+    }
+  }
+  comb.strength = std::clamp(at(lag), 0.0, 1.0);
+  const double refined_lag = lag + parabolic_offset(at(lag - 1), at(lag), at(lag + 1));
+  const double fundamental_hz = refined_lag * bin_hz_;
+
+  // The lines of the last spectrum on this comb: the most salient bin near each multiple.
+  if (valid_) {
+    const int n = bin_count_;
+    const int first_harmonic =
+        std::max(1, static_cast<int>(std::ceil(first_bin_ * bin_hz_ / fundamental_hz)));
+    const int last_harmonic =
+        static_cast<int>(std::floor((first_bin_ + n - 1) * bin_hz_ / fundamental_hz));
+    const int reach = std::max(1, static_cast<int>(0.25 * refined_lag));
+    double harmonic_power = 0.0;
+    int previous_end = -1;
+    for (int h = first_harmonic; h <= last_harmonic; ++h) {
+      const int expected =
+          static_cast<int>(std::lround(h * fundamental_hz / bin_hz_)) - first_bin_;
+      int peak = -1;
+      double peak_salience = 0.0;
+      for (int i = std::max(0, expected - reach); i <= std::min(n - 1, expected + reach); ++i) {
+        if (salience_[i] + salience_mean_ > peak_salience) {
+          peak_salience = salience_[i] + salience_mean_;
+          peak = i;
+        }
+      }
+      if (peak < 0 || peak_salience < settings_.line_salience_db) continue;
+      ++comb.harmonic_count;
+      for (int i = std::max(peak - 1, previous_end + 1); i <= std::min(n - 1, peak + 1); ++i)
+        harmonic_power += power_[i];
+      previous_end = peak + 1;
+    }
+    comb.harmonic_share = std::clamp(harmonic_power / total_power_, 0.0, 1.0);
+  }
+  comb.found =
+      comb.strength >= settings_.min_strength && comb.harmonic_count >= settings_.min_harmonics;
+  if (comb.found) {
+    comb.fundamental_hz = fundamental_hz;
+  } else {
+    comb.harmonic_share = 0.0;
+  }
+  return comb;
+}
+
+HarmonicComb HarmonicCombDetector::analyse(std::span<const double> power) {
+  autocorrelate(power, autocorrelation_);
+  return find(autocorrelation_);
+}
+
+}  // namespace dronetrack::doa
