@@ -39,6 +39,8 @@ void register_replay(CLI::App& root, CommandTable& table) {
                       "Write tracks as JSON lines here ('-' for stdout; default stdout)");
   command->add_option("--doa-out", arguments->session.doa_out,
                       "Write every array's DOAs as JSON lines here");
+  command->add_option("--alerts-out", arguments->session.alerts_out,
+                      "Write zone alerts and track class changes as JSON lines here");
   auto* realtime =
       command->add_flag("--realtime", arguments->session.realtime, "Pace the replay at real time");
   auto* doa_in =

@@ -52,6 +52,7 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
     doa.snr_db = record.snr_db;
     doa.source_index = record.source_index;
     doa.ambiguity = ambiguity_of(record.ambiguity);
+    doa.acoustic = record.acoustic;
     const Eigen::Vector2d std_rad =
         record.azel_std_deg.value_or(Eigen::Vector2d::Constant(default_std_deg)) * kRadPerDeg;
     const double covariance = record.azel_correlation * std_rad(0) * std_rad(1);

@@ -10,7 +10,7 @@ constexpr double kTimeEpsilon_s = 1e-9;
 
 FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObserver*> observers)
     : engine_(site.fusion, site.geometries(), site.speed_of_sound_mps),
-      zones_(site.zones),
+      zones_(site.zones, site.alerts),
       observers_(std::move(observers)),
       output_period_s_(1.0 / site.fusion.output_rate_hz),
       reorder_window_s_(site.fusion.reorder_window_s) {}

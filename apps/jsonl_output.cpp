@@ -44,15 +44,27 @@ int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t si
   const double product = azimuth_std_rad * elevation_std_rad;
   const double correlation =
       product > 0.0 ? std::clamp(doa.azel_covariance_rad2(0, 1) / product, -1.0, 1.0) : 0.0;
-  return std::snprintf(
+  const int length = std::snprintf(
       buffer, size,
       R"({"t":%.6f,"array":"%s","direction":[%.9f,%.9f,%.9f],"azimuth_deg":%.5f,)"
       R"("elevation_deg":%.5f,"quality":%.4f,"snr_db":%.2f,"source":%d,"ambiguity":"%s",)"
-      R"("azel_std_deg":[%.6f,%.6f],"azel_correlation":%.6f})",
+      R"("azel_std_deg":[%.6f,%.6f],"azel_correlation":%.6f%s)",
       doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
       doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
       doa::to_string(doa.ambiguity), azimuth_std_rad * 180.0 / std::numbers::pi,
-      elevation_std_rad * 180.0 / std::numbers::pi, correlation);
+      elevation_std_rad * 180.0 / std::numbers::pi, correlation,
+      doa.acoustic.valid ? "," : "}");
+  if (length <= 0 || !doa.acoustic.valid || static_cast<std::size_t>(length) >= size)
+    return length;
+  const doa::AcousticFeatures& a = doa.acoustic;
+  const int tail = std::snprintf(
+      buffer + length, size - static_cast<std::size_t>(length),
+      R"("acoustic":{"fundamental_hz":%.2f,"comb_strength":%.4f,"harmonics":%d,)"
+      R"("broadband_share":%.4f,"comb_persistence":%.4f,"fundamental_spread":%.5f,)"
+      R"("level_modulation_db":%.3f,"history_s":%.2f}})",
+      a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share, a.comb_persistence,
+      a.fundamental_spread, a.level_modulation_db, a.history_s);
+  return tail < 0 ? tail : length + tail;
 }
 
 int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,
@@ -64,9 +76,29 @@ int format_track_line(double time_s, const fusion::TrackReport& track, char* buf
   return std::snprintf(
       buffer, size,
       R"({"t":%.3f,"id":%d,"position_m":[%.4f,%.4f,%.4f],"velocity_mps":[%.4f,%.4f,%.4f],)"
-      R"("acceleration_mps2":[%.4f,%.4f,%.4f],"position_std_m":[%.4f,%.4f,%.4f],"status":"%s"})",
+      R"("acceleration_mps2":[%.4f,%.4f,%.4f],"position_std_m":[%.4f,%.4f,%.4f],"status":"%s",)"
+      R"("class":"%s","class_confidence":%.3f})",
       time_s, track.id, p.x(), p.y(), p.z(), v.x(), v.y(), v.z(), a.x(), a.y(), a.z(), s.x(), s.y(),
-      s.z(), fusion::to_string(track.status));
+      s.z(), fusion::to_string(track.status), fusion::to_string(track.track_class),
+      track.class_confidence);
+}
+
+int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t size) {
+  const Eigen::Vector3d& p = event.position_m;
+  char previous[64] = "";
+  if (event.kind == fusion::ZoneEventKind::class_changed)
+    std::snprintf(previous, sizeof previous, R"("previous_class":"%s",)",
+                  fusion::to_string(event.previous_class));
+  return std::snprintf(buffer, size,
+                       R"({"t":%.3f,"zone":"%s","track_id":%d,"event":"%s","class":"%s",%s)"
+                       R"("position_m":[%.4f,%.4f,%.4f]})",
+                       event.time_s, event.zone.c_str(), event.track_id,
+                       fusion::to_string(event.kind), fusion::to_string(event.track_class),
+                       previous, p.x(), p.y(), p.z());
+}
+
+void AlertLinesWriter::on_zone_event(const fusion::ZoneEvent& event) {
+  out_.write_line(buffer_, format_alert_line(event, buffer_, sizeof buffer_));
 }
 
 void DoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {

@@ -28,7 +28,7 @@ class OutputFile {
 // {"t":..,"array":"A1","direction":[..],"azimuth_deg":..,"elevation_deg":..,"quality":..,...}
 int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size);
 // {"t":..,"id":..,"position_m":[..],"velocity_mps":[..],"acceleration_mps2":[..],
-//  "position_std_m":[..],"status":".."}
+//  "position_std_m":[..],"status":"..","class":"..","class_confidence":..}
 int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,
                       std::size_t size);
 
@@ -50,6 +50,20 @@ class TrackLinesWriter : public FusionObserver {
  private:
   OutputFile out_;
   char buffer_[1024];
+};
+
+// {"t":..,"zone":"..","track_id":..,"event":"entered|left|class_changed","class":"..",
+//  ["previous_class":"..",] "position_m":[..]}
+int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t size);
+
+class AlertLinesWriter : public FusionObserver {
+ public:
+  explicit AlertLinesWriter(const std::filesystem::path& path) : out_(path) {}
+  void on_zone_event(const fusion::ZoneEvent& event) override;
+
+ private:
+  OutputFile out_;
+  char buffer_[512];
 };
 
 }  // namespace dronetrack::apps

@@ -21,6 +21,8 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   std::vector<std::unique_ptr<FusionObserver>> writers;
   if (!options.doa_out.empty())
     writers.push_back(std::make_unique<DoaLinesWriter>(options.doa_out));
+  if (!options.alerts_out.empty())
+    writers.push_back(std::make_unique<AlertLinesWriter>(options.alerts_out));
   if (!options.tracks_out.empty() || (options.doa_out.empty() && options.http.empty())) {
     writers.push_back(std::make_unique<TrackLinesWriter>(
         options.tracks_out.empty() ? std::string("-") : options.tracks_out));

@@ -93,6 +93,41 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
       section.number("doa_error_correlation_s", params.doa_error_correlation_s, 0.0, 60.0);
   params.ground_altitude_m =
       section.number("ground_altitude_m", params.ground_altitude_m, -1e4, 1e4);
+  if (section.has("classifier")) {
+    // Keys, units and defaults: docs/classification.md.
+    ObjectReader reader = section.object("classifier");
+    fusion::ClassifierSettings& c = params.classifier;
+    c.drone_min_fundamental_hz =
+        reader.number("drone_min_fundamental_hz", c.drone_min_fundamental_hz, 1.0, 5000.0);
+    c.drone_max_fundamental_hz =
+        reader.number("drone_max_fundamental_hz", c.drone_max_fundamental_hz, 1.0, 5000.0);
+    if (!(c.drone_max_fundamental_hz > c.drone_min_fundamental_hz))
+      reader.diagnostics().error(reader.path_of("drone_max_fundamental_hz"),
+                                 "must exceed drone_min_fundamental_hz");
+    c.drone_min_comb_persistence =
+        reader.number("drone_min_comb_persistence", c.drone_min_comb_persistence, 0.0, 1.0);
+    c.acoustic_memory_s = reader.number("acoustic_memory_s", c.acoustic_memory_s, 0.1, 600.0);
+    c.min_acoustic_votes = reader.number("min_acoustic_votes", c.min_acoustic_votes, 0.0, 1000.0);
+    c.drone_enter_share = reader.number("drone_enter_share", c.drone_enter_share, 0.0, 1.0);
+    c.drone_leave_share = reader.number("drone_leave_share", c.drone_leave_share, 0.0, 1.0);
+    if (c.drone_leave_share > c.drone_enter_share)
+      reader.diagnostics().error(reader.path_of("drone_leave_share"),
+                                 "must not exceed drone_enter_share");
+    c.kinematic_memory_s = reader.number("kinematic_memory_s", c.kinematic_memory_s, 0.1, 600.0);
+    c.ground_max_altitude_m =
+        reader.number("ground_max_altitude_m", c.ground_max_altitude_m, 0.0, 1000.0);
+    c.ground_max_altitude_std_m =
+        reader.number("ground_max_altitude_std_m", c.ground_max_altitude_std_m, 0.0, 1000.0);
+    c.static_max_speed_mps =
+        reader.number("static_max_speed_mps", c.static_max_speed_mps, 0.0, 100.0);
+    c.static_long_s = reader.number("static_long_s", c.static_long_s, 0.0, 86400.0);
+    c.static_ground_max_altitude_m = reader.number(
+        "static_ground_max_altitude_m", c.static_ground_max_altitude_m, 0.0, 1000.0);
+    c.aircraft_min_altitude_m =
+        reader.number("aircraft_min_altitude_m", c.aircraft_min_altitude_m, 1.0, 1e5);
+    c.aircraft_min_speed_mps =
+        reader.number("aircraft_min_speed_mps", c.aircraft_min_speed_mps, 1.0, 1000.0);
+  }
 }
 
 }  // namespace dronetrack::config

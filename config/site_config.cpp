@@ -251,6 +251,25 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       parse_zone(node, path, diagnostics, site.zones);
     });
     {
+      ObjectReader alerts = root.object("alerts");
+      if (alerts.has("classes")) {
+        site.alerts.classes.clear();
+        alerts.for_each("classes", false, [&](const nlohmann::json& node, const std::string& path) {
+          const auto track_class =
+              node.is_string() ? fusion::track_class_from_string(node.get<std::string>())
+                               : std::nullopt;
+          if (!track_class) {
+            diagnostics.error(path, "expected one of \"drone\", \"ground\", \"aircraft\", "
+                                    "\"unknown\", got " + node.dump());
+            return;
+          }
+          site.alerts.classes.push_back(*track_class);
+        });
+      }
+      site.alerts.min_confirmed_s =
+          alerts.number("min_confirmed_s", site.alerts.min_confirmed_s, 0.0, 3600.0);
+    }
+    {
       ObjectReader dds = root.object("dds");
       site.dds.domain_id = dds.integer("domain_id", 0, 0, 232);
     }

@@ -10,6 +10,7 @@
 #include "doa/array_geometry.hpp"
 #include "doa/doa_params.hpp"
 #include "fusion/fusion_params.hpp"
+#include "fusion/zone_monitor.hpp"
 
 namespace dronetrack::config {
 
@@ -38,6 +39,7 @@ struct SiteConfig {
   doa::DoaParams doa;
   fusion::FusionParams fusion;
   std::vector<fusion::Zone> zones;
+  fusion::AlertPolicy alerts;  // "alerts": which tracks' zone entries alert
   DdsConfig dds;
   HttpConfig http;
 

@@ -63,13 +63,13 @@ void AcousticFeatureExtractor::assign_bins(const MultichannelFft& fft, int sourc
   std::array<std::array<std::complex<double>, kMaxMics>, kMaxSources> step{};
   for (int s = 0; s < sources; ++s)
     for (int m = 0; m < mic_count_; ++m)
-      step[s][m] = std::polar(1.0, -bin_omega_ * delays_s_[s][m]);
+      step[s][m] = std::polar(1.0, bin_omega_ * delays_s_[s][m]);
   std::array<std::complex<double>, kMaxMics> bin{};
   {
     const BandRun& run = band_;
     for (int s = 0; s < sources; ++s)
       for (int m = 0; m < mic_count_; ++m)
-        rotation[s][m] = std::polar(1.0, -bin_omega_ * run.first_bin * delays_s_[s][m]);
+        rotation[s][m] = std::polar(1.0, bin_omega_ * run.first_bin * delays_s_[s][m]);
     for (int k = run.first_bin; k <= run.last_bin; ++k) {
       double energy = 0.0;
       for (int m = 0; m < mic_count_; ++m) {

@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 
+#include "doa/doa_measurement.hpp"
+
 namespace dronetrack::eval {
 
 struct TruthSource {
@@ -43,6 +45,7 @@ struct DoaRecord {
   std::string ambiguity = "none";               // none | mirror_up_down | cone
   std::optional<Eigen::Vector2d> azel_std_deg;  // absent: the reader of the file decides
   double azel_correlation = 0.0;                // of the azimuth and elevation errors
+  doa::AcousticFeatures acoustic;               // "acoustic" object (valid when present)
 };
 
 struct TrackRecord {

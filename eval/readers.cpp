@@ -232,6 +232,19 @@ std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& fi
           }
         }
         record.azel_correlation = reader.number("azel_correlation", 0.0, -1.0, 1.0);
+        if (reader.has("acoustic")) {
+          ObjectReader acoustic = reader.object("acoustic");
+          doa::AcousticFeatures& a = record.acoustic;
+          a.valid = true;
+          a.fundamental_hz = acoustic.number("fundamental_hz", 0.0, 0.0, 1e5);
+          a.comb_strength = acoustic.number("comb_strength", 0.0, 0.0, 1.0);
+          a.harmonic_count = acoustic.integer("harmonics", 0, 0, 100000);
+          a.broadband_share = acoustic.number("broadband_share", 1.0, 0.0, 1.0);
+          a.comb_persistence = acoustic.number("comb_persistence", 0.0, 0.0, 1.0);
+          a.fundamental_spread = acoustic.number("fundamental_spread", 0.0, 0.0, 1e3);
+          a.level_modulation_db = acoustic.number("level_modulation_db", 0.0, 0.0, 1e3);
+          a.history_s = acoustic.number("history_s", 0.0, 0.0, 1e6);
+        }
         for (const auto& item : node.items()) reader.accept(item.key());
       });
 }

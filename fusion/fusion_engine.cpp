@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -107,6 +108,8 @@ struct Track {
   Innovation innovation;                           // of the current frame
   bool innovation_ok = false;
   double inflation = 1.0;  // of this frame's DOA covariance (correlated errors)
+  TrackEvidence evidence;  // drone or not
+  double confirmed_at_s = 0.0;
 };
 
 }  // namespace
@@ -117,6 +120,7 @@ struct FusionEngine::Impl {
   std::vector<DoaMeasurementModel> models;
   FilterSettings filter_settings;
   FusionCounters counters;
+  std::optional<TrackClassifier> classifier;
   double gate_chi2 = 0.0;  // 2 dof
   double floor_variance_rad2 = 0.0;
 
@@ -144,6 +148,9 @@ struct FusionEngine::Impl {
     return fix.position_m.z() + 3.0 * z_std < params.ground_altitude_m;
   }
   void life_cycle(double now_s);
+  // Ghost test (issue 14): from every array that supports it, the track lies along the ray of
+  // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
+  bool explained_by_other_tracks(const Track& track) const;
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;
     if (status == FilterStatus::failed) ++counters.filter_failures;
@@ -228,6 +235,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
     s.filter_settings.imm_turn_rate_std_radps2 = params.imm_turn_rate_std_radps2;
   }
   s.filter_settings.imm_turn_jerk_std_mps3 = params.imm_turn_jerk_std_mps3;
+  s.classifier.emplace(params.classifier, params.ground_altitude_m);
   s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
@@ -396,6 +404,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.last_update_s = time_s;
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
+    classifier->add_acoustic(track.evidence, m.acoustic, time_s);
   }
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
@@ -575,6 +584,35 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   return true;
 }
 
+bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
+  const Eigen::Vector3d position = position_of(track.filter->mean());
+  const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+  int supporting = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
+    ++supporting;
+    const Eigen::Vector3d to_track = position - models[a].centre_m;
+    const double range_m = std::max(to_track.norm(), 1.0);
+    bool explained = false;
+    for (const Track& other : tracks) {
+      if (&other == &track || !other.confirmed) continue;
+      const Eigen::Vector3d to_other = position_of(other.filter->mean()) - models[a].centre_m;
+      const double other_range_m = std::max(to_other.norm(), 1.0);
+      const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+      const double angle_rad = std::acos(std::clamp(
+          to_track.dot(to_other) / (range_m * other_range_m), -1.0, 1.0));
+      const double variance_rad2 = floor_variance_rad2 + spread_m2 / (range_m * range_m) +
+                                   other_spread_m2 / (other_range_m * other_range_m);
+      if (angle_rad * angle_rad <= gate_chi2 * variance_rad2) {
+        explained = true;
+        break;
+      }
+    }
+    if (!explained) return false;
+  }
+  return supporting > 0;
+}
+
 void FusionEngine::Impl::life_cycle(double now_s) {
   const std::uint32_t window_mask =
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
@@ -604,10 +642,20 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     const double altitude_std_m = std::sqrt(std::max(
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
-    if (supported && above_ground && hits >= params.confirm_hits) {
+    if (supported && above_ground && hits >= params.confirm_hits &&
+        !explained_by_other_tracks(track)) {
       track.confirmed = true;
+      track.confirmed_at_s = now_s;
       ++counters.tracks_confirmed;
     }
+  }
+  for (Track& track : tracks) {
+    const StateVector& mean = track.filter->mean();
+    const double altitude_std_m = std::sqrt(std::max(
+        track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
+    classifier->add_kinematics(track.evidence, position_of(mean), velocity_of(mean),
+                               altitude_std_m, track.time_s);
+    classifier->classify(track.evidence);
   }
   const double max_variance = params.max_position_std_m * params.max_position_std_m;
   const auto dead = [&](const Track& track) {
@@ -640,6 +688,9 @@ void FusionEngine::tracks_at(double time_s, std::vector<TrackReport>& out) const
     report.acceleration_mps2 = acceleration_of(mean);
     report.covariance = covariance;
     report.last_update_s = track.last_update_s;
+    report.track_class = track.evidence.track_class;
+    report.class_confidence = track.evidence.confidence;
+    report.confirmed_s = track.confirmed ? time_s - track.confirmed_at_s : -1.0;
     if (!track.confirmed) {
       report.status = TrackStatus::tentative;
     } else if (time_s - track.last_update_s > s.params.coast_after_s) {

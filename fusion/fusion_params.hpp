@@ -5,6 +5,8 @@
 
 #include <Eigen/Core>
 
+#include "fusion/track_classifier.hpp"
+
 namespace dronetrack::fusion {
 
 enum class FilterKind { ukf, ukf_seed002, ekf, particle };
@@ -83,6 +85,8 @@ struct FusionParams {
   // ground-reflection image (a node reports the echo as a second source), never a drone: no track
   // starts there.
   double ground_altitude_m = 0.0;
+  // Drone or not (issue 14): docs/classification.md.
+  ClassifierSettings classifier;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)

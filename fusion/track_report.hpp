@@ -4,6 +4,8 @@
 
 #include <Eigen/Core>
 
+#include "fusion/track_classifier.hpp"
+
 namespace dronetrack::fusion {
 
 enum class TrackStatus : std::uint8_t { tentative = 0, confirmed = 1, coasting = 2 };
@@ -20,6 +22,9 @@ struct TrackReport {
   TrackStatus status = TrackStatus::tentative;
   std::uint64_t contributing_arrays = 0;  // bit i: array index i updated this track recently
   double last_update_s = 0.0;
+  TrackClass track_class = TrackClass::unknown;  // fusion/track_classifier.hpp
+  double class_confidence = 0.0;                 // 0..1
+  double confirmed_s = -1.0;  // how long it has been confirmed (< 0: not confirmed)
   Eigen::Vector3d position_std_m() const { return covariance.diagonal().head<3>().cwiseSqrt(); }
 };
 

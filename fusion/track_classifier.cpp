@@ -1,0 +1,123 @@
+#include "fusion/track_classifier.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace dronetrack::fusion {
+
+const char* to_string(TrackClass track_class) {
+  switch (track_class) {
+    case TrackClass::unknown:
+      return "unknown";
+    case TrackClass::drone:
+      return "drone";
+    case TrackClass::ground:
+      return "ground";
+    case TrackClass::aircraft:
+      return "aircraft";
+  }
+  return "unknown";
+}
+
+std::optional<TrackClass> track_class_from_string(const std::string& name) {
+  for (TrackClass c : {TrackClass::unknown, TrackClass::drone, TrackClass::ground,
+                       TrackClass::aircraft})
+    if (name == to_string(c)) return c;
+  return std::nullopt;
+}
+
+TrackClassifier::TrackClassifier(const ClassifierSettings& settings, double ground_altitude_m)
+    : settings_(settings), ground_altitude_m_(ground_altitude_m) {
+  auto check = [](bool ok, const char* name) {
+    if (!ok) throw std::invalid_argument(std::string("fusion.classifier.") + name + ": out of range");
+  };
+  check(settings.drone_max_fundamental_hz > settings.drone_min_fundamental_hz,
+        "drone_max_fundamental_hz");
+  check(settings.acoustic_memory_s > 0.0, "acoustic_memory_s");
+  check(settings.kinematic_memory_s > 0.0, "kinematic_memory_s");
+  check(settings.drone_leave_share <= settings.drone_enter_share, "drone_leave_share");
+  check(std::isfinite(ground_altitude_m), "ground_altitude_m");
+}
+
+void TrackClassifier::add_acoustic(TrackEvidence& evidence, const doa::AcousticFeatures& features,
+                                   double time_s) const {
+  if (!features.valid) return;
+  const double elapsed_s = std::max(0.0, time_s - evidence.acoustic_time_s);
+  const double keep = std::exp(-elapsed_s / settings_.acoustic_memory_s);
+  evidence.drone_votes *= keep;
+  evidence.all_votes *= keep;
+  evidence.acoustic_time_s = std::max(evidence.acoustic_time_s, time_s);
+  const bool rotor_comb = features.fundamental_hz >= settings_.drone_min_fundamental_hz &&
+                          features.fundamental_hz <= settings_.drone_max_fundamental_hz &&
+                          features.comb_persistence >= settings_.drone_min_comb_persistence;
+  evidence.all_votes += 1.0;
+  if (rotor_comb) evidence.drone_votes += 1.0;
+}
+
+void TrackClassifier::add_kinematics(TrackEvidence& evidence, const Eigen::Vector3d& position_m,
+                                     const Eigen::Vector3d& velocity_mps, double altitude_std_m,
+                                     double time_s) const {
+  const double altitude_m = position_m.z() - ground_altitude_m_;
+  const double speed_mps = velocity_mps.norm();
+  if (!std::isfinite(altitude_m) || !std::isfinite(speed_mps)) return;
+  if (!evidence.kinematics_started) {
+    evidence.altitude_m = altitude_m;
+    evidence.speed_mps = speed_mps;
+    evidence.altitude_std_m = altitude_std_m;
+    evidence.kinematic_time_s = time_s;
+    evidence.kinematics_started = true;
+    return;
+  }
+  const double elapsed_s = std::max(0.0, time_s - evidence.kinematic_time_s);
+  const double weight = 1.0 - std::exp(-elapsed_s / settings_.kinematic_memory_s);
+  evidence.altitude_m += weight * (altitude_m - evidence.altitude_m);
+  evidence.speed_mps += weight * (speed_mps - evidence.speed_mps);
+  evidence.altitude_std_m = altitude_std_m;
+  evidence.max_speed_mps = std::max(evidence.max_speed_mps, evidence.speed_mps);
+  evidence.static_s = evidence.speed_mps <= settings_.static_max_speed_mps
+                          ? evidence.static_s + elapsed_s
+                          : 0.0;
+  evidence.kinematic_time_s = time_s;
+}
+
+// Order matters: kinematics that no small drone shows veto the acoustics (a light aircraft's
+// propeller is a comb too); a track held at ground level is a ground source unless it sounds
+// like a drone (a drone landing or flying low keeps its class); then the rotor comb decides.
+void TrackClassifier::classify(TrackEvidence& evidence) const {
+  const ClassifierSettings& s = settings_;
+  const double share = evidence.drone_share();
+  const bool heard_enough = evidence.all_votes >= s.min_acoustic_votes;
+  const bool was_drone = evidence.track_class == TrackClass::drone;
+  const bool sounds_like_drone =
+      heard_enough && share >= (was_drone ? s.drone_leave_share : s.drone_enter_share);
+  if (!evidence.kinematics_started) return;
+  const double altitude_margin = evidence.altitude_m / s.aircraft_min_altitude_m;
+  const double speed_margin = evidence.speed_mps / s.aircraft_min_speed_mps;
+  const bool altitude_known = evidence.altitude_std_m <= 0.25 * std::max(evidence.altitude_m, 1.0);
+  if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0) {
+    evidence.track_class = TrackClass::aircraft;
+    evidence.confidence = std::clamp(0.5 + 0.5 * (std::max(altitude_margin, speed_margin) - 1.0) /
+                                               0.5,
+                                     0.5, 1.0);
+    return;
+  }
+  const bool low = evidence.altitude_m <= s.ground_max_altitude_m &&
+                   evidence.altitude_std_m <= s.ground_max_altitude_std_m;
+  const bool parked = evidence.static_s >= s.static_long_s &&
+                      evidence.altitude_m <= s.static_ground_max_altitude_m;
+  if ((low || parked) && !sounds_like_drone) {
+    evidence.track_class = TrackClass::ground;
+    evidence.confidence = heard_enough ? std::clamp(1.0 - share, 0.5, 1.0) : 0.5;
+    return;
+  }
+  if (sounds_like_drone) {
+    evidence.track_class = TrackClass::drone;
+    evidence.confidence = std::clamp(share, 0.5, 1.0);
+    return;
+  }
+  evidence.track_class = TrackClass::unknown;
+  evidence.confidence = heard_enough ? std::clamp(1.0 - share, 0.0, 1.0) : 0.0;
+}
+
+}  // namespace dronetrack::fusion
