@@ -44,9 +44,10 @@ void run_program(const std::string& program, const fusion::ZoneEvent& event) {
   // Built before fork: the child only calls execvp and _exit (async-signal-safe).
   std::string zone = event.zone;
   std::string program_copy = program;
-  std::string verb = event.entered ? "entered" : "left";
-  char* argv[] = {
-      program_copy.data(), zone.data(), track_id, verb.data(), time_s, x, y, z, nullptr};
+  std::string verb = fusion::to_string(fusion::kind_of(event));
+  std::string track_class = fusion::to_string(event.track_class);
+  char* argv[] = {program_copy.data(), zone.data(), track_id, verb.data(), time_s, x, y, z,
+                  track_class.data(), nullptr};
   const pid_t child = fork();
   if (child < 0) {
     log::error("alert: cannot run ", program, ": fork failed (", std::strerror(errno), ")");
@@ -82,10 +83,16 @@ void print_alert(const fusion::ZoneEvent& event) {
     if (c == '"' || c == '\\') zone += '\\';
     if (static_cast<unsigned char>(c) >= 0x20) zone += c;
   }
-  std::printf(R"({"t":%.3f,"zone":"%s","track_id":%d,"event":"%s","position_m":[%.3f,%.3f,%.3f]})"
+  char previous[64] = "";
+  if (event.kind == fusion::ZoneEventKind::class_changed)
+    std::snprintf(previous, sizeof previous, R"("previous_class":"%s",)",
+                  fusion::to_string(event.previous_class));
+  std::printf(R"({"t":%.3f,"zone":"%s","track_id":%d,"event":"%s","class":"%s",%s)"
+              R"("position_m":[%.3f,%.3f,%.3f]})"
               "\n",
-              event.time_s, zone.c_str(), event.track_id, event.entered ? "entered" : "left",
-              event.position_m.x(), event.position_m.y(), event.position_m.z());
+              event.time_s, zone.c_str(), event.track_id, fusion::to_string(fusion::kind_of(event)),
+              fusion::to_string(event.track_class), previous, event.position_m.x(),
+              event.position_m.y(), event.position_m.z());
   std::fflush(stdout);
 }
 

@@ -93,7 +93,7 @@ int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t 
                        R"({"t":%.3f,"zone":"%s","track_id":%d,"event":"%s","class":"%s",%s)"
                        R"("position_m":[%.4f,%.4f,%.4f]})",
                        event.time_s, event.zone.c_str(), event.track_id,
-                       fusion::to_string(event.kind), fusion::to_string(event.track_class),
+                       fusion::to_string(fusion::kind_of(event)), fusion::to_string(event.track_class),
                        previous, p.x(), p.y(), p.z());
 }
 

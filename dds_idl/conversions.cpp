@@ -83,6 +83,16 @@ void to_idl(const doa::DoaMeasurement& measurement, std::int64_t time_offset_ns,
   sample.quality = measurement.quality;
   sample.snr_db = measurement.snr_db;
   sample.source_index = measurement.source_index;
+  const doa::AcousticFeatures& acoustic = measurement.acoustic;
+  sample.acoustic_valid = acoustic.valid;
+  sample.fundamental_hz = acoustic.fundamental_hz;
+  sample.comb_strength = acoustic.comb_strength;
+  sample.harmonic_count = acoustic.harmonic_count;
+  sample.broadband_share = acoustic.broadband_share;
+  sample.comb_persistence = acoustic.comb_persistence;
+  sample.fundamental_spread = acoustic.fundamental_spread;
+  sample.level_modulation_db = acoustic.level_modulation_db;
+  sample.acoustic_history_s = acoustic.history_s;
   sample.ambiguity = static_cast<std::uint8_t>(measurement.ambiguity);
   const auto pairs =
       static_cast<std::uint32_t>(std::clamp(measurement.pair_count, 0, doa::kMaxPairs));
@@ -132,6 +142,29 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
   out.pair_count = static_cast<int>(sample.tdoa_s._length);
   out.tdoa_s.fill(0.0);
   std::copy_n(sample.tdoa_s._buffer, sample.tdoa_s._length, out.tdoa_s.begin());
+  out.acoustic = doa::AcousticFeatures{};
+  if (sample.acoustic_valid) {
+    const double values[] = {sample.fundamental_hz,      sample.comb_strength,
+                             sample.broadband_share,     sample.comb_persistence,
+                             sample.fundamental_spread,  sample.level_modulation_db,
+                             sample.acoustic_history_s};
+    // A malformed feature block costs the DOA its acoustic vote, not the DOA.
+    const bool sane = std::all_of(std::begin(values), std::end(values),
+                                  [](double v) { return std::isfinite(v) && v >= 0.0; }) &&
+                      sample.comb_strength <= 1.0 && sample.broadband_share <= 1.0 &&
+                      sample.comb_persistence <= 1.0 && sample.harmonic_count >= 0;
+    if (sane) {
+      out.acoustic = {true,
+                      sample.fundamental_hz,
+                      sample.comb_strength,
+                      static_cast<int>(sample.harmonic_count),
+                      sample.broadband_share,
+                      sample.comb_persistence,
+                      sample.fundamental_spread,
+                      sample.level_modulation_db,
+                      sample.acoustic_history_s};
+    }
+  }
   return SampleProblem::none;
 }
 
@@ -198,6 +231,8 @@ void to_idl(const fusion::TrackReport& report, dronetrack_Track& sample) {
   sample.status = static_cast<std::uint8_t>(report.status);
   sample.contributing_arrays = report.contributing_arrays;
   sample.last_update_ns = seconds_to_ns(report.last_update_s);
+  sample.track_class = static_cast<std::uint8_t>(report.track_class);
+  sample.class_confidence = report.class_confidence;
 }
 
 SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out) {
@@ -205,7 +240,8 @@ SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out)
       !all_finite(sample.acceleration_mps2) || !all_finite(sample.covariance_upper)) {
     return SampleProblem::non_finite;
   }
-  if (sample.status > 2) return SampleProblem::bad_value;
+  if (sample.status > 2 || sample.track_class > 3 || !finite(sample.class_confidence))
+    return SampleProblem::bad_value;
   out.id = sample.id;
   out.time_s = ns_to_seconds(sample.time_ns);
   out.position_m = vector3(sample.position_m);
@@ -222,6 +258,8 @@ SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out)
   out.status = static_cast<fusion::TrackStatus>(sample.status);
   out.contributing_arrays = sample.contributing_arrays;
   out.last_update_s = ns_to_seconds(sample.last_update_ns);
+  out.track_class = static_cast<fusion::TrackClass>(sample.track_class);
+  out.class_confidence = sample.class_confidence;
   return SampleProblem::none;
 }
 
@@ -233,15 +271,24 @@ void to_idl(const fusion::ZoneEvent& event, dronetrack_Alert& sample) {
   sample.entered = event.entered;
   sample.time_ns = seconds_to_ns(event.time_s);
   put_vector3(event.position_m, sample.position_m);
+  sample.event = static_cast<std::uint8_t>(fusion::kind_of(event));
+  sample.track_class = static_cast<std::uint8_t>(event.track_class);
+  sample.previous_class = static_cast<std::uint8_t>(event.previous_class);
 }
 
 SampleProblem from_idl(const dronetrack_Alert& sample, fusion::ZoneEvent& out) {
   const std::string_view zone = bounded_view(sample.zone);
-  if (zone.empty()) return SampleProblem::empty_key;
+  if (sample.event > 2 || sample.track_class > 3 || sample.previous_class > 3)
+    return SampleProblem::bad_value;
+  const auto kind = static_cast<fusion::ZoneEventKind>(sample.event);
+  if (zone.empty() && kind != fusion::ZoneEventKind::class_changed) return SampleProblem::empty_key;
   if (!all_finite(sample.position_m)) return SampleProblem::non_finite;
   out.zone.assign(zone);
   out.track_id = sample.track_id;
   out.entered = sample.entered;
+  out.kind = kind;
+  out.track_class = static_cast<fusion::TrackClass>(sample.track_class);
+  out.previous_class = static_cast<fusion::TrackClass>(sample.previous_class);
   out.time_s = ns_to_seconds(sample.time_ns);
   out.position_m = vector3(sample.position_m);
   return SampleProblem::none;

@@ -29,6 +29,13 @@ struct ZoneEvent {
   TrackClass previous_class = TrackClass::unknown;  // class_changed only
 };
 
+// The event's kind with `entered` authoritative for zone events (producers that only set
+// `entered` stay correct).
+inline ZoneEventKind kind_of(const ZoneEvent& event) {
+  if (event.kind == ZoneEventKind::class_changed) return event.kind;
+  return event.entered ? ZoneEventKind::entered : ZoneEventKind::left;
+}
+
 // Which tracks may raise zone alerts (issue 14): only these classes, and only once confirmed
 // this long (a track's class settles in its first seconds).
 struct AlertPolicy {

@@ -38,6 +38,8 @@ json track_json(const fusion::TrackReport& track, const SiteLayout& layout) {
       {"acceleration_mps2", vec3(track.acceleration_mps2)},
       {"position_std_m", vec3(track.position_std_m())},
       {"status", fusion::to_string(track.status)},
+      {"class", fusion::to_string(track.track_class)},
+      {"class_confidence", track.class_confidence},
       {"covariance_xy_m2",
        json::array({json::array({c(0, 0), c(0, 1)}), json::array({c(1, 0), c(1, 1)})})},
       {"contributing_arrays", std::move(contributing)},
@@ -83,14 +85,18 @@ json status_json(const doa::NodeStatus& s) {
 }
 
 json alert_json(const fusion::ZoneEvent& e) {
-  return json{
+  json alert{
       {"t", e.time_s},
       {"zone", e.zone},
       {"track_id", e.track_id},
       {"entered", e.entered},
-      {"event", e.entered ? "entered" : "left"},
+      {"event", fusion::to_string(fusion::kind_of(e))},
+      {"class", fusion::to_string(e.track_class)},
       {"position_m", vec3(e.position_m)},
   };
+  if (e.kind == fusion::ZoneEventKind::class_changed)
+    alert["previous_class"] = fusion::to_string(e.previous_class);
+  return alert;
 }
 
 // nlohmann throws on invalid UTF-8 (an array id from a config file could carry some); replace

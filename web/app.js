@@ -18,6 +18,7 @@
     doas: new Map(),     // "array/source" -> DOA JSON
     nodes: [],
     alerts: [],
+    classFilter: 'all',  // which tracks the plan and the list show (drone / ground / ...)
     selected: null,      // track id
     bannerAlert: null,
     view: { cx: 0, cy: 0, scale: 2 },  // centre (m) and pixels per metre
@@ -225,7 +226,8 @@
                        points: points.map((p) => toScreen(p[1], p[2]).join(',')).join(' ') }, trails);
     }
     for (const t of state.tracks.values()) {
-      const tg = el('g', { class: `track ${t.status}` + (t.id === state.selected ? ' selected' : ''),
+      if (!shown(t)) continue;
+      const tg = el('g', { class: `track ${t.status} class-${t.class}` + (t.id === state.selected ? ' selected' : ''),
                            'data-track-id': t.id }, g);
       const [sx, sy] = toScreen(t.position_m[0], t.position_m[1]);
       const e = ellipsePath(t);
@@ -295,12 +297,15 @@
     set('climb', `${fmt(t.velocity_mps[2])} m/s`, t.velocity_mps[2]);
     set('uncertainty', `x ${fmt(sd[0])} m, y ${fmt(sd[1])} m, z ${fmt(sd[2])} m`, Math.max(...sd));
     set('status', t.status);
+    set('class', `${t.class} (${fmt(100 * t.class_confidence, 0)} %)`, t.class);
     set('arrays', t.contributing_arrays.length ? t.contributing_arrays.join(', ') : 'none', t.contributing_arrays.join(','));
   }
+  function shown(t) { return state.classFilter === 'all' || t.class === state.classFilter; }
+  $('class-filter').addEventListener('change', (e) => { state.classFilter = e.target.value; render(); });
   function renderTrackList() {
     const list = $('track-list');
     list.replaceChildren();
-    const tracks = [...state.tracks.values()].sort((a, b) => a.id - b.id);
+    const tracks = [...state.tracks.values()].filter(shown).sort((a, b) => a.id - b.id);
     if (tracks.length === 0) {
       const li = document.createElement('li');
       li.className = 'hint';
@@ -310,8 +315,10 @@
     for (const t of tracks) {
       const li = document.createElement('li');
       li.dataset.trackId = t.id;
-      li.className = t.status + (t.id === state.selected ? ' selected' : '');
-      li.innerHTML = `<span class="id">T${t.id}</span><span>${fmt(t.position_m[2], 0)} m</span>` +
+      li.className = t.status + ` class-${t.class}` + (t.id === state.selected ? ' selected' : '');
+      li.dataset.class = t.class;
+      li.innerHTML = `<span class="id">T${t.id}</span><span class="class">${t.class}</span>` +
+        `<span>${fmt(t.position_m[2], 0)} m</span>` +
         `<span>${fmt(t.speed_mps)} m/s</span><span>${fmt(t.heading_deg, 0)}°</span><span>${t.status}</span>`;
       li.addEventListener('click', () => select(t.id));
       list.appendChild(li);
@@ -366,7 +373,7 @@
       banner.dataset.zone = a.zone;
       banner.dataset.trackId = a.track_id;
       banner.dataset.event = a.event;
-      $('alert-text').textContent = `ALERT: track T${a.track_id} ${a.event} zone “${a.zone}” at ${fmt(a.t)} s ` +
+      $('alert-text').textContent = `ALERT: ${a.class || 'track'} T${a.track_id} ${a.event} zone “${a.zone}” at ${fmt(a.t)} s ` +
         `(x ${fmt(a.position_m[0])}, y ${fmt(a.position_m[1])}, alt ${fmt(a.position_m[2])} m)`;
     } else {
       banner.hidden = true;

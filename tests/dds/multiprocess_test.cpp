@@ -292,22 +292,30 @@ TEST(DdsMultiProcess, NodesFusionAndAlertAgreeWithReplayAndSurviveANodeKill) {
     EXPECT_LT(worst_m, phase.tolerance_m) << phase.name;
   }
 
-  // The zone entry reached the alert subscriber.
+  // The zone entry reached the alert subscriber, after the track's class changed to drone
+  // (issue 14: the subscriber sees the class change, and only drones alert).
   bool entered = false;
+  double became_drone_s = -1.0;
   std::ifstream alerts(dir / "alerts.jsonl");
   std::string line;
   while (std::getline(alerts, line)) {
     const auto json = nlohmann::json::parse(line);
+    if (json.at("event") == "class_changed" && json.at("class") == "drone" && became_drone_s < 0)
+      became_drone_s = json.at("t").get<double>();
     if (json.at("zone") == "inner-yard" && json.at("event") == "entered") {
       entered = true;
+      EXPECT_EQ(json.at("class"), "drone");
+      EXPECT_GE(became_drone_s, 0.0) << "entered before its class said drone";
       EXPECT_NEAR(json.at("t").get<double>(), 3.9, 0.6);
     }
   }
   EXPECT_TRUE(entered) << read_text(dir / "alerts.jsonl");
-  // ZONE TRACK_ID entered|left TIME_S X Y Z, one line per alert.
+  EXPECT_GE(became_drone_s, 0.0) << read_text(dir / "alerts.jsonl");
+  // ZONE TRACK_ID entered|left|class_changed TIME_S X Y Z CLASS, one line per alert.
   const std::string executed = read_text(dir / "exec.log");
   EXPECT_NE(executed.find("inner-yard "), std::string::npos) << executed;
   EXPECT_NE(executed.find(" entered "), std::string::npos) << executed;
+  EXPECT_NE(executed.find(" class_changed "), std::string::npos) << executed;
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 
