@@ -42,6 +42,8 @@ AcousticFeatureExtractor::AcousticFeatureExtractor(const ArrayGeometry& geometry
   for (std::size_t m = 0; m < geometry.mic_count(); ++m)
     mic_offsets_site_m_.push_back(geometry.mic_site_m(m) - centre);
   source_power_.resize(static_cast<std::size_t>(kMaxSources * bin_count_));
+  mic_power_.resize(static_cast<std::size_t>(bin_count_));
+  sorted_power_.reserve(static_cast<std::size_t>(bin_count_));
   frame_autocorrelation_.resize(static_cast<std::size_t>(detector_.lag_count()));
   for (History& history : histories_) {
     history.mean_autocorrelation.assign(static_cast<std::size_t>(detector_.lag_count()), 0.0);
@@ -76,6 +78,7 @@ void AcousticFeatureExtractor::assign_bins(const MultichannelFft& fft, int sourc
         bin[m] = fft.spectrum(m)[k];
         energy += std::norm(bin[m]);
       }
+      mic_power_[static_cast<std::size_t>(k - first_bin_)] = energy / mic_count_;
       int owner = -1;
       double owner_power = 0.0;
       double best_coherence = settings_.min_bin_coherence;
@@ -95,6 +98,23 @@ void AcousticFeatureExtractor::assign_bins(const MultichannelFft& fft, int sourc
       if (owner >= 0)
         source_power_[static_cast<std::size_t>(owner * bin_count_ + k - first_bin_)] = owner_power;
     }
+  }
+  // A bin another source (or nobody) owns is this source's background: the frame's typical
+  // bin power, or the bin's own if lower. Not zero: a sparse source's lines need a floor to
+  // stand on; not the bin's own power: a broadband source would then see the other source's
+  // lines as its own comb.
+  sorted_power_.assign(mic_power_.begin(), mic_power_.end());
+  const auto middle = sorted_power_.begin() + static_cast<std::ptrdiff_t>(sorted_power_.size() / 2);
+  std::nth_element(sorted_power_.begin(), middle, sorted_power_.end());
+  const double typical = *middle;
+  for (int s = 0; s < sources; ++s) {
+    double owned = 0.0;
+    for (int i = 0; i < bin_count_; ++i) {
+      double& power = source_power_[static_cast<std::size_t>(s * bin_count_ + i)];
+      owned += power;
+      if (power == 0.0) power = std::min(mic_power_[static_cast<std::size_t>(i)], typical);
+    }
+    owned_power_[static_cast<std::size_t>(s)] = owned;
   }
 }
 
@@ -127,8 +147,7 @@ void AcousticFeatureExtractor::analyse(const MultichannelFft& fft,
     }
     const std::span<const double> power(source_power_.data() + s * bin_count_,
                                         static_cast<std::size_t>(bin_count_));
-    double band_power = 0.0;
-    for (double p : power) band_power += p;
+    const double band_power = owned_power_[static_cast<std::size_t>(s)];
     detector_.autocorrelate(power, frame_autocorrelation_);
     const double weight = history.started ? comb_weight_ : 1.0;
     for (std::size_t l = 0; l < frame_autocorrelation_.size(); ++l)

@@ -78,6 +78,9 @@ class AcousticFeatureExtractor {
   static constexpr int kMaxMics = 8;
   std::array<std::array<double, kMaxMics>, kMaxSources> delays_s_{};  // per source, per mic
   std::vector<double> source_power_;  // kMaxSources x bin_count_
+  std::vector<double> mic_power_;     // per bin: mean power over the mics
+  std::vector<double> sorted_power_;  // for the median
+  std::array<double, kMaxSources> owned_power_{};  // per source: its own bins' power
   std::vector<double> frame_autocorrelation_;
   std::array<History, kMaxSlots> histories_;
   AcousticFeatures none_;

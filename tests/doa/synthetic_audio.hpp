@@ -30,6 +30,21 @@ class BandNoise {
         spectrum_[k] = {normal(random), normal(random)};
     }
   }
+  // A rotor-like comb instead: lines at multiples of fundamental_hz within [low_hz, high_hz]
+  // (each on the nearest bin of the whole signal), random phases, -3 dB per octave.
+  static BandNoise comb(int length, double sample_rate_hz, double fundamental_hz, double low_hz,
+                        double high_hz, unsigned seed) {
+    BandNoise source(length, sample_rate_hz, 1.0, 0.0, seed);  // empty band: no noise bins
+    std::mt19937 random(seed);
+    std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
+    for (int h = 1; h * fundamental_hz <= high_hz; ++h) {
+      if (h * fundamental_hz < low_hz) continue;
+      const auto k = static_cast<std::size_t>(std::lround(h * fundamental_hz * length / sample_rate_hz));
+      if (k < source.spectrum_.size())
+        source.spectrum_[k] = std::polar(std::pow(static_cast<double>(h), -0.5), phase(random));
+    }
+    return source;
+  }
   // The source delayed by `delay_s` (circularly), scaled to RMS `rms`.
   std::vector<double> delayed(double delay_s, double rms) const {
     std::vector<std::complex<double>> shifted(spectrum_.size());

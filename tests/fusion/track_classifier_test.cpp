@@ -1,0 +1,154 @@
+// TrackClassifier on synthetic tracks with known kinematics and acoustic features (issue 14):
+// a generator is ground though loud and static, a hovering drone at 30 m is a drone, a light
+// aircraft at 300 m and 50 m/s is an aircraft though its propeller is a comb, a car is ground, a
+// bird (no comb) stays unknown, and a drone keeps its class through a few masked seconds.
+#include "fusion/track_classifier.hpp"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+
+namespace dronetrack::fusion {
+namespace {
+
+doa::AcousticFeatures comb_at(double fundamental_hz, double persistence = 0.9) {
+  doa::AcousticFeatures features;
+  features.valid = true;
+  features.fundamental_hz = fundamental_hz;
+  features.comb_strength = 0.6;
+  features.harmonic_count = 12;
+  features.broadband_share = 0.3;
+  features.comb_persistence = persistence;
+  features.history_s = 3.0;
+  return features;
+}
+
+doa::AcousticFeatures broadband() {
+  doa::AcousticFeatures features;
+  features.valid = true;
+  features.comb_persistence = 0.05;
+  features.history_s = 3.0;
+  return features;
+}
+
+struct Sample {
+  Eigen::Vector3d position_m;
+  Eigen::Vector3d velocity_mps;
+  doa::AcousticFeatures features;
+};
+using Scenario = std::function<Sample(double t)>;
+
+// Drives the classifier as the engine does: 40 DOAs per second (two arrays at 20 Hz), the
+// kinematics every 0.05 s. Returns the class at each second and when it first became `wanted`.
+struct ClassRun {
+  std::vector<TrackClass> per_second;
+  double first_s = -1.0;  // first time in class `wanted`
+  double share = 0.0;     // share of the time after first_s in `wanted`
+};
+ClassRun run(const Scenario& scenario, double duration_s, TrackClass wanted,
+        double altitude_std_m = 0.5) {
+  const TrackClassifier classifier(ClassifierSettings{}, 0.0);
+  TrackEvidence evidence;
+  ClassRun result;
+  int after = 0;
+  int in_class = 0;
+  for (int step = 0; step * 0.05 <= duration_s; ++step) {
+    const double t = step * 0.05;
+    const Sample sample = scenario(t);
+    classifier.add_acoustic(evidence, sample.features, t);
+    classifier.add_acoustic(evidence, sample.features, t);
+    classifier.add_kinematics(evidence, sample.position_m, sample.velocity_mps, altitude_std_m, t);
+    classifier.classify(evidence);
+    if (evidence.track_class == wanted && result.first_s < 0.0) result.first_s = t;
+    if (result.first_s >= 0.0) {
+      ++after;
+      if (evidence.track_class == wanted) ++in_class;
+    }
+    if (step % 20 == 0) result.per_second.push_back(evidence.track_class);
+  }
+  result.share = after > 0 ? static_cast<double>(in_class) / after : 0.0;
+  return result;
+}
+
+TEST(TrackClassifier, HoveringDroneAt30mIsADroneFromItsCombAndStaysOne) {
+  const ClassRun run_result = run(
+      [](double) { return Sample{{40, 10, 30}, {0.1, 0, 0}, comb_at(165.0)}; }, 120.0,
+      TrackClass::drone);
+  EXPECT_GE(run_result.first_s, 0.0);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);  // static for two minutes at 30 m: still a drone
+}
+
+TEST(TrackClassifier, LoudStaticGeneratorIsGround) {
+  // Mains-locked comb at 50 Hz (out of the rotor range) at 0.8 m above the ground.
+  const ClassRun run_result = run(
+      [](double) { return Sample{{-30, 60, 0.8}, {0, 0, 0}, comb_at(50.0, 1.0)}; }, 20.0,
+      TrackClass::ground);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);
+}
+
+TEST(TrackClassifier, StaticSourceAt6mWithoutACombBecomesGroundOnceItHasStoodStillLong) {
+  // Too high for "at ground level" (altitude std 0.5 m), silent of any comb: unknown until it has
+  // stood still for static_long_s, then a ground source (a pump on a roof, a fan).
+  const ClassRun run_result =
+      run([](double) { return Sample{{0, 80, 6.0}, {0, 0, 0}, broadband()}; }, 60.0,
+          TrackClass::ground);
+  EXPECT_GE(run_result.first_s, ClassifierSettings{}.static_long_s);
+  EXPECT_LE(run_result.first_s, ClassifierSettings{}.static_long_s + 3.0);
+  EXPECT_EQ(run_result.per_second[5], TrackClass::unknown);
+}
+
+TEST(TrackClassifier, LightAircraftIsAnAircraftThoughItsPropellerIsAComb) {
+  const ClassRun run_result =
+      run([](double t) { return Sample{{-400 + 50 * t, 0, 300}, {50, 0, 0}, comb_at(85.0)}; },
+          16.0, TrackClass::aircraft, 20.0);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);
+}
+
+TEST(TrackClassifier, PassingCarIsGround) {
+  const ClassRun run_result =
+      run([](double t) { return Sample{{-100 + 15 * t, -40, 0.7}, {15, 0, 0}, broadband()}; },
+          12.0, TrackClass::ground);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);
+}
+
+TEST(TrackClassifier, BirdWithoutACombStaysUnknown) {
+  const ClassRun run_result =
+      run([](double t) { return Sample{{10 * t, 20, 25}, {10, 0, 0}, broadband()}; }, 20.0,
+          TrackClass::drone);
+  EXPECT_LT(run_result.first_s, 0.0);  // never a drone
+  EXPECT_EQ(run_result.per_second.back(), TrackClass::unknown);
+}
+
+TEST(TrackClassifier, DroneKeepsItsClassThroughThreeMaskedSeconds) {
+  // From 10 s to 13 s a louder source masks the comb (its DOAs carry no comb).
+  const ClassRun run_result = run(
+      [](double t) {
+        const bool masked = t >= 10.0 && t < 13.0;
+        return Sample{{5 * t, 0, 40}, {5, 0, 0}, masked ? broadband() : comb_at(170.0)};
+      },
+      20.0, TrackClass::drone);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);
+}
+
+TEST(TrackClassifier, LowFlyingDroneKeepsItsClassNearTheGround) {
+  const ClassRun run_result = run(
+      [](double t) { return Sample{{3 * t, 0, 2.0}, {3, 0, 0}, comb_at(190.0)}; }, 10.0,
+      TrackClass::drone);
+  EXPECT_LE(run_result.first_s, 1.0);
+  EXPECT_EQ(run_result.share, 1.0);
+}
+
+TEST(TrackClassifier, NamesRoundTrip) {
+  for (TrackClass c :
+       {TrackClass::unknown, TrackClass::drone, TrackClass::ground, TrackClass::aircraft})
+    EXPECT_EQ(track_class_from_string(to_string(c)), c);
+  EXPECT_FALSE(track_class_from_string("bird"));
+}
+
+}  // namespace
+}  // namespace dronetrack::fusion
