@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "doa/gcc_phat.hpp"
+#include "doa/acoustic_features.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/source_bin_mask.hpp"
 #include "doa/spectral_frame.hpp"
@@ -94,9 +95,11 @@ void BM_FftCrossSpectrumKernel(benchmark::State& state) {
 BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 
 // Arg 0: default DoaParams; 1: max_sources 1 (no SRP-PHAT); 2: also per_frame TDOAs; 3: default
-// DoaParams on the scene without the ground reflection (nothing for the echo removal to do).
+// DoaParams on the scene without the ground reflection (nothing for the echo removal to do);
+// 4: default DoaParams without the acoustic features (their cost is /0 minus /4).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
+  if (state.range(0) == 4) params.acoustic.enabled = false;
   if (state.range(0) == 1 || state.range(0) == 2) params.max_sources = 1;
   if (state.range(0) == 2) params.tdoa_tracker = TdoaTracker::per_frame;
   NodePipeline pipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
@@ -131,7 +134,13 @@ void BM_NodePipeline(benchmark::State& state) {
   state.counters["doas_per_frame"] =
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
 }
-BENCHMARK(BM_NodePipeline)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NodePipeline)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
+    ->Arg(3)
+    ->Arg(4)
+    ->Unit(benchmark::kMicrosecond);
 
 // Per-stage costs on one frame of the same scene (for profiling the pipeline; not in the ratio):
 // Arg 0: GccPhat::whiten; 1: correlate() with peak refinement; 2: correlate(false), the lag
@@ -188,6 +197,32 @@ void BM_PipelineStage(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_PipelineStage)->DenseRange(0, 4)->Unit(benchmark::kMicrosecond);
+
+// The acoustic features of one source on one frame of the same scene (what the pipeline pays
+// every analysis_every_frames frames): bins steered and assigned, comb detector, history.
+void BM_AcousticFeatures(benchmark::State& state) {
+  const DoaParams params;
+  const ArrayGeometry geometry = testing::tetrahedron(30.0);
+  const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
+  MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
+  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
+  const testing::Recording& audio = scene();
+  for (int c = 0; c < 4; ++c)
+    for (int n = 0; n < frame_length; ++n)
+      channels[static_cast<std::size_t>(c * frame_length + n)] =
+          audio.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
+  fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+  AcousticFeatureExtractor extractor(geometry, fft.fft_size(), kRate, 343.0, params.hop_s,
+                                     params.acoustic);
+  const std::array<Eigen::Vector3d, 1> directions{direction_from_azel_deg(40.0, 25.0)};
+  const std::array<int, 1> slots{0};
+  const std::array<std::uint32_t, 1> generations{1};
+  for (auto _ : state) {
+    extractor.analyse(fft, directions, slots, generations);
+    benchmark::DoNotOptimize(extractor.features(0));
+  }
+}
+BENCHMARK(BM_AcousticFeatures)->Unit(benchmark::kMicrosecond);
 
 // The framer alone: one hop of interleaved audio in (deinterleaving, level, clipping and
 // NaN checks), frames out to a callback that does nothing.
@@ -256,6 +291,12 @@ int main(int argc, char** argv) {
       std::printf(
           "  pipeline / kernel:           %8.2f   (the same source, no ground reflection)\n",
           no_ground->second / kernel->second);
+    const auto no_features = reporter.seconds.find("BM_NodePipeline/4");
+    if (no_features != reporter.seconds.end())
+      std::printf(
+          "  pipeline / kernel:           %8.2f   (without the acoustic features: they add "
+          "%.1f us/frame)\n",
+          no_features->second / kernel->second, (pipeline->second - no_features->second) * 1e6);
   }
   return 0;
 }

@@ -61,43 +61,55 @@ const AcousticFeatures& AcousticFeatureExtractor::features(int slot) const {
 // from the centroid) d_m.u / c early, so its phasor there is S e^{+j w d_m.u / c}.
 void AcousticFeatureExtractor::assign_bins(const MultichannelFft& fft, int sources) {
   std::fill(source_power_.begin(), source_power_.end(), 0.0);
-  std::array<std::array<std::complex<double>, kMaxMics>, kMaxSources> rotation{};
-  std::array<std::array<std::complex<double>, kMaxMics>, kMaxSources> step{};
+  // Per source and mic the steering phasor e^{+j w t_m} (rotation) advanced bin by bin (step),
+  // in plain doubles: std::complex's multiply checks for NaN/Inf on every product.
+  std::array<std::array<double, kMaxMics>, kMaxSources> rotation_re{};
+  std::array<std::array<double, kMaxMics>, kMaxSources> rotation_im{};
+  std::array<std::array<double, kMaxMics>, kMaxSources> step_re{};
+  std::array<std::array<double, kMaxMics>, kMaxSources> step_im{};
   for (int s = 0; s < sources; ++s)
-    for (int m = 0; m < mic_count_; ++m)
-      step[s][m] = std::polar(1.0, bin_omega_ * delays_s_[s][m]);
-  std::array<std::complex<double>, kMaxMics> bin{};
-  {
-    const BandRun& run = band_;
-    for (int s = 0; s < sources; ++s)
-      for (int m = 0; m < mic_count_; ++m)
-        rotation[s][m] = std::polar(1.0, bin_omega_ * run.first_bin * delays_s_[s][m]);
-    for (int k = run.first_bin; k <= run.last_bin; ++k) {
-      double energy = 0.0;
-      for (int m = 0; m < mic_count_; ++m) {
-        bin[m] = fft.spectrum(m)[k];
-        energy += std::norm(bin[m]);
-      }
-      mic_power_[static_cast<std::size_t>(k - first_bin_)] = energy / mic_count_;
-      int owner = -1;
-      double owner_power = 0.0;
-      double best_coherence = settings_.min_bin_coherence;
-      for (int s = 0; s < sources; ++s) {
-        std::complex<double> sum = 0.0;
-        for (int m = 0; m < mic_count_; ++m) {
-          sum += bin[m] * rotation[s][m];
-          rotation[s][m] *= step[s][m];
-        }
-        const double coherent = std::norm(sum);
-        if (energy > 0.0 && coherent >= best_coherence * mic_count_ * energy) {
-          best_coherence = coherent / (mic_count_ * energy);
-          owner = s;
-          owner_power = coherent / mic_count_;
-        }
-      }
-      if (owner >= 0)
-        source_power_[static_cast<std::size_t>(owner * bin_count_ + k - first_bin_)] = owner_power;
+    for (int m = 0; m < mic_count_; ++m) {
+      const double step_phase = bin_omega_ * delays_s_[s][m];
+      step_re[s][m] = std::cos(step_phase);
+      step_im[s][m] = std::sin(step_phase);
+      const double first_phase = step_phase * band_.first_bin;
+      rotation_re[s][m] = std::cos(first_phase);
+      rotation_im[s][m] = std::sin(first_phase);
     }
+  std::array<double, kMaxMics> bin_re{};
+  std::array<double, kMaxMics> bin_im{};
+  for (int k = band_.first_bin; k <= band_.last_bin; ++k) {
+    double energy = 0.0;
+    for (int m = 0; m < mic_count_; ++m) {
+      const std::complex<double> x = fft.spectrum(m)[k];
+      bin_re[m] = x.real();
+      bin_im[m] = x.imag();
+      energy += bin_re[m] * bin_re[m] + bin_im[m] * bin_im[m];
+    }
+    mic_power_[static_cast<std::size_t>(k - first_bin_)] = energy / mic_count_;
+    int owner = -1;
+    double owner_power = 0.0;
+    double best_coherence = settings_.min_bin_coherence;
+    for (int s = 0; s < sources; ++s) {
+      double sum_re = 0.0;
+      double sum_im = 0.0;
+      for (int m = 0; m < mic_count_; ++m) {
+        const double r_re = rotation_re[s][m];
+        const double r_im = rotation_im[s][m];
+        sum_re += bin_re[m] * r_re - bin_im[m] * r_im;
+        sum_im += bin_re[m] * r_im + bin_im[m] * r_re;
+        rotation_re[s][m] = r_re * step_re[s][m] - r_im * step_im[s][m];
+        rotation_im[s][m] = r_re * step_im[s][m] + r_im * step_re[s][m];
+      }
+      const double coherent = sum_re * sum_re + sum_im * sum_im;
+      if (energy > 0.0 && coherent >= best_coherence * mic_count_ * energy) {
+        best_coherence = coherent / (mic_count_ * energy);
+        owner = s;
+        owner_power = coherent / mic_count_;
+      }
+    }
+    if (owner >= 0)
+      source_power_[static_cast<std::size_t>(owner * bin_count_ + k - first_bin_)] = owner_power;
   }
   // A bin another source (or nobody) owns is this source's background: the frame's typical
   // bin power, or the bin's own if lower. Not zero: a sparse source's lines need a floor to

@@ -20,7 +20,9 @@ struct AcousticSettings {
   // Where the comb is looked for (clamped to the spectrum). From 800 Hz: in the seed's 1.5-3.5 kHz
   // a real quadcopter's four rotors' combs smear (tests/doa/harmonic_comb_test.cpp).
   FrequencyBand band_hz{800.0, 3500.0};
-  int analysis_every_frames = 4;  // 0.2 s at the default hop: features move over seconds
+  // 0.3 s at the default hop: the features move over seconds, and one analysis of one source
+  // costs ~18 us (doa_bench BM_AcousticFeatures), a quarter of the FFT kernel of a frame.
+  int analysis_every_frames = 6;
   double comb_memory_s = 1.0;     // time constant of the mean comb autocorrelation
   double history_s = 3.0;         // span of the over-the-last-seconds features
   // A bin is a source's when steering to it makes the mics' phasors this coherent (|sum|^2 over

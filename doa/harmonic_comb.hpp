@@ -76,7 +76,7 @@ class HarmonicCombDetector {
   std::vector<double> log_power_;
   std::vector<double> prefix_;  // prefix sums of log power over valid bins (envelope)
   std::vector<int> prefix_count_;
-  std::vector<double> salience_;
+  std::vector<float> salience_;  // float: four lanes per SIMD register in the autocorrelation
   std::vector<double> autocorrelation_;  // analyse()'s
 };
 
