@@ -108,6 +108,7 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
         reader.number("drone_min_comb_persistence", c.drone_min_comb_persistence, 0.0, 1.0);
     c.acoustic_memory_s = reader.number("acoustic_memory_s", c.acoustic_memory_s, 0.1, 600.0);
     c.min_acoustic_votes = reader.number("min_acoustic_votes", c.min_acoustic_votes, 0.0, 1000.0);
+    c.undecided_s = reader.number("undecided_s", c.undecided_s, 0.0, 600.0);
     c.drone_enter_share = reader.number("drone_enter_share", c.drone_enter_share, 0.0, 1.0);
     c.drone_leave_share = reader.number("drone_leave_share", c.drone_leave_share, 0.0, 1.0);
     if (c.drone_leave_share > c.drone_enter_share)
@@ -123,6 +124,7 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
     c.static_long_s = reader.number("static_long_s", c.static_long_s, 0.0, 86400.0);
     c.static_ground_max_altitude_m = reader.number(
         "static_ground_max_altitude_m", c.static_ground_max_altitude_m, 0.0, 1000.0);
+    c.ground_static_s = reader.number("ground_static_s", c.ground_static_s, 0.0, 86400.0);
     c.aircraft_min_altitude_m =
         reader.number("aircraft_min_altitude_m", c.aircraft_min_altitude_m, 1.0, 1e5);
     c.aircraft_min_speed_mps =

@@ -155,13 +155,30 @@ HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation)
     if (at(lag) > at(best_lag)) best_lag = lag;
   const double best = at(best_lag);
   if (!(best > 0.0)) return comb;
-  // The comb's own spacing, not a multiple of it: the smallest local maximum near the best.
+  // The comb's own spacing, not a multiple of it. A comb at spacing L correlates at 2L and 3L
+  // too, and when L is not a whole number of bins the integer lag nearest 2L can even beat it;
+  // but at L/2 and L/3 a comb anti-correlates (its lines fall on its gaps). So from the best lag
+  // go down to best/2 or best/3 while the autocorrelation there holds at least half of it.
+  const auto local_max_near = [&](double centre) {
+    const int middle = static_cast<int>(std::lround(centre));
+    int found = -1;
+    for (int candidate = std::max(min_lag, middle - 1);
+         candidate <= std::min(max_lag, middle + 1); ++candidate)
+      if (found < 0 || at(candidate) > at(found)) found = candidate;
+    return found;
+  };
   int lag = best_lag;
-  for (int candidate = min_lag; candidate < best_lag; ++candidate) {
-    const double value = at(candidate);
-    if (value >= 0.85 * best && value >= at(candidate - 1) && value >= at(candidate + 1)) {
-      lag = candidate;
-      break;
+  for (bool moved = true; moved;) {
+    moved = false;
+    for (const int divisor : {2, 3}) {
+      const double centre = static_cast<double>(lag) / divisor;
+      if (centre < min_lag - 0.5) continue;
+      const int candidate = local_max_near(centre);
+      if (candidate >= min_lag && candidate < lag && at(candidate) >= 0.5 * at(lag)) {
+        lag = candidate;
+        moved = true;
+        break;
+      }
     }
   }
   comb.strength = std::clamp(at(lag), 0.0, 1.0);

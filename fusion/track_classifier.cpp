@@ -66,6 +66,7 @@ void TrackClassifier::add_kinematics(TrackEvidence& evidence, const Eigen::Vecto
     evidence.speed_mps = speed_mps;
     evidence.altitude_std_m = altitude_std_m;
     evidence.kinematic_time_s = time_s;
+    evidence.first_time_s = time_s;
     evidence.kinematics_started = true;
     return;
   }
@@ -92,6 +93,13 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
   const bool sounds_like_drone =
       heard_enough && share >= (was_drone ? s.drone_leave_share : s.drone_enter_share);
   if (!evidence.kinematics_started) return;
+  // A new track without enough votes yet waits (unknown) rather than flip from ground to drone
+  // as its first DOAs arrive; without acoustic features at all it is decided on kinematics.
+  if (!heard_enough && evidence.kinematic_time_s - evidence.first_time_s < s.undecided_s) {
+    evidence.track_class = TrackClass::unknown;
+    evidence.confidence = 0.0;
+    return;
+  }
   const double altitude_margin = evidence.altitude_m / s.aircraft_min_altitude_m;
   const double speed_margin = evidence.speed_mps / s.aircraft_min_speed_mps;
   const bool altitude_known = evidence.altitude_std_m <= 0.25 * std::max(evidence.altitude_m, 1.0);
@@ -106,9 +114,19 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
                    evidence.altitude_std_m <= s.ground_max_altitude_std_m;
   const bool parked = evidence.static_s >= s.static_long_s &&
                       evidence.altitude_m <= s.static_ground_max_altitude_m;
-  if ((low || parked) && !sounds_like_drone) {
+  // At ground level a rotor-like comb is not enough: a generator's or an engine's harmonics can
+  // sit in the rotor range. Low and still, it waits (unknown) and is ground once it has stood
+  // still ground_static_s (a drone standing on the ground is no threat); low and moving with a
+  // rotor's comb, it is a drone flying low.
+  const bool still = evidence.speed_mps <= s.static_max_speed_mps;
+  if (((low || parked) && !sounds_like_drone) || (low && evidence.static_s >= s.ground_static_s)) {
     evidence.track_class = TrackClass::ground;
     evidence.confidence = heard_enough ? std::clamp(1.0 - share, 0.5, 1.0) : 0.5;
+    return;
+  }
+  if (low && still) {
+    evidence.track_class = TrackClass::unknown;
+    evidence.confidence = 0.5;
     return;
   }
   if (sounds_like_drone) {

@@ -26,6 +26,7 @@ struct ClassifierSettings {
   double drone_min_comb_persistence = 0.3;
   double acoustic_memory_s = 4.0;  // the DOAs' votes fade with this time constant
   double min_acoustic_votes = 4.0;  // effective DOAs in memory before the acoustics decide
+  double undecided_s = 2.0;         // a track with fewer votes stays unknown this long
   double drone_enter_share = 0.5;   // share of drone votes to become a drone
   double drone_leave_share = 0.2;   // and to stop being one (hysteresis)
   double kinematic_memory_s = 2.0;  // smoothing of altitude and speed
@@ -36,6 +37,8 @@ struct ClassifierSettings {
   double static_max_speed_mps = 1.0;
   double static_long_s = 30.0;
   double static_ground_max_altitude_m = 8.0;
+  // A track this low that has stood still this long is ground whatever it sounds like.
+  double ground_static_s = 5.0;
   // Aircraft: higher or faster than a small drone flies (120 m is the usual drone ceiling).
   double aircraft_min_altitude_m = 150.0;
   double aircraft_min_speed_mps = 35.0;
@@ -52,6 +55,7 @@ struct TrackEvidence {
   double max_speed_mps = 0.0;
   double static_s = 0.0;  // how long it has stood still
   double kinematic_time_s = -1e300;
+  double first_time_s = 0.0;  // of its first kinematics
   bool kinematics_started = false;
   TrackClass track_class = TrackClass::unknown;
   double confidence = 0.0;

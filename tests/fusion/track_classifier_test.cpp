@@ -88,6 +88,19 @@ TEST(TrackClassifier, LoudStaticGeneratorIsGround) {
   EXPECT_EQ(run_result.share, 1.0);
 }
 
+TEST(TrackClassifier, GeneratorWhoseCombIsInTheRotorRangeIsStillGround) {
+  // Harmonics every 100 Hz (a two-pole generator's mechanical comb) at 0.8 m: it sounds like a
+  // rotor, but a still source at ground level is never a drone, and ground once it has stood
+  // still ground_static_s.
+  const Scenario generator = [](double) {
+    return Sample{{-60, -140, 0.8}, {0, 0, 0}, comb_at(100.0, 1.0)};
+  };
+  const ClassRun as_ground = run(generator, 30.0, TrackClass::ground);
+  EXPECT_LE(as_ground.first_s, ClassifierSettings{}.ground_static_s + 2.0);
+  EXPECT_EQ(as_ground.share, 1.0);
+  EXPECT_LT(run(generator, 30.0, TrackClass::drone).first_s, 0.0);
+}
+
 TEST(TrackClassifier, StaticSourceAt6mWithoutACombBecomesGroundOnceItHasStoodStillLong) {
   // Too high for "at ground level" (altitude std 0.5 m), silent of any comb: unknown until it has
   // stood still for static_long_s, then a ground source (a pump on a roof, a fan).
