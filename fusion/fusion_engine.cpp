@@ -47,6 +47,10 @@ constexpr double kUnitTolerance = 1e-3;
 constexpr double kNeverS = -std::numeric_limits<double>::infinity();
 // A DOA heard by a track within this long counts in contributing_arrays.
 constexpr double kContributionMemoryS = 1.0;
+// A DOA no track took seeds a new one only once the DOAs of the next frames are in (a hop is
+// 0.05 s): every array that heard that moment can then vote between the pairings.
+constexpr double kInitiationDelayS = 0.06;
+constexpr std::size_t kMaxPendingSeeds = 256;
 
 void check(bool ok, const char* parameter, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("fusion.") + parameter + ": " + what);
@@ -64,13 +68,21 @@ struct RecentDoa {
 
 class RecentRing {
  public:
-  void push(const RecentDoa& doa) {
+  // Returns the entry's sequence number (find() takes it back while the entry is kept).
+  std::uint64_t push(const RecentDoa& doa) {
     items_[(start_ + size_) % kRecentPerArray] = doa;
     if (size_ < kRecentPerArray) {
       ++size_;
     } else {
       start_ = (start_ + 1) % kRecentPerArray;
+      ++first_sequence_;
     }
+    return first_sequence_ + size_ - 1;
+  }
+  // The index of the entry pushed as `sequence`, if it is still kept.
+  std::optional<std::size_t> find(std::uint64_t sequence) const {
+    if (sequence < first_sequence_ || sequence >= first_sequence_ + size_) return std::nullopt;
+    return static_cast<std::size_t>(sequence - first_sequence_);
   }
   // Drops entries older than `oldest_s`; returns how many left never associated nor used.
   int expire(double oldest_s) {
@@ -79,6 +91,7 @@ class RecentRing {
       if (!items_[start_].associated && !items_[start_].used) ++unclaimed;
       start_ = (start_ + 1) % kRecentPerArray;
       --size_;
+      ++first_sequence_;
     }
     return unclaimed;
   }
@@ -90,6 +103,14 @@ class RecentRing {
   std::array<RecentDoa, kRecentPerArray> items_{};
   std::size_t start_ = 0;
   std::size_t size_ = 0;
+  std::uint64_t first_sequence_ = 0;  // sequence number of the entry at start_
+};
+
+// An unclaimed DOA waiting to seed a track until the other arrays' DOAs of its moment are in.
+struct PendingSeed {
+  int array = 0;
+  std::uint64_t sequence = 0;
+  double time_s = 0.0;
 };
 
 struct Track {
@@ -142,6 +163,10 @@ struct FusionEngine::Impl {
   void feed_until(double cutoff_s);
   void process_frame(std::size_t begin, std::size_t end);
   bool try_initiate(int array, std::size_t recent_index, double time_s);
+  // Seeds older than fed_time_s - kInitiationDelayS: every array's DOAs of their moment are in
+  // the rings, so the pairing can prefer the point more arrays agree with.
+  void initiate_pending();
+  std::vector<PendingSeed> pending_seeds;
   // A ground-reflection image: more than 3 sigma under the ground.
   bool below_ground(const Triangulation& fix) const {
     const double z_std = std::sqrt(std::max(fix.covariance_m2(2, 2), 0.0));
@@ -151,6 +176,7 @@ struct FusionEngine::Impl {
   // Ghost test (issue 14): from every array that supports it, the track lies along the ray of
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
+  int recent_arrays(const Track& track) const;  // arrays that updated it within the last second
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;
     if (status == FilterStatus::failed) ++counters.filter_failures;
@@ -242,6 +268,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
   s.recent.resize(s.arrays.size());
   s.queue.reserve(1024);
+  s.pending_seeds.reserve(kMaxPendingSeeds);
   s.tracks.reserve(static_cast<std::size_t>(params.max_tracks));
 }
 
@@ -418,9 +445,26 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     entry.azel = azel_of(m.direction);
     entry.noise = noise_of(m);
     entry.associated = doa_taken[j] != 0;
-    ring.push(entry);
-    if (!entry.associated) try_initiate(array, ring.size() - 1, time_s);
+    const std::uint64_t sequence = ring.push(entry);
+    if (!entry.associated && pending_seeds.size() < kMaxPendingSeeds)
+      pending_seeds.push_back({array, sequence, time_s});
   }
+  initiate_pending();
+}
+
+void FusionEngine::Impl::initiate_pending() {
+  std::size_t kept = 0;
+  for (const PendingSeed& seed : pending_seeds) {
+    if (seed.time_s > fed_time_s - kInitiationDelayS) {
+      pending_seeds[kept++] = seed;
+      continue;
+    }
+    const auto index = recent[seed.array].find(seed.sequence);
+    if (!index) continue;
+    const RecentDoa& doa = recent[seed.array][*index];
+    if (!doa.associated && !doa.used) try_initiate(seed.array, *index, seed.time_s);
+  }
+  pending_seeds.resize(kept);
 }
 
 bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, double time_s) {
@@ -445,11 +489,29 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     return time_s - (point - models[array].centre_m).norm() / models[array].speed_of_sound_mps;
   };
 
+  // How many arrays other than the pair have an unclaimed recent DOA within the gate of `point`.
+  const auto agreeing_arrays = [&](const Eigen::Vector3d& point, int first, int second) {
+    int count = 0;
+    for (int other = 0; other < array_count; ++other) {
+      if (other == first || other == second) continue;
+      RecentRing& ring = recent[other];
+      for (std::size_t i = 0; i < ring.size(); ++i) {
+        if (ring[i].used || ring[i].associated) continue;
+        if (std::abs(time_s - ring[i].time_s) > params.init_pair_window_s) continue;
+        if (chi2_against(ring[i], other, point, emission_of(point)) <= gate_chi2) {
+          ++count;
+          break;
+        }
+      }
+    }
+    return count;
+  };
   struct Candidate {
     Triangulation fix;
     int partner_array = -1;
     std::size_t partner_index = 0;
     double score = std::numeric_limits<double>::infinity();
+    int agreeing = -1;
   };
   Candidate best;
   for (int other = 0; other < array_count; ++other) {
@@ -475,7 +537,11 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
           chi2_against(seed, array, p, reference) + chi2_against(partner, other, p, reference);
       // Two rays, three unknowns: one degree of freedom left to test consistency.
       if (chi2 > chi_square_quantile(params.gate_probability, 1)) continue;
-      if (chi2 < best.score) best = {*fix, other, i, chi2};
+      // Where two drones' rays cross, the crossing fits its two rays as well as either drone
+      // fits its own: prefer the point more of the other arrays agree with (issue 14's ghosts).
+      const int agreeing = agreeing_arrays(p, array, other);
+      if (agreeing > best.agreeing || (agreeing == best.agreeing && chi2 < best.score))
+        best = {*fix, other, i, chi2, agreeing};
     }
   }
   if (best.partner_array < 0) return false;
@@ -584,9 +650,17 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   return true;
 }
 
+int FusionEngine::Impl::recent_arrays(const Track& track) const {
+  int count = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    if (track.last_update_s - track.heard_by_array_s[a] <= kContributionMemoryS) ++count;
+  return count;
+}
+
 bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
   const Eigen::Vector3d position = position_of(track.filter->mean());
   const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+  const int support = recent_arrays(track);
   int supporting = 0;
   for (std::size_t a = 0; a < arrays.size(); ++a) {
     if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
@@ -595,7 +669,10 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
     const double range_m = std::max(to_track.norm(), 1.0);
     bool explained = false;
     for (const Track& other : tracks) {
-      if (&other == &track || !other.confirmed) continue;
+      // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost
+      // and the drone whose ray it shares explain each other from that array; the drone also
+      // has the arrays the ghost lacks).
+      if (&other == &track || !(other.confirmed || recent_arrays(other) > support)) continue;
       const Eigen::Vector3d to_other = position_of(other.filter->mean()) - models[a].centre_m;
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;

@@ -258,6 +258,41 @@ TEST(FusionEngine, TwoCrossingDronesKeepTheirIds) {
   EXPECT_LE(result.counters.tracks_started, 3);
 }
 
+// Issue 14's ghost: two hovering drones placed so that A1's ray to D1 and A2's ray to D2 meet
+// exactly at a point G (and A2's to D1 with A1's to D2 at another, G'). Both crossings fit their
+// two rays exactly, as well as the drones do, for as long as the drones hover. A3 hears both
+// drones: the pairing more arrays agree with wins (initiation waits a frame for them), and a
+// track that lies, from every array that hears it, along a better-supported track's ray is not
+// confirmed. Before: the two crossings were tracked and confirmed, the drones never.
+TEST(FusionEngine, CrossingRaysOfTwoTracksMakeNoThirdTrack) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A1", {-60, 0, 2}),
+                                               testing::tetrahedron("A2", {60, 0, 2}),
+                                               testing::tetrahedron("A3", {0, 120, 2})};
+  const Eigen::Vector3d ghost(0, 40, 20);
+  const Eigen::Vector3d centre1 = arrays[0].centre_site_m();
+  const Eigen::Vector3d centre2 = arrays[1].centre_site_m();
+  const Eigen::Vector3d d1 = centre1 + 1.6 * (ghost - centre1);  // beyond G on A1's ray
+  const Eigen::Vector3d d2 = centre2 + 1.4 * (ghost - centre2);  // beyond G on A2's ray
+  const std::vector<Trajectory> drones{[d1](double) { return d1; }, [d2](double) { return d2; }};
+  // A3 is farther away: it hears each drone in half of its frames.
+  const Audibility heard = [](int array, int, double, std::mt19937_64& random) {
+    return array != 2 || std::bernoulli_distribution(0.5)(random);
+  };
+  const RunResult result = run(FusionParams{}, arrays, drones, 20.0, {0.1, true}, 9, heard);
+  int ghost_ticks = 0;
+  std::set<int> confirmed_ids;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    for (const TrackReport& track : result.reports[i]) {
+      if (track.status == TrackStatus::tentative) continue;
+      confirmed_ids.insert(track.id);
+      if ((track.position_m - d1).norm() > 5.0 && (track.position_m - d2).norm() > 5.0)
+        ++ghost_ticks;
+    }
+  }
+  EXPECT_EQ(ghost_ticks, 0);
+  EXPECT_EQ(confirmed_ids.size(), 2u);
+}
+
 // The perimeter situation: a loud drone heard by all four arrays, a quiet one heard only by the
 // two arrays nearest to it, each in 40 % of the frames (the louder drone masks it otherwise).
 // Counting M-of-N per array-frame made 2 of every 4 frames misses by construction, and
