@@ -453,9 +453,11 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
 }
 
 void FusionEngine::Impl::initiate_pending() {
+  // Two arrays: no third to vote, nothing to wait for.
+  const double delay_s = arrays.size() > 2 ? kInitiationDelayS : 0.0;
   std::size_t kept = 0;
   for (const PendingSeed& seed : pending_seeds) {
-    if (seed.time_s > fed_time_s - kInitiationDelayS) {
+    if (seed.time_s > fed_time_s - delay_s) {
       pending_seeds[kept++] = seed;
       continue;
     }
