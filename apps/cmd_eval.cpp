@@ -17,6 +17,7 @@ struct EvalArguments {
   std::string truth;
   std::string tracks;
   std::string doas;
+  std::string alerts;
   std::string json_out;
   eval::EvalOptions options;
 };
@@ -25,14 +26,17 @@ int run_eval(const EvalArguments& arguments) {
   eval::Truth truth;
   std::vector<eval::TrackRecord> tracks;
   std::vector<eval::DoaRecord> doas;
+  std::vector<eval::AlertRecord> alerts;
   try {
     truth = eval::read_truth(arguments.truth);
     tracks = eval::read_tracks(arguments.tracks);
     if (!arguments.doas.empty()) doas = eval::read_doas(arguments.doas);
+    if (!arguments.alerts.empty()) alerts = eval::read_alerts(arguments.alerts);
   } catch (const eval::InputError& error) {
     throw UserError(error.what());
   }
-  const eval::EvalReport report = eval::evaluate(truth, tracks, doas, arguments.options);
+  const eval::EvalReport report = eval::evaluate(truth, tracks, doas, arguments.options,
+                                                 arguments.alerts.empty() ? nullptr : &alerts);
   std::cout << eval::format_table(report);
   if (!arguments.json_out.empty()) {
     std::ofstream out(arguments.json_out);
@@ -56,6 +60,10 @@ void register_eval(CLI::App& root, CommandTable& table) {
       ->required()
       ->check(CLI::ExistingFile);
   command->add_option("--doa", arguments->doas, "DOAs as JSON lines: adds DOA error per array")
+      ->check(CLI::ExistingFile);
+  command
+      ->add_option("--alerts", arguments->alerts,
+                   "Alert lines (replay --alerts-out): counts zone entries by drones and by others")
       ->check(CLI::ExistingFile);
   command->add_option("--json", arguments->json_out, "Also write the report as JSON here");
   command

@@ -30,6 +30,10 @@ struct TruthSource {
 
 struct Truth {
   std::vector<TruthSource> sources;  // drones only (interferers are not targets)
+  // The other sources (truth "interferers"), each with its class ("class", else from "kind":
+  // "ground" unless given): what a track that follows no drone is following (issue 14).
+  std::vector<TruthSource> others;
+  std::vector<std::string> other_classes;
   std::map<std::string, Eigen::Vector3d> array_centres_m;  // optional "arrays" key
   std::optional<double> recording_end_s;                   // earliest recording end, if given
 };
@@ -53,6 +57,15 @@ struct TrackRecord {
   int id = 0;
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
   std::string status;  // tentative | confirmed | coasting
+  std::string track_class = "unknown";  // "class": drone | ground | aircraft | unknown
+};
+
+// An alert line (`replay --alerts-out`).
+struct AlertRecord {
+  double time_s = 0.0;
+  std::string zone;
+  int track_id = 0;
+  std::string event;  // entered | left | class_changed
 };
 
 struct EvalOptions {
@@ -79,6 +92,12 @@ struct PositionMetrics {
 
 struct SourceMetrics {
   std::string id;
+  // Drone or not (issue 14), over the ticks a counted track follows this drone:
+  double tracked_time_s = 0.0;
+  double drone_class_time_s = 0.0;      // of which the track said "drone"
+  double drone_class_share = 0.0;       // drone_class_time_s / tracked_time_s
+  double first_tracked_s = -1.0;        // first tick a counted track followed it
+  double classified_after_s = -1.0;     // then until its track first said "drone" (-1: never)
   PositionMetrics position;
   double truth_time_s = 0.0;
   double covered_time_s = 0.0;
@@ -95,6 +114,15 @@ struct DoaArrayMetrics {
   double mean_error_deg = 0.0;
 };
 
+// A source that is not a drone (generator, car, aircraft, bird): how long a counted track
+// followed it, and how long that track said "drone".
+struct OtherSourceMetrics {
+  std::string id;
+  std::string source_class;
+  double tracked_time_s = 0.0;
+  double as_drone_time_s = 0.0;
+};
+
 struct EvalReport {
   EvalOptions options;
   double tick_s = 0.0;
@@ -109,6 +137,15 @@ struct EvalReport {
   double track_time_s = 0.0;          // sum over counted tracks of their time
   double false_track_time_s = 0.0;    // of which associated to no truth
   double false_track_fraction = 0.0;  // false / track time
+  std::vector<OtherSourceMetrics> others;
+  // Track time of counted tracks that follow no drone (another source or nothing) while they
+  // say "drone", and that over the run (end - start): issue 14's "<= 1 % of the run".
+  double non_drone_as_drone_time_s = 0.0;
+  double non_drone_as_drone_fraction = 0.0;
+  // With alerts: zone entries by tracks following a drone, and by any other track.
+  int alerts_read = -1;  // -1: no alerts given
+  int drone_zone_entries = 0;
+  int non_drone_zone_entries = 0;
   std::vector<DoaArrayMetrics> doa;   // empty without DOAs
   int doa_unmatched = 0;              // DOAs of arrays or times without truth
 };

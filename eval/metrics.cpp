@@ -81,6 +81,26 @@ struct ErrorSamples {
   }
 };
 
+// The other truth source nearest to `position` within max(gate, 5 % of its distance from the
+// array centroid), or -1.
+int nearest_other(const Truth& truth, const Eigen::Vector3d& position, double t, double gate_m,
+                  const Eigen::Vector3d& centroid) {
+  int best = -1;
+  double best_distance = std::numeric_limits<double>::infinity();
+  for (std::size_t o = 0; o < truth.others.size(); ++o) {
+    const TruthSource& other = truth.others[o];
+    if (!other.alive_at(t)) continue;
+    const Eigen::Vector3d where = other.position_at(t);
+    const double distance = (position - where).norm();
+    const double gate = std::max(gate_m, 0.05 * (where - centroid).norm());
+    if (distance <= gate && distance < best_distance) {
+      best = static_cast<int>(o);
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
 bool counted(const TrackRecord& track, const EvalOptions& options) {
   return track.status != "tentative" || options.include_tentative;
 }
@@ -140,8 +160,13 @@ std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<Do
 }
 
 EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
-                    const std::vector<DoaRecord>& doas, const EvalOptions& options) {
+                    const std::vector<DoaRecord>& doas, const EvalOptions& options,
+                    const std::vector<AlertRecord>* alerts) {
   EvalReport report;
+  for (std::size_t o = 0; o < truth.others.size(); ++o)
+    report.others.push_back({truth.others[o].id, truth.other_classes[o], 0.0, 0.0});
+  // (track id, tick index) -> follows a drone, for the alerts.
+  std::map<std::pair<int, long>, bool> follows_drone;
   report.options = options;
   if (!truth.array_centres_m.empty()) {
     for (const auto& [id, centre] : truth.array_centres_m) report.array_centroid_m += centre;
@@ -220,8 +245,17 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
     for (int r = 0; r < rows; ++r) {
       counted_ids.insert(live[r]->id);
       report.track_time_s += tick;
+      const bool says_drone = live[r]->track_class == "drone";
+      follows_drone[{live[r]->id, k}] = track_to_source[r] >= 0;
       if (track_to_source[r] < 0) {
         report.false_track_time_s += tick;
+        if (says_drone) report.non_drone_as_drone_time_s += tick;
+        if (const int o = nearest_other(truth, live[r]->position_m, live[r]->time_s,
+                                        options.association_gate_m, report.array_centroid_m);
+            o >= 0) {
+          report.others[static_cast<std::size_t>(o)].tracked_time_s += tick;
+          if (says_drone) report.others[static_cast<std::size_t>(o)].as_drone_time_s += tick;
+        }
         continue;
       }
       const std::size_t s = alive[track_to_source[r]];
@@ -230,6 +264,12 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
       all.add(truth_position, live[r]->position_m, report.array_centroid_m);
       per_source[s].add(truth_position, live[r]->position_m, report.array_centroid_m);
       SourceMetrics& metrics = report.sources[s];
+      metrics.tracked_time_s += tick;
+      if (metrics.first_tracked_s < 0.0) metrics.first_tracked_s = t;
+      if (says_drone) {
+        metrics.drone_class_time_s += tick;
+        if (metrics.classified_after_s < 0.0) metrics.classified_after_s = t - metrics.first_tracked_s;
+      }
       if (last_track[s] >= 0 && last_track[s] != live[r]->id) ++metrics.id_switches;
       last_track[s] = live[r]->id;
       if (std::find(metrics.track_ids.begin(), metrics.track_ids.end(), live[r]->id) ==
@@ -255,6 +295,8 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
         metrics.truth_time_s > 0.0 ? metrics.covered_time_s / metrics.truth_time_s : 0.0;
     truth_time += metrics.truth_time_s;
     covered_time += metrics.covered_time_s;
+    metrics.drone_class_share =
+        metrics.tracked_time_s > 0.0 ? metrics.drone_class_time_s / metrics.tracked_time_s : 0.0;
     report.id_switches += metrics.id_switches;
   }
   report.position = all.summarise();
@@ -262,6 +304,21 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
   report.tracks_seen = static_cast<int>(counted_ids.size());
   report.false_track_fraction =
       report.track_time_s > 0.0 ? report.false_track_time_s / report.track_time_s : 0.0;
+  const double run_s = std::max(end - start, 0.0);
+  report.non_drone_as_drone_fraction = run_s > 0.0 ? report.non_drone_as_drone_time_s / run_s : 0.0;
+  if (alerts != nullptr) {
+    report.alerts_read = static_cast<int>(alerts->size());
+    for (const AlertRecord& alert : *alerts) {
+      if (alert.event != "entered") continue;
+      const long k = std::lround((alert.time_s - start) / tick);
+      const auto found = follows_drone.find({alert.track_id, k});
+      if (found != follows_drone.end() && found->second) {
+        ++report.drone_zone_entries;
+      } else {
+        ++report.non_drone_zone_entries;
+      }
+    }
+  }
   if (!doas.empty()) report.doa = doa_errors(truth, doas, &report.doa_unmatched);
   return report;
 }

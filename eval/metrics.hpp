@@ -14,8 +14,15 @@
 
 namespace dronetrack::eval {
 
+//
+// Drone or not (issue 14): a counted track assigned to no drone at a tick follows the nearest
+// other truth source within the association gate, widened to 5 % of that source's distance from
+// the array centroid (an aircraft at 300 m is fixed to a few per cent of its range); its class at
+// that tick is what the class figures count. With alerts, each zone entry is a drone's when its
+// track follows a drone at the nearest tick.
 EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
-                    const std::vector<DoaRecord>& doas, const EvalOptions& options);
+                    const std::vector<DoaRecord>& doas, const EvalOptions& options,
+                    const std::vector<AlertRecord>* alerts = nullptr);
 
 // DOA angular error per array: each DOA against the truth direction of the nearest source.
 std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<DoaRecord>& doas,

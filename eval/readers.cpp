@@ -68,7 +68,7 @@ TruthSource read_source(const nlohmann::json& node, const std::string& path,
   TruthSource source;
   ObjectReader reader(node, path, diagnostics);
   source.id = reader.required_string("id").value_or("");
-  for (const char* key : {"kind", "velocity_mps"}) reader.accept(key);
+  for (const char* key : {"kind", "class", "velocity_mps"}) reader.accept(key);
   const std::size_t errors_before = diagnostics.errors.size();
   source.time_s = reader.numbers("t", 0, true).value_or(std::vector<double>{});
   for (std::size_t i = 1; i < source.time_s.size(); ++i) {
@@ -159,12 +159,20 @@ Truth parse_truth(const std::string& text, const std::string& file) {
   Truth truth;
   {
     ObjectReader reader(document, "", diagnostics);
-    for (const char* key : {"interferers", "rate_hz", "duration_s", "speed_of_sound_mps"}) {
+    for (const char* key : {"rate_hz", "duration_s", "speed_of_sound_mps"}) {
       reader.accept(key);
     }
     reader.for_each("sources", true, [&](const nlohmann::json& node, const std::string& path) {
       truth.sources.push_back(read_source(node, path, diagnostics));
     });
+    reader.for_each("interferers", false,
+                    [&](const nlohmann::json& node, const std::string& path) {
+                      truth.others.push_back(read_source(node, path, diagnostics));
+                      std::string source_class = "ground";
+                      if (node.is_object() && node.contains("class") && node["class"].is_string())
+                        source_class = node["class"].get<std::string>();
+                      truth.other_classes.push_back(source_class);
+                    });
     if (reader.has("arrays")) {
       ObjectReader arrays = reader.object("arrays");
       for (const auto& [id, entry] : document["arrays"].items()) {
@@ -204,9 +212,26 @@ std::vector<TrackRecord> parse_tracks(const std::string& text, const std::string
         record.position_m = reader.vector3("position_m", true).value_or(Eigen::Vector3d::Zero());
         record.status =
             reader.choice("status", "confirmed", {"tentative", "confirmed", "coasting"});
+        record.track_class =
+            reader.choice("class", "unknown", {"drone", "ground", "aircraft", "unknown"});
         // Extra keys are allowed in JSON lines.
         for (const auto& item : node.items()) reader.accept(item.key());
       });
+}
+
+std::vector<AlertRecord> parse_alerts(const std::string& text, const std::string& file) {
+  return parse_lines<AlertRecord>(
+      text, file,
+      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics&, AlertRecord& record) {
+        record.time_s = reader.required_number("t").value_or(0.0);
+        record.zone = reader.string("zone", "");
+        record.track_id = reader.optional_integer("track_id", -2147483647, 2147483647).value_or(0);
+        record.event = reader.choice("event", "entered", {"entered", "left", "class_changed"});
+        for (const auto& item : node.items()) reader.accept(item.key());
+      });
+}
+std::vector<AlertRecord> read_alerts(const std::filesystem::path& file) {
+  return parse_alerts(read_file(file), file.string());
 }
 
 std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& file) {

@@ -23,5 +23,8 @@ std::vector<DoaRecord> read_doas(const std::filesystem::path& file);
 Truth parse_truth(const std::string& text, const std::string& file);
 std::vector<TrackRecord> parse_tracks(const std::string& text, const std::string& file);
 std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& file);
+// `replay --alerts-out` lines.
+std::vector<AlertRecord> read_alerts(const std::filesystem::path& file);
+std::vector<AlertRecord> parse_alerts(const std::string& text, const std::string& file);
 
 }  // namespace dronetrack::eval

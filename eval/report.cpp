@@ -57,6 +57,22 @@ std::string format_table(const EvalReport& r) {
   out += format("%-8s %7.2f%% %12d\n", "all", 100.0 * r.coverage, r.id_switches);
   out += format("\ntracks %d, track time %.1f s, false-track time %.1f s (%.2f%%)\n", r.tracks_seen,
                 r.track_time_s, r.false_track_time_s, 100.0 * r.false_track_fraction);
+  out += "\nclass   tracked_s  said_drone  drone_share  classified_after_s\n";
+  for (const SourceMetrics& source : r.sources) {
+    out += format("%-8s %8.1f %11.1f %11.2f%% %19.1f\n", source.id.c_str(), source.tracked_time_s,
+                  source.drone_class_time_s, 100.0 * source.drone_class_share,
+                  source.classified_after_s);
+  }
+  for (const OtherSourceMetrics& other : r.others) {
+    out += format("%-8s %8.1f %11.1f   (%s)\n", other.id.c_str(), other.tracked_time_s,
+                  other.as_drone_time_s, other.source_class.c_str());
+  }
+  out += format("non-drone tracks said drone: %.1f s, %.2f%% of the run\n",
+                r.non_drone_as_drone_time_s, 100.0 * r.non_drone_as_drone_fraction);
+  if (r.alerts_read >= 0) {
+    out += format("alerts: %d read; zone entries by drones %d, by other tracks %d\n", r.alerts_read,
+                  r.drone_zone_entries, r.non_drone_zone_entries);
+  }
   if (!r.doa.empty()) {
     out += "\narray      DOAs  median_deg  p90_deg  mean_deg\n";
     for (const DoaArrayMetrics& doa : r.doa) {
@@ -77,7 +93,17 @@ nlohmann::json to_json(const EvalReport& r) {
                        {"covered_time_s", source.covered_time_s},
                        {"coverage", source.coverage},
                        {"id_switches", source.id_switches},
-                       {"track_ids", source.track_ids}});
+                       {"track_ids", source.track_ids},
+                       {"tracked_time_s", source.tracked_time_s},
+                       {"drone_class_share", source.drone_class_share},
+                       {"classified_after_s", source.classified_after_s}});
+  }
+  nlohmann::json others = nlohmann::json::array();
+  for (const OtherSourceMetrics& other : r.others) {
+    others.push_back({{"id", other.id},
+                      {"class", other.source_class},
+                      {"tracked_time_s", other.tracked_time_s},
+                      {"as_drone_time_s", other.as_drone_time_s}});
   }
   nlohmann::json doa = nlohmann::json::array();
   for (const DoaArrayMetrics& entry : r.doa) {
@@ -101,6 +127,12 @@ nlohmann::json to_json(const EvalReport& r) {
           {"track_time_s", r.track_time_s},
           {"false_track_time_s", r.false_track_time_s},
           {"false_track_fraction", r.false_track_fraction},
+          {"others", others},
+          {"non_drone_as_drone_time_s", r.non_drone_as_drone_time_s},
+          {"non_drone_as_drone_fraction", r.non_drone_as_drone_fraction},
+          {"alerts_read", r.alerts_read},
+          {"drone_zone_entries", r.drone_zone_entries},
+          {"non_drone_zone_entries", r.non_drone_zone_entries},
           {"doa", doa},
           {"doa_unmatched", r.doa_unmatched}};
 }
