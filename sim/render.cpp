@@ -246,6 +246,7 @@ Truth compute_truth(const Scenario& scenario, double rate_hz) {
     SourceTruth out;
     out.id = source.id;
     out.is_drone = source.kind == SourceKind::drone;
+    out.source_class = source.source_class;
     out.direction.resize(scenario.site.arrays.size());
     for (std::size_t i = 0; i < count; ++i) {
       const double t_s = static_cast<double>(i) / rate_hz;
@@ -273,6 +274,7 @@ nlohmann::json Truth::to_json(const Scenario& scenario) const {
     nlohmann::json entry;
     entry["id"] = source.id;
     entry["kind"] = source.is_drone ? "drone" : "interferer";
+    entry["class"] = source.source_class;
     entry["t"] = source.t_s;
     auto& positions = entry["position_m"] = nlohmann::json::array();
     auto& velocities = entry["velocity_mps"] = nlohmann::json::array();

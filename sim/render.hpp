@@ -41,6 +41,7 @@ RenderedScene render_scene(const Scenario& scenario);
 struct SourceTruth {
   std::string id;
   bool is_drone = true;
+  std::string source_class = "drone";  // the scenario source's class
   std::vector<double> t_s;
   std::vector<Eigen::Vector3d> position_m;
   std::vector<Eigen::Vector3d> velocity_mps;

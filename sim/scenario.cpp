@@ -163,11 +163,21 @@ void parse_signal(ObjectReader& reader, SourceSpec& source, double sample_rate_h
   Diagnostics& diagnostics = reader.diagnostics();
   const double max_hz = 0.4 * sample_rate_hz;
   const std::string fallback = source.kind == SourceKind::drone ? "rotor" : "noise";
-  const std::string type =
-      reader.choice("type", fallback, {"rotor", "recording", "noise", "tones"});
-  if (type == "rotor") {
+  const std::string type = reader.choice(
+      "type", fallback,
+      {"rotor", "recording", "noise", "tones", "engine", "generator", "propeller", "chirps"});
+  if (type == "rotor" || type == "engine" || type == "generator" || type == "propeller") {
     source.signal_type = SignalType::rotor;
     RotorSignal& rotor = source.rotor;
+    // The non-drone harmonic sources are rotors with other defaults (docs/scenarios.md).
+    if (type == "engine") {  // a four-cylinder at 1800 rpm under tyre and road noise
+      rotor = {60.0, 0.05, 8.0, 60, -3.0, 6.0, 500.0, -18.0, 300.0, 4000.0};
+    } else if (type == "generator") {  // locked to 50 Hz mains, exhaust broadband
+      rotor = {50.0, 0.0005, 20.0, 80, -6.0, -6.0, 0.0, 0.0, 50.0, 5000.0};
+      rotor.blade_pass_hz = reader.number("mains_hz", rotor.blade_pass_hz, 10.0, 1000.0);
+    } else if (type == "propeller") {  // a two-blade prop at 2550 rpm
+      rotor = {85.0, 0.01, 10.0, 60, -4.0, -6.0, 0.0, 0.0, 20.0, 0.0};
+    }
     rotor.blade_pass_hz = reader.number("blade_pass_hz", rotor.blade_pass_hz, 20.0, 1000.0);
     rotor.rpm_wander = reader.number("rpm_wander", rotor.rpm_wander, 0.0, 0.3);
     rotor.wander_period_s = reader.number("wander_period_s", rotor.wander_period_s, 0.5, 600.0);
@@ -175,6 +185,28 @@ void parse_signal(ObjectReader& reader, SourceSpec& source, double sample_rate_h
     rotor.slope_db_per_octave =
         reader.number("slope_db_per_octave", rotor.slope_db_per_octave, -24.0, 6.0);
     rotor.broadband_db = reader.number("broadband_db", rotor.broadband_db, -80.0, 20.0);
+    rotor.rolloff_corner_hz =
+        reader.number("rolloff_corner_hz", rotor.rolloff_corner_hz, 0.0, max_hz);
+    rotor.rolloff_db_per_octave =
+        reader.number("rolloff_db_per_octave", rotor.rolloff_db_per_octave, -60.0, 0.0);
+    rotor.broadband_low_hz = reader.number("broadband_low_hz", rotor.broadband_low_hz, 0.0, max_hz);
+    rotor.broadband_high_hz =
+        reader.number("broadband_high_hz", rotor.broadband_high_hz, 0.0, max_hz);
+    if (rotor.broadband_high_hz > 0.0 && rotor.broadband_high_hz <= rotor.broadband_low_hz + 10.0)
+      diagnostics.error(reader.path_of("broadband_high_hz"),
+                        "must be more than 10 Hz above broadband_low_hz");
+  } else if (type == "chirps") {
+    source.signal_type = SignalType::chirps;
+    ChirpsSignal& chirps = source.chirps;
+    chirps.low_hz = reader.number("low_hz", chirps.low_hz, 100.0, max_hz);
+    chirps.high_hz = reader.number("high_hz", std::min(chirps.high_hz, max_hz), 100.0, max_hz);
+    if (chirps.high_hz <= chirps.low_hz)
+      diagnostics.error(reader.path_of("high_hz"), "must be above low_hz");
+    chirps.min_duration_s = reader.number("min_duration_s", chirps.min_duration_s, 0.01, 5.0);
+    chirps.max_duration_s = reader.number("max_duration_s", chirps.max_duration_s, 0.01, 5.0);
+    if (chirps.max_duration_s < chirps.min_duration_s)
+      diagnostics.error(reader.path_of("max_duration_s"), "must not be below min_duration_s");
+    chirps.mean_interval_s = reader.number("mean_interval_s", chirps.mean_interval_s, 0.05, 600.0);
   } else if (type == "recording") {
     source.signal_type = SignalType::recording;
     RecordingSignal& recording = source.recording;
@@ -349,6 +381,11 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       }
       const std::string kind = reader.choice("kind", "drone", {"drone", "interferer"});
       source.kind = kind == "drone" ? SourceKind::drone : SourceKind::interferer;
+      source.source_class = reader.choice("class", kind == "drone" ? "drone" : "ground",
+                                          {"drone", "ground", "aircraft", "bird"});
+      if ((source.source_class == "drone") != (source.kind == SourceKind::drone))
+        diagnostics.error(reader.path_of("class"),
+                          "\"" + source.source_class + "\" does not fit kind \"" + kind + "\"");
       source.level_db_spl = reader.number("level_db", source.level_db_spl, 0.0, 160.0);
       {
         ObjectReader signal = reader.object("signal");

@@ -15,7 +15,9 @@
 
 namespace dronetrack::sim {
 
-// A drone's rotor signature: blade-passing harmonics with a slowly wandering RPM + broadband.
+// A harmonic source: a drone's rotor (type "rotor"), and with other defaults a car's or truck's
+// engine ("engine"), a generator locked to the mains ("generator"), a light aircraft's propeller
+// ("propeller"): harmonics of a slowly wandering fundamental + broadband. docs/scenarios.md.
 struct RotorSignal {
   double blade_pass_hz = 160.0;     // fundamental, 80-250 Hz for small multirotors
   double rpm_wander = 0.02;         // peak relative RPM deviation (0.02 = +-2 %)
@@ -23,6 +25,21 @@ struct RotorSignal {
   int harmonics = 40;               // 30-60; those above 0.4 * sample rate are dropped
   double slope_db_per_octave = -3;  // harmonic amplitude roll-off
   double broadband_db = -10.0;      // broadband power relative to the harmonic power
+  // Harmonics above this frequency fall a further rolloff_db_per_octave (an engine's firing
+  // harmonics die out above ~1 kHz); 0: no corner.
+  double rolloff_corner_hz = 0.0;
+  double rolloff_db_per_octave = 0.0;
+  double broadband_low_hz = 20.0;   // broadband band (tyres and road: 300-4000 Hz)
+  double broadband_high_hz = 0.0;   // 0: up to the band limit
+};
+
+// Birdsong-like chirps: short sweeps at random moments, deterministic per seed and source.
+struct ChirpsSignal {
+  double low_hz = 2000.0;  // each sweep runs between two frequencies drawn in [low, high]
+  double high_hz = 6000.0;
+  double min_duration_s = 0.05;
+  double max_duration_s = 0.3;
+  double mean_interval_s = 0.8;  // mean time between chirp starts (exponential)
 };
 
 // A real recording, looped (with a short cross-fade) over [start_s, end_s).
@@ -44,18 +61,22 @@ struct TonesSignal {
   std::vector<double> relative_db;  // one per tone; 0 dB each by default
 };
 
-enum class SignalType { rotor, recording, noise, tones };
+enum class SignalType { rotor, recording, noise, tones, chirps };
 enum class SourceKind { drone, interferer };
 
 struct SourceSpec {
   std::string id;
   SourceKind kind = SourceKind::drone;
+  // What it is, for eval's drone-or-not figures (truth "class"): "drone", "ground" (generator,
+  // vehicle, pump), "aircraft", "bird". Default: drone for drones, ground for interferers.
+  std::string source_class = "drone";
   double level_db_spl = 85.0;  // RMS sound pressure level at 1 m, dB re 20 uPa
   SignalType signal_type = SignalType::rotor;
   RotorSignal rotor;
   RecordingSignal recording;
   NoiseSignal noise;
   TonesSignal tones;
+  ChirpsSignal chirps;
   Trajectory trajectory;
 };
 

@@ -18,7 +18,7 @@ namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Stream kinds (random.hpp): each component of each source draws from its own stream.
-enum StreamKind : std::uint64_t { kRotorParameters = 1, kBroadband = 2, kTones = 3 };
+enum StreamKind : std::uint64_t { kRotorParameters = 1, kBroadband = 2, kTones = 3, kChirps = 4 };
 
 std::int64_t floor_div(std::int64_t a, std::int64_t b) {
   return a / b - ((a % b != 0) && ((a < 0) != (b < 0)) ? 1 : 0);
@@ -116,8 +116,11 @@ void synthesise_rotor(const Scenario& scenario, std::size_t source_index, double
     const double jitter_db = 2.0 * random.normal();
     const double phase = random.uniform(0.0, kTwoPi);
     if (k * highest_fundamental_hz > band_limit_hz) continue;
-    const double amplitude =
-        std::pow(10.0, (rotor.slope_db_per_octave * std::log2(k) + jitter_db) / 20.0);
+    double level_db = rotor.slope_db_per_octave * std::log2(k) + jitter_db;
+    if (rotor.rolloff_corner_hz > 0.0 && k * rotor.blade_pass_hz > rotor.rolloff_corner_hz)
+      level_db += rotor.rolloff_db_per_octave * std::log2(k * rotor.blade_pass_hz /
+                                                          rotor.rolloff_corner_hz);
+    const double amplitude = std::pow(10.0, level_db / 20.0);
     harmonic_power += amplitude * amplitude / 2.0;
     for (int m = 0; m < kTable; ++m) {
       wave[static_cast<std::size_t>(m)] += amplitude * std::cos(kTwoPi * k * m / kTable + phase);
@@ -169,10 +172,14 @@ void synthesise_rotor(const Scenario& scenario, std::size_t source_index, double
     }
   }
   const double broadband_rms = rms * std::sqrt(broadband_ratio / (1.0 + broadband_ratio));
+  const double low_hz = rotor.broadband_low_hz;
+  const double high_hz = rotor.broadband_high_hz > 0.0
+                             ? std::min(rotor.broadband_high_hz, band_limit_hz)
+                             : band_limit_hz;
   add_shaped_noise(
       buffer, scenario.seed, source_index,
       [&](double f) {
-        return ramp(f, 20.0, 80.0) * (1.0 - ramp(f, 0.9 * band_limit_hz, band_limit_hz)) /
+        return ramp(f, low_hz, low_hz + 60.0) * (1.0 - ramp(f, 0.9 * high_hz, high_hz)) /
                (1.0 + f / 1000.0);
       },
       broadband_rms);
@@ -200,6 +207,42 @@ void synthesise_tones(const Scenario& scenario, std::size_t source_index, double
       value += amplitudes[k] * std::cos(kTwoPi * (cycles - std::floor(cycles)) + phases[k]);
     }
     buffer.samples[i] += static_cast<float>(scale * value);
+  }
+}
+
+// Chirps: chirp k starts at the k-th point of a Poisson process from t = 0 (intervals drawn from
+// stream (source, k)), so any time range yields the same samples. Each is a linear sweep between
+// two frequencies in [low, high] under a Hann envelope; the level is the RMS while chirping.
+void synthesise_chirps(const Scenario& scenario, std::size_t source_index, double rms,
+                       SourceBuffer& buffer) {
+  const ChirpsSignal& chirps = scenario.sources[source_index].chirps;
+  const double amplitude = rms * std::sqrt(2.0) / std::sqrt(0.375);  // Hann^2 mean is 3/8
+  const double end_s =
+      static_cast<double>(buffer.first_index + static_cast<std::int64_t>(buffer.samples.size())) /
+      buffer.rate_hz;
+  const double begin_s = static_cast<double>(buffer.first_index) / buffer.rate_hz;
+  double start_s = 0.0;
+  for (std::uint64_t k = 0; start_s < end_s; ++k) {
+    Random random(scenario.seed, stream_id(kChirps, source_index, k & 0xffffff));
+    start_s += -chirps.mean_interval_s * std::log(1.0 - random.uniform(0.0, 0.999999));
+    const double duration_s = random.uniform(chirps.min_duration_s, chirps.max_duration_s);
+    const double from_hz = random.uniform(chirps.low_hz, chirps.high_hz);
+    const double to_hz = random.uniform(chirps.low_hz, chirps.high_hz);
+    const double phase = random.uniform(0.0, kTwoPi);
+    if (start_s + duration_s < begin_s || start_s >= end_s) continue;
+    const auto first = std::max<std::int64_t>(
+        buffer.first_index, static_cast<std::int64_t>(std::ceil(start_s * buffer.rate_hz)));
+    const auto last = std::min<std::int64_t>(
+        buffer.first_index + static_cast<std::int64_t>(buffer.samples.size()) - 1,
+        static_cast<std::int64_t>(std::floor((start_s + duration_s) * buffer.rate_hz)));
+    const double sweep = (to_hz - from_hz) / duration_s;
+    for (std::int64_t i = first; i <= last; ++i) {
+      const double u = static_cast<double>(i) / buffer.rate_hz - start_s;
+      const double envelope = 0.5 - 0.5 * std::cos(kTwoPi * u / duration_s);
+      const double cycles = from_hz * u + 0.5 * sweep * u * u;
+      buffer.samples[static_cast<std::size_t>(i - buffer.first_index)] += static_cast<float>(
+          amplitude * envelope * std::cos(kTwoPi * (cycles - std::floor(cycles)) + phase));
+    }
   }
 }
 
@@ -305,6 +348,9 @@ SourceBuffer synthesise_source(const Scenario& scenario, std::size_t source_inde
     }
     case SignalType::tones:
       synthesise_tones(scenario, source_index, rms, buffer);
+      break;
+    case SignalType::chirps:
+      synthesise_chirps(scenario, source_index, rms, buffer);
       break;
   }
   return buffer;

@@ -46,7 +46,7 @@ TEST(Scenario, BadFileGivesOneLinePerProblemWithItsPath) {
       "sources[0].trajectory.speed_mps: must be in [0.01, 200], got -1",
       "sources[1].id: duplicate source id \"D1\"",
       "sources[1].signal.type: unknown value \"whistle\", expected one of: rotor, recording, "
-      "noise, tones",
+      "noise, tones, engine, generator, propeller, chirps",
       "sources[1].trajectory.points_m[1]: repeats the previous point (legs must be longer than 1 "
       "mm)",
       "sources[2].signal.frequencies_hz[1]: must be in (0, 19200] (0.4 x sample rate), got 30000",
