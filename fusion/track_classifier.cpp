@@ -115,16 +115,16 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
   const bool parked = evidence.static_s >= s.static_long_s &&
                       evidence.altitude_m <= s.static_ground_max_altitude_m;
   // At ground level a rotor-like comb is not enough: a generator's or an engine's harmonics can
-  // sit in the rotor range. Low and still, it waits (unknown) and is ground once it has stood
-  // still ground_static_s (a drone standing on the ground is no threat); low and moving with a
-  // rotor's comb, it is a drone flying low.
-  const bool still = evidence.speed_mps <= s.static_max_speed_mps;
+  // sit in the rotor range, and a drone's own sound reaches the ground-level points where its
+  // rays and its echo's cross (the ghost near the ground). Low and still: ground once it has
+  // stood still ground_static_s (a drone standing on the ground is no threat either); low with a
+  // rotor's comb: unknown, shown to the operator but not alerted on by default.
   if (((low || parked) && !sounds_like_drone) || (low && evidence.static_s >= s.ground_static_s)) {
     evidence.track_class = TrackClass::ground;
     evidence.confidence = heard_enough ? std::clamp(1.0 - share, 0.5, 1.0) : 0.5;
     return;
   }
-  if (low && still) {
+  if (low) {
     evidence.track_class = TrackClass::unknown;
     evidence.confidence = 0.5;
     return;
