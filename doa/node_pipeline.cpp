@@ -166,7 +166,6 @@ struct NodePipeline::Impl {
   void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
-  bool in_echo_shadow(const Eigen::Vector3d& direction_site);
   // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
   // a grid step): Newton from the known lags, no lag grids.
   void remeasure(int source, bool near_known_lags = false);
@@ -315,30 +314,6 @@ bool NodePipeline::Impl::below_horizon(const DoaSolution& solution) {
 }
 
 // Within srp_min_separation_deg of a source already in this frame's candidates: the same one.
-// A found source's ground echo arrives from its mirror direction (same azimuth, elevation
-// negated); where the echo removal has not locked yet, the direct sound and the echo leave a
-// look at that azimuth pointing between the two. A further source at a found source's azimuth
-// (within srp_min_separation_deg) and between its mirror and itself is that mixture, not a new
-// source: at ground level it would make the fusion's ghost near the ground (issue 14).
-bool NodePipeline::Impl::in_echo_shadow(const Eigen::Vector3d& direction_site) {
-  if (ground_echoes.empty()) return false;
-  const Eigen::Vector2d horizontal = direction_site.head<2>();
-  if (!(horizontal.norm() > 1e-6)) return false;
-  for (int s = 0; s < candidate_count; ++s) {
-    const Eigen::Vector3d& found = candidates[static_cast<std::size_t>(s)].solution.direction_site;
-    const Eigen::Vector2d found_horizontal = found.head<2>();
-    if (!(found_horizontal.norm() > 1e-6) || !(found.z() > 0.0)) continue;
-    const double cosine =
-        horizontal.dot(found_horizontal) / (horizontal.norm() * found_horizontal.norm());
-    if (cosine < separation_cosine) continue;
-    if (direction_site.z() < found.z() && direction_site.z() > -found.z()) {
-      ++diagnostics.echo_shadow_rejected;
-      return true;
-    }
-  }
-  return false;
-}
-
 bool NodePipeline::Impl::already_found(const Eigen::Vector3d& direction_site) const {
   for (int s = 0; s < candidate_count; ++s)
     if (direction_site.dot(candidates[static_cast<std::size_t>(s)].solution.direction_site) >=
@@ -389,8 +364,7 @@ void NodePipeline::Impl::find_further_sources() {
     candidate.solution = solver.solve(candidate_tdoas);
     const bool duplicate =
         !candidate.solution.accepted || already_found(candidate.solution.direction_site);
-    if (!duplicate && (below_horizon(candidate.solution) ||
-                       in_echo_shadow(candidate.solution.direction_site))) {
+    if (!duplicate && below_horizon(candidate.solution)) {
       mask_source(candidate_tdoas);
       srp->begin_frame(gcc);
       continue;

@@ -13,10 +13,11 @@ foreach(step "sim" "replay" "eval")
     set(command ${BIN} --log-level warn ${sim_args})
   elseif(step STREQUAL "replay")
     set(command ${BIN} --log-level warn replay "${DIR}/site.json" --tracks-out "${DIR}/tracks.jsonl"
-                --doa-out "${DIR}/doa.jsonl")
+                --doa-out "${DIR}/doa.jsonl" --alerts-out "${DIR}/alerts.jsonl")
   else()
     set(command ${BIN} eval --truth "${DIR}/truth.json" --tracks "${DIR}/tracks.jsonl"
-                --doa "${DIR}/doa.jsonl" --json "${DIR}/eval.json" ${EVAL_ARGS})
+                --doa "${DIR}/doa.jsonl" --alerts "${DIR}/alerts.jsonl" --json "${DIR}/eval.json"
+                ${EVAL_ARGS})
   endif()
   execute_process(COMMAND ${command} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
   if(NOT code EQUAL 0)
