@@ -47,7 +47,7 @@ void run_program(const std::string& program, const fusion::ZoneEvent& event) {
   std::string verb = fusion::to_string(fusion::kind_of(event));
   std::string track_class = fusion::to_string(event.track_class);
   char* argv[] = {program_copy.data(), zone.data(), track_id, verb.data(), time_s, x, y, z,
-                  track_class.data(), nullptr};
+                  track_class.data(),  nullptr};
   const pid_t child = fork();
   if (child < 0) {
     log::error("alert: cannot run ", program, ": fork failed (", std::strerror(errno), ")");

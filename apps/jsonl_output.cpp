@@ -52,18 +52,16 @@ int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t si
       doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
       doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
       doa::to_string(doa.ambiguity), azimuth_std_rad * 180.0 / std::numbers::pi,
-      elevation_std_rad * 180.0 / std::numbers::pi, correlation,
-      doa.acoustic.valid ? "," : "}");
-  if (length <= 0 || !doa.acoustic.valid || static_cast<std::size_t>(length) >= size)
-    return length;
+      elevation_std_rad * 180.0 / std::numbers::pi, correlation, doa.acoustic.valid ? "," : "}");
+  if (length <= 0 || !doa.acoustic.valid || static_cast<std::size_t>(length) >= size) return length;
   const doa::AcousticFeatures& a = doa.acoustic;
-  const int tail = std::snprintf(
-      buffer + length, size - static_cast<std::size_t>(length),
-      R"("acoustic":{"fundamental_hz":%.2f,"comb_strength":%.4f,"harmonics":%d,)"
-      R"("broadband_share":%.4f,"comb_persistence":%.4f,"fundamental_spread":%.5f,)"
-      R"("level_modulation_db":%.3f,"history_s":%.2f}})",
-      a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share, a.comb_persistence,
-      a.fundamental_spread, a.level_modulation_db, a.history_s);
+  const int tail =
+      std::snprintf(buffer + length, size - static_cast<std::size_t>(length),
+                    R"("acoustic":{"fundamental_hz":%.2f,"comb_strength":%.4f,"harmonics":%d,)"
+                    R"("broadband_share":%.4f,"comb_persistence":%.4f,"fundamental_spread":%.5f,)"
+                    R"("level_modulation_db":%.3f,"history_s":%.2f}})",
+                    a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share,
+                    a.comb_persistence, a.fundamental_spread, a.level_modulation_db, a.history_s);
   return tail < 0 ? tail : length + tail;
 }
 
@@ -93,8 +91,8 @@ int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t 
                        R"({"t":%.3f,"zone":"%s","track_id":%d,"event":"%s","class":"%s",%s)"
                        R"("position_m":[%.4f,%.4f,%.4f]})",
                        event.time_s, event.zone.c_str(), event.track_id,
-                       fusion::to_string(fusion::kind_of(event)), fusion::to_string(event.track_class),
-                       previous, p.x(), p.y(), p.z());
+                       fusion::to_string(fusion::kind_of(event)),
+                       fusion::to_string(event.track_class), previous, p.x(), p.y(), p.z());
 }
 
 void AlertLinesWriter::on_zone_event(const fusion::ZoneEvent& event) {

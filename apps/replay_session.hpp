@@ -11,8 +11,8 @@ struct ReplaySessionOptions {
   std::string tracks_out;  // "" with doa_out also "": tracks to stdout
   std::string doa_out;
   std::string alerts_out;  // zone alerts and class changes as JSON lines; "" for none
-  std::string doa_in;  // DOA lines to run the fusion alone on, instead of the recordings
-  std::string http;    // ADDR:PORT to serve on; "" for none
+  std::string doa_in;      // DOA lines to run the fusion alone on, instead of the recordings
+  std::string http;        // ADDR:PORT to serve on; "" for none
   bool realtime = false;
   double max_duration_s = 0.0;
   bool keep_serving = true;  // after the recordings end, serve until Ctrl-C

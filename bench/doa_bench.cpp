@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "doa/gcc_phat.hpp"
 #include "doa/acoustic_features.hpp"
+#include "doa/gcc_phat.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/source_bin_mask.hpp"
 #include "doa/spectral_frame.hpp"
@@ -134,13 +134,19 @@ void BM_NodePipeline(benchmark::State& state) {
   state.counters["doas_per_frame"] =
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
 }
-BENCHMARK(BM_NodePipeline)
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(2)
-    ->Arg(3)
-    ->Arg(4)
-    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NodePipeline)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4)->Unit(benchmark::kMicrosecond);
+
+// The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.
+void transform_first_frame(MultichannelFft& fft) {
+  const int frame_length = fft.frame_length();
+  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
+  const testing::Recording& audio = scene();
+  for (int c = 0; c < 4; ++c)
+    for (int n = 0; n < frame_length; ++n)
+      channels[static_cast<std::size_t>(c * frame_length + n)] =
+          audio.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
+  fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+}
 
 // Per-stage costs on one frame of the same scene (for profiling the pipeline; not in the ratio):
 // Arg 0: GccPhat::whiten; 1: correlate() with peak refinement; 2: correlate(false), the lag
@@ -162,13 +168,7 @@ void BM_PipelineStage(benchmark::State& state) {
   GccPhat gcc(fft.fft_size(), frame_length, kRate, params.bands_hz, pairs, params.lag_interpolation,
               params.correlation_oversample);
   SourceBinMask mask(gcc);
-  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
-  const testing::Recording& audio = scene();
-  for (int c = 0; c < 4; ++c)
-    for (int n = 0; n < frame_length; ++n)
-      channels[static_cast<std::size_t>(c * frame_length + n)] =
-          audio.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
-  fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+  transform_first_frame(fft);
   gcc.whiten(fft);
   gcc.correlate();
   std::vector<PairTdoa> tdoas(pairs.size());
@@ -205,13 +205,7 @@ void BM_AcousticFeatures(benchmark::State& state) {
   const ArrayGeometry geometry = testing::tetrahedron(30.0);
   const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
   MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
-  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
-  const testing::Recording& audio = scene();
-  for (int c = 0; c < 4; ++c)
-    for (int n = 0; n < frame_length; ++n)
-      channels[static_cast<std::size_t>(c * frame_length + n)] =
-          audio.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
-  fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+  transform_first_frame(fft);
   AcousticFeatureExtractor extractor(geometry, fft.fft_size(), kRate, 343.0, params.hop_s,
                                      params.acoustic);
   const std::array<Eigen::Vector3d, 1> directions{direction_from_azel_deg(40.0, 25.0)};

@@ -122,8 +122,8 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
     c.static_max_speed_mps =
         reader.number("static_max_speed_mps", c.static_max_speed_mps, 0.0, 100.0);
     c.static_long_s = reader.number("static_long_s", c.static_long_s, 0.0, 86400.0);
-    c.static_ground_max_altitude_m = reader.number(
-        "static_ground_max_altitude_m", c.static_ground_max_altitude_m, 0.0, 1000.0);
+    c.static_ground_max_altitude_m =
+        reader.number("static_ground_max_altitude_m", c.static_ground_max_altitude_m, 0.0, 1000.0);
     c.ground_static_s = reader.number("ground_static_s", c.ground_static_s, 0.0, 86400.0);
     c.aircraft_min_altitude_m =
         reader.number("aircraft_min_altitude_m", c.aircraft_min_altitude_m, 1.0, 1e5);

@@ -255,12 +255,14 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       if (alerts.has("classes")) {
         site.alerts.classes.clear();
         alerts.for_each("classes", false, [&](const nlohmann::json& node, const std::string& path) {
-          const auto track_class =
-              node.is_string() ? fusion::track_class_from_string(node.get<std::string>())
-                               : std::nullopt;
+          const auto track_class = node.is_string()
+                                       ? fusion::track_class_from_string(node.get<std::string>())
+                                       : std::nullopt;
           if (!track_class) {
-            diagnostics.error(path, "expected one of \"drone\", \"ground\", \"aircraft\", "
-                                    "\"unknown\", got " + node.dump());
+            diagnostics.error(path,
+                              "expected one of \"drone\", \"ground\", \"aircraft\", "
+                              "\"unknown\", got " +
+                                  node.dump());
             return;
           }
           site.alerts.classes.push_back(*track_class);

@@ -144,9 +144,9 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
   std::copy_n(sample.tdoa_s._buffer, sample.tdoa_s._length, out.tdoa_s.begin());
   out.acoustic = doa::AcousticFeatures{};
   if (sample.acoustic_valid) {
-    const double values[] = {sample.fundamental_hz,      sample.comb_strength,
-                             sample.broadband_share,     sample.comb_persistence,
-                             sample.fundamental_spread,  sample.level_modulation_db,
+    const double values[] = {sample.fundamental_hz,     sample.comb_strength,
+                             sample.broadband_share,    sample.comb_persistence,
+                             sample.fundamental_spread, sample.level_modulation_db,
                              sample.acoustic_history_s};
     // A malformed feature block costs the DOA its acoustic vote, not the DOA.
     const bool sane = std::all_of(std::begin(values), std::end(values),

@@ -17,9 +17,8 @@ BandRun feature_bins(const FrequencyBand& band_hz, double sample_rate_hz, int ff
 }  // namespace
 
 AcousticFeatureExtractor::AcousticFeatureExtractor(const ArrayGeometry& geometry, int fft_size,
-                                                   double sample_rate_hz,
-                                                   double speed_of_sound_mps, double hop_s,
-                                                   const AcousticSettings& settings)
+                                                   double sample_rate_hz, double speed_of_sound_mps,
+                                                   double hop_s, const AcousticSettings& settings)
     : settings_(settings),
       mic_count_(static_cast<int>(geometry.mic_count())),
       band_(feature_bins(settings.band_hz, sample_rate_hz, fft_size)),
@@ -134,9 +133,9 @@ void AcousticFeatureExtractor::analyse(const MultichannelFft& fft,
                                        std::span<const Eigen::Vector3d> directions_site,
                                        std::span<const int> slots,
                                        std::span<const std::uint32_t> generations) {
-  const int sources = std::min<int>(
-      {static_cast<int>(directions_site.size()), static_cast<int>(slots.size()),
-       static_cast<int>(generations.size()), kMaxSources});
+  const int sources =
+      std::min<int>({static_cast<int>(directions_site.size()), static_cast<int>(slots.size()),
+                     static_cast<int>(generations.size()), kMaxSources});
   if (sources == 0 || fft.channels() != mic_count_) return;
   for (int s = 0; s < sources; ++s)
     for (int m = 0; m < mic_count_; ++m)
@@ -163,7 +162,8 @@ void AcousticFeatureExtractor::analyse(const MultichannelFft& fft,
     detector_.autocorrelate(power, frame_autocorrelation_);
     const double weight = history.started ? comb_weight_ : 1.0;
     for (std::size_t l = 0; l < frame_autocorrelation_.size(); ++l)
-      history.mean_autocorrelation[l] += weight * (frame_autocorrelation_[l] - history.mean_autocorrelation[l]);
+      history.mean_autocorrelation[l] +=
+          weight * (frame_autocorrelation_[l] - history.mean_autocorrelation[l]);
     history.started = true;
     const HarmonicComb comb = detector_.find(history.mean_autocorrelation);
     update_history(history, comb, 10.0 * std::log10(std::max(band_power * to_power, 1e-30)));

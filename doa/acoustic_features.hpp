@@ -71,15 +71,15 @@ class AcousticFeatureExtractor {
   BandRun band_;  // the feature band's bins
   int first_bin_;
   int bin_count_;
-  double bin_omega_;  // rad/s per bin
+  double bin_omega_;                                 // rad/s per bin
   std::vector<Eigen::Vector3d> mic_offsets_site_m_;  // from the mic centroid, site frame
   double speed_of_sound_mps_;
   HarmonicCombDetector detector_;
   static constexpr int kMaxMics = 8;
   std::array<std::array<double, kMaxMics>, kMaxSources> delays_s_{};  // per source, per mic
-  std::vector<double> source_power_;  // kMaxSources x bin_count_
-  std::vector<double> mic_power_;     // per bin: mean power over the mics
-  std::vector<double> sorted_power_;  // for the median
+  std::vector<double> source_power_;                                  // kMaxSources x bin_count_
+  std::vector<double> mic_power_;                  // per bin: mean power over the mics
+  std::vector<double> sorted_power_;               // for the median
   std::array<double, kMaxSources> owned_power_{};  // per source: its own bins' power
   std::vector<double> frame_autocorrelation_;
   std::array<History, kMaxSlots> histories_;

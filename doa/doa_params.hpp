@@ -23,8 +23,8 @@ struct AcousticSettings {
   // 0.3 s at the default hop: the features move over seconds, and one analysis of one source
   // costs ~18 us (doa_bench BM_AcousticFeatures), a quarter of the FFT kernel of a frame.
   int analysis_every_frames = 6;
-  double comb_memory_s = 1.0;     // time constant of the mean comb autocorrelation
-  double history_s = 3.0;         // span of the over-the-last-seconds features
+  double comb_memory_s = 1.0;  // time constant of the mean comb autocorrelation
+  double history_s = 3.0;      // span of the over-the-last-seconds features
   // A bin is a source's when steering to it makes the mics' phasors this coherent (|sum|^2 over
   // M sum |X|^2: 1 for one plane wave, 1/M for incoherent noise) and no other source's more.
   double min_bin_coherence = 0.5;

@@ -147,7 +147,9 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
 HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation) const {
   HarmonicComb comb;
   if (static_cast<int>(autocorrelation.size()) < lag_count()) return comb;
-  const auto at = [&](int lag) { return autocorrelation[static_cast<std::size_t>(lag - first_lag_)]; };
+  const auto at = [&](int lag) {
+    return autocorrelation[static_cast<std::size_t>(lag - first_lag_)];
+  };
   const int min_lag = first_lag_ + 1;
   const int max_lag = last_lag_ - 1;
   int best_lag = min_lag;
@@ -162,8 +164,8 @@ HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation)
   const auto local_max_near = [&](double centre) {
     const int middle = static_cast<int>(std::lround(centre));
     int found = -1;
-    for (int candidate = std::max(min_lag, middle - 1);
-         candidate <= std::min(max_lag, middle + 1); ++candidate)
+    for (int candidate = std::max(min_lag, middle - 1); candidate <= std::min(max_lag, middle + 1);
+         ++candidate)
       if (found < 0 || at(candidate) > at(found)) found = candidate;
     return found;
   };
@@ -196,8 +198,7 @@ HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation)
     double harmonic_power = 0.0;
     int previous_end = -1;
     for (int h = first_harmonic; h <= last_harmonic; ++h) {
-      const int expected =
-          static_cast<int>(std::lround(h * fundamental_hz / bin_hz_)) - first_bin_;
+      const int expected = static_cast<int>(std::lround(h * fundamental_hz / bin_hz_)) - first_bin_;
       int peak = -1;
       double peak_salience = 0.0;
       for (int i = std::max(0, expected - reach); i <= std::min(n - 1, expected + reach); ++i) {

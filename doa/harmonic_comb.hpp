@@ -20,8 +20,8 @@
 namespace dronetrack::doa {
 
 struct HarmonicCombSettings {
-  double min_fundamental_hz = 40.0;   // search range of the comb spacing
-  double max_fundamental_hz = 500.0;  //
+  double min_fundamental_hz = 40.0;      // search range of the comb spacing
+  double max_fundamental_hz = 500.0;     //
   double envelope_half_width_hz = 90.0;  // local envelope: mean log power over +- this
   double line_salience_db = 6.0;         // a harmonic stands this far above its envelope
   double min_strength = 0.15;            // autocorrelation at the spacing to call it a comb

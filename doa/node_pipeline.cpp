@@ -134,9 +134,9 @@ struct NodePipeline::Impl {
           std::make_unique<BinSnrWeight>(gcc.band(), tracker_settings.hop_s,
                                          params.snr_noise_rise_db_per_s, params.snr_weight_floor);
     if (params.acoustic.enabled)
-      acoustic = std::make_unique<AcousticFeatureExtractor>(geometry, fft.fft_size(),
-                                                            sample_rate_hz, speed_of_sound_mps,
-                                                            tracker_settings.hop_s, params.acoustic);
+      acoustic = std::make_unique<AcousticFeatureExtractor>(
+          geometry, fft.fft_size(), sample_rate_hz, speed_of_sound_mps, tracker_settings.hop_s,
+          params.acoustic);
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
@@ -203,8 +203,8 @@ struct NodePipeline::Impl {
   SourceBinMask bin_mask{gcc};
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
-  std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
-  std::unique_ptr<BinSnrWeight> snr_weight;       // noise-only bins faded
+  std::unique_ptr<StaticSourceNull> static_null;       // static ground sources' bins dropped
+  std::unique_ptr<BinSnrWeight> snr_weight;            // noise-only bins faded
   std::unique_ptr<AcousticFeatureExtractor> acoustic;  // each source's spectral features
   bool acoustic_due = false;                           // this frame is measured
   std::array<Eigen::Vector3d, kMaxSources> acoustic_directions{};

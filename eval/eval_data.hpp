@@ -56,7 +56,7 @@ struct TrackRecord {
   double time_s = 0.0;
   int id = 0;
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
-  std::string status;  // tentative | confirmed | coasting
+  std::string status;                   // tentative | confirmed | coasting
   std::string track_class = "unknown";  // "class": drone | ground | aircraft | unknown
 };
 
@@ -94,10 +94,10 @@ struct SourceMetrics {
   std::string id;
   // Drone or not (issue 14), over the ticks a counted track follows this drone:
   double tracked_time_s = 0.0;
-  double drone_class_time_s = 0.0;      // of which the track said "drone"
-  double drone_class_share = 0.0;       // drone_class_time_s / tracked_time_s
-  double first_tracked_s = -1.0;        // first tick a counted track followed it
-  double classified_after_s = -1.0;     // then until its track first said "drone" (-1: never)
+  double drone_class_time_s = 0.0;   // of which the track said "drone"
+  double drone_class_share = 0.0;    // drone_class_time_s / tracked_time_s
+  double first_tracked_s = -1.0;     // first tick a counted track followed it
+  double classified_after_s = -1.0;  // then until its track first said "drone" (-1: never)
   PositionMetrics position;
   double truth_time_s = 0.0;
   double covered_time_s = 0.0;
@@ -146,8 +146,8 @@ struct EvalReport {
   int alerts_read = -1;  // -1: no alerts given
   int drone_zone_entries = 0;
   int non_drone_zone_entries = 0;
-  std::vector<DoaArrayMetrics> doa;   // empty without DOAs
-  int doa_unmatched = 0;              // DOAs of arrays or times without truth
+  std::vector<DoaArrayMetrics> doa;  // empty without DOAs
+  int doa_unmatched = 0;             // DOAs of arrays or times without truth
 };
 
 }  // namespace dronetrack::eval

@@ -268,7 +268,8 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
       if (metrics.first_tracked_s < 0.0) metrics.first_tracked_s = t;
       if (says_drone) {
         metrics.drone_class_time_s += tick;
-        if (metrics.classified_after_s < 0.0) metrics.classified_after_s = t - metrics.first_tracked_s;
+        if (metrics.classified_after_s < 0.0)
+          metrics.classified_after_s = t - metrics.first_tracked_s;
       }
       if (last_track[s] >= 0 && last_track[s] != live[r]->id) ++metrics.id_switches;
       last_track[s] = live[r]->id;

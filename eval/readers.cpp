@@ -165,14 +165,13 @@ Truth parse_truth(const std::string& text, const std::string& file) {
     reader.for_each("sources", true, [&](const nlohmann::json& node, const std::string& path) {
       truth.sources.push_back(read_source(node, path, diagnostics));
     });
-    reader.for_each("interferers", false,
-                    [&](const nlohmann::json& node, const std::string& path) {
-                      truth.others.push_back(read_source(node, path, diagnostics));
-                      std::string source_class = "ground";
-                      if (node.is_object() && node.contains("class") && node["class"].is_string())
-                        source_class = node["class"].get<std::string>();
-                      truth.other_classes.push_back(source_class);
-                    });
+    reader.for_each("interferers", false, [&](const nlohmann::json& node, const std::string& path) {
+      truth.others.push_back(read_source(node, path, diagnostics));
+      std::string source_class = "ground";
+      if (node.is_object() && node.contains("class") && node["class"].is_string())
+        source_class = node["class"].get<std::string>();
+      truth.other_classes.push_back(source_class);
+    });
     if (reader.has("arrays")) {
       ObjectReader arrays = reader.object("arrays");
       for (const auto& [id, entry] : document["arrays"].items()) {

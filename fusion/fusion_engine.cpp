@@ -678,8 +678,8 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
       const Eigen::Vector3d to_other = position_of(other.filter->mean()) - models[a].centre_m;
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
-      const double angle_rad = std::acos(std::clamp(
-          to_track.dot(to_other) / (range_m * other_range_m), -1.0, 1.0));
+      const double angle_rad =
+          std::acos(std::clamp(to_track.dot(to_other) / (range_m * other_range_m), -1.0, 1.0));
       const double variance_rad2 = floor_variance_rad2 + spread_m2 / (range_m * range_m) +
                                    other_spread_m2 / (other_range_m * other_range_m);
       if (angle_rad * angle_rad <= gate_chi2 * variance_rad2) {
@@ -732,8 +732,8 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     const StateVector& mean = track.filter->mean();
     const double altitude_std_m = std::sqrt(std::max(
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
-    classifier->add_kinematics(track.evidence, position_of(mean), velocity_of(mean),
-                               altitude_std_m, track.time_s);
+    classifier->add_kinematics(track.evidence, position_of(mean), velocity_of(mean), altitude_std_m,
+                               track.time_s);
     classifier->classify(track.evidence);
   }
   const double max_variance = params.max_position_std_m * params.max_position_std_m;

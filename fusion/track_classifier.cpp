@@ -21,8 +21,8 @@ const char* to_string(TrackClass track_class) {
 }
 
 std::optional<TrackClass> track_class_from_string(const std::string& name) {
-  for (TrackClass c : {TrackClass::unknown, TrackClass::drone, TrackClass::ground,
-                       TrackClass::aircraft})
+  for (TrackClass c :
+       {TrackClass::unknown, TrackClass::drone, TrackClass::ground, TrackClass::aircraft})
     if (name == to_string(c)) return c;
   return std::nullopt;
 }
@@ -30,7 +30,8 @@ std::optional<TrackClass> track_class_from_string(const std::string& name) {
 TrackClassifier::TrackClassifier(const ClassifierSettings& settings, double ground_altitude_m)
     : settings_(settings), ground_altitude_m_(ground_altitude_m) {
   auto check = [](bool ok, const char* name) {
-    if (!ok) throw std::invalid_argument(std::string("fusion.classifier.") + name + ": out of range");
+    if (!ok)
+      throw std::invalid_argument(std::string("fusion.classifier.") + name + ": out of range");
   };
   check(settings.drone_max_fundamental_hz > settings.drone_min_fundamental_hz,
         "drone_max_fundamental_hz");
@@ -76,9 +77,8 @@ void TrackClassifier::add_kinematics(TrackEvidence& evidence, const Eigen::Vecto
   evidence.speed_mps += weight * (speed_mps - evidence.speed_mps);
   evidence.altitude_std_m = altitude_std_m;
   evidence.max_speed_mps = std::max(evidence.max_speed_mps, evidence.speed_mps);
-  evidence.static_s = evidence.speed_mps <= settings_.static_max_speed_mps
-                          ? evidence.static_s + elapsed_s
-                          : 0.0;
+  evidence.static_s =
+      evidence.speed_mps <= settings_.static_max_speed_mps ? evidence.static_s + elapsed_s : 0.0;
   evidence.kinematic_time_s = time_s;
 }
 
@@ -105,15 +105,14 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
   const bool altitude_known = evidence.altitude_std_m <= 0.25 * std::max(evidence.altitude_m, 1.0);
   if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0) {
     evidence.track_class = TrackClass::aircraft;
-    evidence.confidence = std::clamp(0.5 + 0.5 * (std::max(altitude_margin, speed_margin) - 1.0) /
-                                               0.5,
-                                     0.5, 1.0);
+    evidence.confidence =
+        std::clamp(0.5 + 0.5 * (std::max(altitude_margin, speed_margin) - 1.0) / 0.5, 0.5, 1.0);
     return;
   }
   const bool low = evidence.altitude_m <= s.ground_max_altitude_m &&
                    evidence.altitude_std_m <= s.ground_max_altitude_std_m;
-  const bool parked = evidence.static_s >= s.static_long_s &&
-                      evidence.altitude_m <= s.static_ground_max_altitude_m;
+  const bool parked =
+      evidence.static_s >= s.static_long_s && evidence.altitude_m <= s.static_ground_max_altitude_m;
   // At ground level a rotor-like comb is not enough: a generator's or an engine's harmonics can
   // sit in the rotor range, and a drone's own sound reaches the ground-level points where its
   // rays and its echo's cross (the ghost near the ground). Low and still: ground once it has

@@ -24,7 +24,7 @@ struct ClassifierSettings {
   double drone_min_fundamental_hz = 80.0;
   double drone_max_fundamental_hz = 400.0;
   double drone_min_comb_persistence = 0.3;
-  double acoustic_memory_s = 4.0;  // the DOAs' votes fade with this time constant
+  double acoustic_memory_s = 4.0;   // the DOAs' votes fade with this time constant
   double min_acoustic_votes = 4.0;  // effective DOAs in memory before the acoustics decide
   double undecided_s = 2.0;         // a track with fewer votes stays unknown this long
   double drone_enter_share = 0.5;   // share of drone votes to become a drone

@@ -29,8 +29,8 @@ struct RotorSignal {
   // harmonics die out above ~1 kHz); 0: no corner.
   double rolloff_corner_hz = 0.0;
   double rolloff_db_per_octave = 0.0;
-  double broadband_low_hz = 20.0;   // broadband band (tyres and road: 300-4000 Hz)
-  double broadband_high_hz = 0.0;   // 0: up to the band limit
+  double broadband_low_hz = 20.0;  // broadband band (tyres and road: 300-4000 Hz)
+  double broadband_high_hz = 0.0;  // 0: up to the band limit
 };
 
 // Birdsong-like chirps: short sweeps at random moments, deterministic per seed and source.

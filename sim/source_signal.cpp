@@ -118,8 +118,8 @@ void synthesise_rotor(const Scenario& scenario, std::size_t source_index, double
     if (k * highest_fundamental_hz > band_limit_hz) continue;
     double level_db = rotor.slope_db_per_octave * std::log2(k) + jitter_db;
     if (rotor.rolloff_corner_hz > 0.0 && k * rotor.blade_pass_hz > rotor.rolloff_corner_hz)
-      level_db += rotor.rolloff_db_per_octave * std::log2(k * rotor.blade_pass_hz /
-                                                          rotor.rolloff_corner_hz);
+      level_db += rotor.rolloff_db_per_octave *
+                  std::log2(k * rotor.blade_pass_hz / rotor.rolloff_corner_hz);
     const double amplitude = std::pow(10.0, level_db / 20.0);
     harmonic_power += amplitude * amplitude / 2.0;
     for (int m = 0; m < kTable; ++m) {

@@ -99,7 +99,8 @@ CombRun run_detector(const std::vector<double>& signal, double rate_hz, double l
   // As the node does it (doa::AcousticSettings' defaults): every few frames, into a mean of
   // comb_memory_s memory.
   const AcousticSettings defaults;
-  const double weight = std::min(1.0, defaults.analysis_every_frames * 0.05 / defaults.comb_memory_s);
+  const double weight =
+      std::min(1.0, defaults.analysis_every_frames * 0.05 / defaults.comb_memory_s);
   bool started = false;
   for (std::size_t start = 0; start + static_cast<std::size_t>(frame) <= signal.size();
        start += static_cast<std::size_t>(defaults.analysis_every_frames * hop)) {
@@ -126,34 +127,36 @@ CombRun run_detector(const std::vector<double>& signal, double rate_hz, double l
   return run;
 }
 
-// A generator locked to 50 Hz mains: its harmonics (firing and mechanical) to 4 kHz with a
-// -6 dB/octave slope, and exhaust broadband 12 dB under the lines.
-std::vector<double> generator(double rate_hz, double seconds, unsigned seed) {
+// Harmonics of `fundamental_hz` below 4 kHz, amplitude(f) each, random phases.
+std::vector<double> harmonic_series(double rate_hz, double seconds, double fundamental_hz,
+                                    double (*amplitude)(double), unsigned seed) {
   std::vector<double> out(static_cast<std::size_t>(rate_hz * seconds));
   std::mt19937 random(seed);
   std::uniform_real_distribution<double> phase(0.0, 2.0 * kPi);
-  for (int h = 1; h * 50.0 < 4000.0; ++h) {
-    const double amplitude = 1.0 / h;
+  for (int h = 1; h * fundamental_hz < 4000.0; ++h) {
+    const double f = fundamental_hz * h;
+    const double a = amplitude(f);
     const double phi = phase(random);
     for (std::size_t i = 0; i < out.size(); ++i)
-      out[i] += amplitude * std::sin(2.0 * kPi * 50.0 * h * i / rate_hz + phi);
+      out[i] += a * std::sin(2.0 * kPi * f * static_cast<double>(i) / rate_hz + phi);
   }
   return out;
 }
 
+// A generator locked to 50 Hz mains: its harmonics (firing and mechanical) to 4 kHz with a
+// -6 dB/octave slope.
+std::vector<double> generator(double rate_hz, double seconds, unsigned seed) {
+  return harmonic_series(
+      rate_hz, seconds, 50.0, [](double f) { return 50.0 / f; }, seed);
+}
+
 // A car: a four-cylinder engine at 1800 rpm (60 Hz firing) whose harmonics fall 24 dB per
-// octave above 500 Hz, under tyre noise that fills 300-4000 Hz (white noise, dominant in band).
+// octave above 500 Hz, under tyre noise that fills the band (white noise, dominant in band).
 std::vector<double> car(double rate_hz, double seconds, unsigned seed) {
-  std::vector<double> out(static_cast<std::size_t>(rate_hz * seconds));
-  std::mt19937 random(seed);
-  std::uniform_real_distribution<double> phase(0.0, 2.0 * kPi);
-  for (int h = 1; h * 60.0 < 4000.0; ++h) {
-    const double f = 60.0 * h;
-    const double amplitude = f <= 500.0 ? 1.0 : std::pow(500.0 / f, 4.0);
-    const double phi = phase(random);
-    for (std::size_t i = 0; i < out.size(); ++i)
-      out[i] += amplitude * std::sin(2.0 * kPi * f * i / rate_hz + phi);
-  }
+  std::vector<double> out = harmonic_series(
+      rate_hz, seconds, 60.0, [](double f) { return f <= 500.0 ? 1.0 : std::pow(500.0 / f, 4.0); },
+      seed);
+  std::mt19937 random(seed + 1);
   std::normal_distribution<double> tyre(0.0, 0.3);
   for (double& x : out) x += tyre(random);
   return out;
@@ -176,7 +179,7 @@ TEST(HarmonicComb, FindsTheRotorFundamentalOnRealDroneRecordings) {
     double high_hz;
   };
   const Clip clips[] = {{"ddd_drone_003_ch0.wav", 170, 200}, {"ddd_drone_017_ch0.wav", 170, 200},
-                        {"ddd_drone_021_ch0.wav", 80, 400}, {"ddd_drone_014_ch0.wav", 80, 400},
+                        {"ddd_drone_021_ch0.wav", 80, 400},  {"ddd_drone_014_ch0.wav", 80, 400},
                         {"ddd_drone_024_ch0.wav", 80, 400},  {"ddd_drone_029_ch0.wav", 80, 400}};
   double drone_share_sum = 0.0;
   for (const Clip& clip : clips) {

@@ -39,7 +39,8 @@ class BandNoise {
     std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
     for (int h = 1; h * fundamental_hz <= high_hz; ++h) {
       if (h * fundamental_hz < low_hz) continue;
-      const auto k = static_cast<std::size_t>(std::lround(h * fundamental_hz * length / sample_rate_hz));
+      const auto k =
+          static_cast<std::size_t>(std::lround(h * fundamental_hz * length / sample_rate_hz));
       if (k < source.spectrum_.size())
         source.spectrum_[k] = std::polar(std::pow(static_cast<double>(h), -0.5), phase(random));
     }

@@ -46,7 +46,7 @@ struct ClassRun {
   double share = 0.0;     // share of the time after first_s in `wanted`
 };
 ClassRun run(const Scenario& scenario, double duration_s, TrackClass wanted,
-        double altitude_std_m = 0.5) {
+             double altitude_std_m = 0.5) {
   const TrackClassifier classifier(ClassifierSettings{}, 0.0);
   TrackEvidence evidence;
   ClassRun result;
@@ -72,8 +72,10 @@ ClassRun run(const Scenario& scenario, double duration_s, TrackClass wanted,
 
 TEST(TrackClassifier, HoveringDroneAt30mIsADroneFromItsCombAndStaysOne) {
   const ClassRun run_result = run(
-      [](double) { return Sample{{40, 10, 30}, {0.1, 0, 0}, comb_at(165.0)}; }, 120.0,
-      TrackClass::drone);
+      [](double) {
+        return Sample{{40, 10, 30}, {0.1, 0, 0}, comb_at(165.0)};
+      },
+      120.0, TrackClass::drone);
   EXPECT_GE(run_result.first_s, 0.0);
   EXPECT_LE(run_result.first_s, 1.0);
   EXPECT_EQ(run_result.share, 1.0);  // static for two minutes at 30 m: still a drone
@@ -82,8 +84,10 @@ TEST(TrackClassifier, HoveringDroneAt30mIsADroneFromItsCombAndStaysOne) {
 TEST(TrackClassifier, LoudStaticGeneratorIsGround) {
   // Mains-locked comb at 50 Hz (out of the rotor range) at 0.8 m above the ground.
   const ClassRun run_result = run(
-      [](double) { return Sample{{-30, 60, 0.8}, {0, 0, 0}, comb_at(50.0, 1.0)}; }, 20.0,
-      TrackClass::ground);
+      [](double) {
+        return Sample{{-30, 60, 0.8}, {0, 0, 0}, comb_at(50.0, 1.0)};
+      },
+      20.0, TrackClass::ground);
   EXPECT_LE(run_result.first_s, 1.0);
   EXPECT_EQ(run_result.share, 1.0);
 }
@@ -104,34 +108,42 @@ TEST(TrackClassifier, GeneratorWhoseCombIsInTheRotorRangeIsStillGround) {
 TEST(TrackClassifier, StaticSourceAt6mWithoutACombBecomesGroundOnceItHasStoodStillLong) {
   // Too high for "at ground level" (altitude std 0.5 m), silent of any comb: unknown until it has
   // stood still for static_long_s, then a ground source (a pump on a roof, a fan).
-  const ClassRun run_result =
-      run([](double) { return Sample{{0, 80, 6.0}, {0, 0, 0}, broadband()}; }, 60.0,
-          TrackClass::ground);
+  const ClassRun run_result = run(
+      [](double) {
+        return Sample{{0, 80, 6.0}, {0, 0, 0}, broadband()};
+      },
+      60.0, TrackClass::ground);
   EXPECT_GE(run_result.first_s, ClassifierSettings{}.static_long_s);
   EXPECT_LE(run_result.first_s, ClassifierSettings{}.static_long_s + 3.0);
   EXPECT_EQ(run_result.per_second[5], TrackClass::unknown);
 }
 
 TEST(TrackClassifier, LightAircraftIsAnAircraftThoughItsPropellerIsAComb) {
-  const ClassRun run_result =
-      run([](double t) { return Sample{{-400 + 50 * t, 0, 300}, {50, 0, 0}, comb_at(85.0)}; },
-          16.0, TrackClass::aircraft, 20.0);
+  const ClassRun run_result = run(
+      [](double t) {
+        return Sample{{-400 + 50 * t, 0, 300}, {50, 0, 0}, comb_at(85.0)};
+      },
+      16.0, TrackClass::aircraft, 20.0);
   EXPECT_LE(run_result.first_s, 1.0);
   EXPECT_EQ(run_result.share, 1.0);
 }
 
 TEST(TrackClassifier, PassingCarIsGround) {
-  const ClassRun run_result =
-      run([](double t) { return Sample{{-100 + 15 * t, -40, 0.7}, {15, 0, 0}, broadband()}; },
-          12.0, TrackClass::ground);
+  const ClassRun run_result = run(
+      [](double t) {
+        return Sample{{-100 + 15 * t, -40, 0.7}, {15, 0, 0}, broadband()};
+      },
+      12.0, TrackClass::ground);
   EXPECT_LE(run_result.first_s, 1.0);
   EXPECT_EQ(run_result.share, 1.0);
 }
 
 TEST(TrackClassifier, BirdWithoutACombStaysUnknown) {
-  const ClassRun run_result =
-      run([](double t) { return Sample{{10 * t, 20, 25}, {10, 0, 0}, broadband()}; }, 20.0,
-          TrackClass::drone);
+  const ClassRun run_result = run(
+      [](double t) {
+        return Sample{{10 * t, 20, 25}, {10, 0, 0}, broadband()};
+      },
+      20.0, TrackClass::drone);
   EXPECT_LT(run_result.first_s, 0.0);  // never a drone
   EXPECT_EQ(run_result.per_second.back(), TrackClass::unknown);
 }

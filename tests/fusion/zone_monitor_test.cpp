@@ -72,17 +72,19 @@ TEST(ZoneMonitor, EnterLeaveAndDisappear) {
 TEST(ZoneMonitor, OnlyTheAlertPolicysClassesAlertAndClassChangesAreReported) {
   ZoneMonitor monitor({yard()}, AlertPolicy{{TrackClass::drone}, 2.0});
   std::vector<ZoneEvent> events;
-  monitor.update(0.0, {track_at(1, {0, 0, 1}, TrackStatus::confirmed, TrackClass::ground),
-                       track_at(2, {10, 0, 300}, TrackStatus::confirmed, TrackClass::aircraft),
-                       track_at(3, {0, 10, 30}, TrackStatus::confirmed, TrackClass::unknown),
-                       track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 1.0)},
+  monitor.update(0.0,
+                 {track_at(1, {0, 0, 1}, TrackStatus::confirmed, TrackClass::ground),
+                  track_at(2, {10, 0, 300}, TrackStatus::confirmed, TrackClass::aircraft),
+                  track_at(3, {0, 10, 30}, TrackStatus::confirmed, TrackClass::unknown),
+                  track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 1.0)},
                  events);
   EXPECT_TRUE(of_kind(events, ZoneEventKind::entered).empty());  // drone 4 confirmed only 1 s
   ASSERT_EQ(of_kind(events, ZoneEventKind::class_changed).size(), 3u);  // 1, 2, 4 (3 stays unknown)
   events.clear();
-  monitor.update(1.0, {track_at(1, {0, 0, 1}, TrackStatus::confirmed, TrackClass::ground),
-                       track_at(3, {0, 10, 30}, TrackStatus::confirmed, TrackClass::drone),
-                       track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 2.0)},
+  monitor.update(1.0,
+                 {track_at(1, {0, 0, 1}, TrackStatus::confirmed, TrackClass::ground),
+                  track_at(3, {0, 10, 30}, TrackStatus::confirmed, TrackClass::drone),
+                  track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 2.0)},
                  events);
   const auto entered = of_kind(events, ZoneEventKind::entered);
   ASSERT_EQ(entered.size(), 2u);
@@ -94,8 +96,9 @@ TEST(ZoneMonitor, OnlyTheAlertPolicysClassesAlertAndClassChangesAreReported) {
   EXPECT_EQ(changed[0].track_class, TrackClass::drone);
   events.clear();
   // Track 3 turns out to be a ground source while inside: its alert ends.
-  monitor.update(2.0, {track_at(3, {0, 10, 2}, TrackStatus::confirmed, TrackClass::ground),
-                       track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 3.0)},
+  monitor.update(2.0,
+                 {track_at(3, {0, 10, 2}, TrackStatus::confirmed, TrackClass::ground),
+                  track_at(4, {0, -10, 30}, TrackStatus::confirmed, TrackClass::drone, 3.0)},
                  events);
   const auto left = of_kind(events, ZoneEventKind::left);
   ASSERT_EQ(left.size(), 1u);
