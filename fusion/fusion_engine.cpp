@@ -177,6 +177,11 @@ struct FusionEngine::Impl {
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
   int recent_arrays(const Track& track) const;  // arrays that updated it within the last second
+  // Echo test (issue 14): every array's rays to a source and to its ground mirror lie in the
+  // vertical plane through both, so DOAs that mix the two (an echo the node could not remove)
+  // meet on the vertical line through the source, below it. A track there, under a confirmed
+  // track, is that mixture: not confirmed.
+  bool beneath_another_track(const Track& track) const;
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;
     if (status == FilterStatus::failed) ++counters.filter_failures;
@@ -652,6 +657,24 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   return true;
 }
 
+bool FusionEngine::Impl::beneath_another_track(const Track& track) const {
+  const Eigen::Vector3d position = position_of(track.filter->mean());
+  const Eigen::Matrix3d covariance = track.filter->covariance().topLeftCorner<3, 3>();
+  for (const Track& other : tracks) {
+    if (&other == &track || !other.confirmed) continue;
+    const Eigen::Vector3d above = position_of(other.filter->mean());
+    const double height_m = above.z() - params.ground_altitude_m;
+    if (!(position.z() < above.z()) || !(position.z() - params.ground_altitude_m > -height_m))
+      continue;
+    const Eigen::Vector2d offset = (position - above).head<2>();
+    const Eigen::Matrix2d spread = covariance.topLeftCorner<2, 2>() +
+                                   other.filter->covariance().topLeftCorner<2, 2>() +
+                                   Eigen::Matrix2d::Identity();  // 1 m: the echo's own blur
+    if (offset.dot(spread.ldlt().solve(offset)) <= chi_square_quantile(0.999, 2)) return true;
+  }
+  return false;
+}
+
 int FusionEngine::Impl::recent_arrays(const Track& track) const {
   int count = 0;
   for (std::size_t a = 0; a < arrays.size(); ++a)
@@ -722,7 +745,7 @@ void FusionEngine::Impl::life_cycle(double now_s) {
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
     if (supported && above_ground && hits >= params.confirm_hits &&
-        !explained_by_other_tracks(track)) {
+        !explained_by_other_tracks(track) && !beneath_another_track(track)) {
       track.confirmed = true;
       track.confirmed_at_s = now_s;
       ++counters.tracks_confirmed;
