@@ -12,6 +12,13 @@ std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConf
                                                          const std::filesystem::path& recording,
                                                          double block_s) {
   const capture::RecordingInfo info = capture::probe_recording(recording);
+  // Before the block buffers are sized from it: a header may claim any rate.
+  if (!(info.sample_rate_hz >= config::kMinSampleRate_hz &&
+        info.sample_rate_hz <= config::kMaxSampleRate_hz)) {
+    throw std::runtime_error(recording.string() + ": sample rate " +
+                             std::to_string(info.sample_rate_hz) + " Hz; dronetrack takes 1000 " +
+                             "to 1e6 Hz");
+  }
   const auto block_frames =
       static_cast<std::size_t>(std::max(1.0, std::round(block_s * info.sample_rate_hz)));
   return std::make_unique<capture::RecordingSource>(recording, array.channel_map, block_frames);

@@ -14,10 +14,12 @@
 #include <memory>
 #include <optional>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
+#include "common/output_file.hpp"
 #include "config/site_config.hpp"
 #include "dds_idl/conversions.hpp"
 #include "dds_idl/dds.hpp"
@@ -143,7 +145,9 @@ int run(const AlertArguments& arguments) {
     }
   }
   if (malformed > 0) log::warn("alert: ", malformed, " malformed alert samples ignored");
-  return 0;
+  if (std::fflush(stdout) != 0 || std::ferror(stdout))
+    throw OutputError("stdout: write failed (alerts were lost)");
+  return stop_requested() ? interrupted_exit_code() : 0;
 }
 
 }  // namespace
@@ -165,7 +169,7 @@ void register_alert(CLI::App& root, CommandTable& table) {
   command
       ->add_option("--duration", arguments->duration_s,
                    "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_in(0.0, kMaxDuration_s));
   table.add(command, [arguments]() { return run(*arguments); });
 }
 

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/replay_session.hpp"
 #include "common/log.hpp"
@@ -75,12 +76,14 @@ void register_demo(CLI::App& root, CommandTable& table) {
       ->add_option("--data-dir", arguments->data_dir,
                    "Where the synthesised scene and the outputs go")
       ->capture_default_str();
-  command->add_option("--http", arguments->http, "Serve on ADDR:PORT")->capture_default_str();
+  command->add_option("--http", arguments->http, "Serve on ADDR:PORT")
+      ->capture_default_str()
+      ->check(http_address());
   command
       ->add_option("--duration-s", arguments->duration_s,
                    "Stop after this many seconds and exit (default: whole scene, then keep "
                    "serving until Ctrl-C)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_in(0.0, kMaxDuration_s));
   command->add_flag("--fast", arguments->fast, "Replay as fast as possible instead of real time");
   table.add(command, [arguments]() { return run(*arguments); });
 }

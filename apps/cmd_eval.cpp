@@ -1,11 +1,12 @@
 // `dronetrack eval`: accuracy of tracks (and DOAs) against the simulator's truth (SPEC 4.7), as a
 // table on stdout and optionally as JSON. The arithmetic lives in eval/ (metrics.hpp).
-#include <fstream>
-#include <iostream>
 #include <memory>
 #include <string>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
+#include "apps/run_outputs.hpp"
+#include "common/output_file.hpp"
 #include "eval/metrics.hpp"
 #include "eval/readers.hpp"
 #include "eval/report.hpp"
@@ -23,6 +24,14 @@ struct EvalArguments {
 };
 
 int run_eval(const EvalArguments& arguments) {
+  std::unique_ptr<OutputFile> json_file;
+  if (!arguments.json_out.empty()) {
+    check_output_paths({{"--truth", arguments.truth},
+                        {"--tracks", arguments.tracks},
+                        {"--doa", arguments.doas},
+                        {"--alerts", arguments.alerts}},
+                       {{"--json", arguments.json_out}});
+  }
   eval::Truth truth;
   std::vector<eval::TrackRecord> tracks;
   std::vector<eval::DoaRecord> doas;
@@ -35,16 +44,23 @@ int run_eval(const EvalArguments& arguments) {
   } catch (const eval::InputError& error) {
     throw UserError(error.what());
   }
-  const eval::EvalReport report = eval::evaluate(truth, tracks, doas, arguments.options,
-                                                 arguments.alerts.empty() ? nullptr : &alerts);
-  std::cout << eval::format_table(report);
-  if (!arguments.json_out.empty()) {
-    std::ofstream out(arguments.json_out);
-    if (!out) throw UserError(arguments.json_out + ": cannot open for writing");
-    out << eval::to_json(report).dump(2) << '\n';
-    if (!out) throw UserError(arguments.json_out + ": write failed");
+  eval::EvalReport report;
+  try {
+    report = eval::evaluate(truth, tracks, doas, arguments.options,
+                            arguments.alerts.empty() ? nullptr : &alerts);
+  } catch (const eval::InputError& error) {
+    throw UserError(std::string("--tick-s: ") + error.what());
   }
-  return 0;
+  RunOutputs outputs;
+  OutputFile table("-");
+  outputs.add(table);
+  table.write(eval::format_table(report));
+  if (!arguments.json_out.empty()) {
+    json_file = std::make_unique<OutputFile>(arguments.json_out);
+    json_file->write(eval::to_json(report).dump(2) + "\n");
+    outputs.add(*json_file);
+  }
+  return outputs.finish("eval");
 }
 
 }  // namespace
@@ -70,21 +86,21 @@ void register_eval(CLI::App& root, CommandTable& table) {
       ->add_option("--gate-m", arguments->options.association_gate_m,
                    "Track-to-truth association gate, metres")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(finite_in(1e-3, 1e5));
   command
       ->add_option("--coverage-gate-m", arguments->options.coverage_gate_m,
                    "A source is covered when its track is within this distance, metres")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(finite_in(1e-3, 1e5));
   command
       ->add_option("--tick-s", arguments->options.tick_s,
                    "Evaluation step, seconds (default: the tracks' output interval)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_in(0.0, 3600.0));
   command
       ->add_option("--skip-s", arguments->options.skip_s,
                    "Ignore the first seconds of the truth (e.g. sound still in flight)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_in(0.0, kMaxDuration_s));
   command->add_flag("--include-tentative", arguments->options.include_tentative,
                     "Count tentative tracks as tracks");
   table.add(command, [arguments]() -> int { return run_eval(*arguments); });

@@ -6,11 +6,13 @@
 #include <memory>
 #include <optional>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_fusion_service.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
+#include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
 #include "config/site_config.hpp"
@@ -33,13 +35,22 @@ int run(const FusionArguments& arguments) {
   std::vector<std::string> warnings;
   config::LoadOptions load_options;
   load_options.check_recordings = false;  // the fusion never reads audio
+  load_options.for_fusion = true;
   const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
   for (const auto& warning : warnings) log::warn(warning);
   const int domain = resolve_domain(site, arguments.domain);
+  if (!arguments.tracks_out.empty())
+    check_output_paths(site_inputs(site, false), {{"--tracks-out", arguments.tracks_out}});
 
   std::vector<std::unique_ptr<FusionObserver>> owned;
+  TrackLinesWriter* track_writer = nullptr;
   if (!arguments.tracks_out.empty()) {
-    owned.push_back(std::make_unique<TrackLinesWriter>(arguments.tracks_out));
+    // A service's output is a live log: appended (a restart never truncates what an earlier
+    // run wrote), each tick flushed so a reader tailing it sees whole lines.
+    auto writer =
+        std::make_unique<TrackLinesWriter>(arguments.tracks_out, OutputFile::Mode::append);
+    track_writer = writer.get();
+    owned.push_back(std::move(writer));
   }
   std::unique_ptr<http_api::LiveState> live_state;
   std::unique_ptr<http_api::HttpServer> server;
@@ -79,7 +90,8 @@ int run(const FusionArguments& arguments) {
             " alerts published; nodes lost ", counters.nodes_lost, ", rejoined ",
             counters.nodes_rejoined);
   if (server) server->stop();
-  return 0;
+  if (track_writer) track_writer->output().commit();
+  return stop_requested() ? interrupted_exit_code() : 0;
 }
 
 }  // namespace
@@ -93,7 +105,8 @@ void register_fusion(CLI::App& root, CommandTable& table) {
       ->check(CLI::ExistingFile);
   command->add_option("--tracks-out", arguments->tracks_out,
                       "Write tracks as JSON lines here ('-' for stdout)");
-  command->add_option("--http", arguments->http, "Serve the web page and JSON API on ADDR:PORT");
+  command->add_option("--http", arguments->http, "Serve the web page and JSON API on ADDR:PORT")
+      ->check(http_address());
   command
       ->add_option(
           "--web-root", arguments->web_root,
@@ -104,7 +117,7 @@ void register_fusion(CLI::App& root, CommandTable& table) {
   command
       ->add_option("--duration", arguments->duration_s,
                    "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_in(0.0, kMaxDuration_s));
   table.add(command, [arguments]() { return run(*arguments); });
 }
 

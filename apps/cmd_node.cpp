@@ -199,6 +199,12 @@ int run(const NodeArguments& arguments) {
   log::info("node ", node.array_id(), ": ", node.time_s(), " s of audio, ", published,
             " DOAs published", write_failures ? ", " : "",
             write_failures ? std::to_string(write_failures) + " writes failed" : "");
+  if (stop_requested()) return interrupted_exit_code();
+  if (node.source().cut_short()) {
+    log::error("node ", node.array_id(), ": ", node.source().describe(),
+               " ended before its header's end (truncated while being read)");
+    return 1;
+  }
   return 0;
 }
 

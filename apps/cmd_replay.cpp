@@ -2,6 +2,7 @@
 // `dronetrack replay SITE.json --doa-in D.jsonl --tracks-out T.jsonl`: the fusion alone
 #include <memory>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/replay_session.hpp"
 #include "common/log.hpp"
@@ -20,6 +21,7 @@ int run(ReplayArguments arguments) {
   std::vector<std::string> warnings;
   config::LoadOptions load_options;
   load_options.check_recordings = arguments.session.doa_in.empty();  // not read then
+  load_options.for_fusion = true;
   const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
   for (const auto& warning : warnings) log::warn(warning);
   arguments.session.keep_serving = !arguments.exit_when_done;
@@ -51,15 +53,17 @@ void register_replay(CLI::App& root, CommandTable& table) {
               "recordings")
           ->check(CLI::ExistingFile)
           ->excludes(realtime);
-  command->add_option("--http", arguments->session.http,
-                      "Serve the web page and JSON API on ADDR:PORT (e.g. 127.0.0.1:8080); keeps "
-                      "serving after the recordings end until Ctrl-C");
+  command
+      ->add_option("--http", arguments->session.http,
+                   "Serve the web page and JSON API on ADDR:PORT (e.g. 127.0.0.1:8080); keeps "
+                   "serving after the recordings end until Ctrl-C")
+      ->check(http_address());
   command->add_flag("--exit-when-done", arguments->exit_when_done,
                     "With --http: exit when the recordings end instead of serving on");
   command
       ->add_option("--max-duration-s", arguments->session.max_duration_s,
                    "Stop after this many seconds of recording")
-      ->check(CLI::NonNegativeNumber)
+      ->check(finite_in(0.0, kMaxDuration_s))
       ->excludes(doa_in);
   table.add(command, [arguments]() { return run(*arguments); });
 }

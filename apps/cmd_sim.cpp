@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "common/log.hpp"
 #include "sim/render.hpp"
@@ -58,7 +59,7 @@ void register_sim(CLI::App& root, CommandTable& table) {
   command
       ->add_option("--duration-s", options->duration_s,
                    "Render only the first N seconds (default: the scenario's duration)")
-      ->check(CLI::PositiveNumber);
+      ->check(finite_in(0.01, 3600.0));  // as a scenario's duration_s
   table.add(command, [options]() -> int { return run_sim(*options); });
 }
 

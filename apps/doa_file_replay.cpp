@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
 
+#include "apps/commands.hpp"
 #include "apps/fusion_driver.hpp"
+#include "apps/signals.hpp"
 #include "common/log.hpp"
+#include "config/config_reader.hpp"
 #include "eval/readers.hpp"
 
 namespace dronetrack::apps {
@@ -31,7 +35,25 @@ std::string site_array_ids(const config::SiteConfig& site) {
 std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::path& file,
                                                        const config::SiteConfig& site,
                                                        double default_std_deg) {
-  const std::vector<eval::DoaRecord> records = eval::read_doas(file);
+  std::vector<eval::DoaRecord> records;
+  try {
+    records = eval::read_doas(file);
+  } catch (const eval::InputError& error) {
+    throw UserError(error.what());
+  }
+  // The fusion ticks through every output period between the first DOA and the last: bound
+  // the span so one stray time cannot mean billions of ticks.
+  double first_s = std::numeric_limits<double>::infinity();
+  for (const eval::DoaRecord& record : records) first_s = std::min(first_s, record.time_s);
+  for (const eval::DoaRecord& record : records) {
+    if (record.time_s - first_s > kMaxDoaSpan_s) {
+      throw UserError(file.string() + ":" + std::to_string(record.line) + ": t " +
+                      config::format_number(record.time_s) + " s is " +
+                      config::format_number(record.time_s - first_s) +
+                      " s after the file's first DOA; one replay spans at most " +
+                      config::format_number(kMaxDoaSpan_s) + " s (24 h)");
+    }
+  }
   std::vector<doa::DoaMeasurement> doas;
   doas.reserve(records.size());
   std::size_t without_std = 0;
@@ -74,11 +96,13 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
 
 ReplaySummary replay_doas(const config::SiteConfig& site,
                           const std::vector<doa::DoaMeasurement>& doas,
-                          const std::vector<FusionObserver*>& observers) {
+                          const std::vector<FusionObserver*>& observers,
+                          const std::atomic<bool>* stop) {
   const auto wall_start = std::chrono::steady_clock::now();
   FusionDriver driver(site, observers);
   ReplaySummary summary;
   for (const doa::DoaMeasurement& doa : doas) {
+    if (stop && stop->load()) break;
     // Every DOA older than this one is in: the fusion may run up to its time, as the replay
     // runs it up to the slowest node's.
     driver.advance_to(doa.time_s);

@@ -2,6 +2,7 @@
 // `replay --doa-in D.jsonl`: the fusion alone, on DOAs an earlier replay wrote (or any tool
 // writing SPEC 3.2 DOA lines), through the same FusionDriver as the full replay. Tuning the
 // fusion on a long recording then takes seconds instead of re-running every array's DSP.
+#include <atomic>
 #include <filesystem>
 #include <vector>
 
@@ -11,6 +12,9 @@
 #include "doa/doa_measurement.hpp"
 
 namespace dronetrack::apps {
+
+// A DOA file spans at most this much time (first to last DOA); see read_doa_measurements.
+inline constexpr double kMaxDoaSpan_s = 86400.0;
 
 // The file's DOA lines as measurements of this site, in time order. Lines without azel_std_deg
 // (SPEC 3.2's minimal line) get `default_std_deg` on both angles. Throws std::runtime_error,
@@ -22,6 +26,7 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
 // Feeds the DOAs (time order) to a FusionDriver with these observers, as the replay would.
 ReplaySummary replay_doas(const config::SiteConfig& site,
                           const std::vector<doa::DoaMeasurement>& doas,
-                          const std::vector<FusionObserver*>& observers);
+                          const std::vector<FusionObserver*>& observers,
+                          const std::atomic<bool>* stop = nullptr);
 
 }  // namespace dronetrack::apps

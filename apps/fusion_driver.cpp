@@ -1,5 +1,6 @@
 #include "apps/fusion_driver.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace dronetrack::apps {
@@ -30,6 +31,11 @@ void FusionDriver::on_node_status(const doa::NodeStatus& status) {
 void FusionDriver::advance_to(double now_s) {
   if (!std::isfinite(now_s) || now_s <= latest_time_s_) return;
   latest_time_s_ = now_s;
+  if (first_tick_index_ < 0) {
+    first_tick_index_ = std::max<std::int64_t>(
+        0, static_cast<std::int64_t>(std::floor((now_s - reorder_window_s_) / output_period_s_)));
+    next_tick_s_ = static_cast<double>(first_tick_index_) * output_period_s_;
+  }
   // A tick may only be reported once no DOA older than it can still arrive (reorder window),
   // and the engine is run exactly up to each tick so the report never predicts backwards.
   while (next_tick_s_ <= now_s - reorder_window_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
@@ -38,6 +44,7 @@ void FusionDriver::advance_to(double now_s) {
 }
 
 void FusionDriver::finish() {
+  if (first_tick_index_ < 0) first_tick_index_ = 0;  // nothing arrived: the one tick at 0
   while (next_tick_s_ <= latest_time_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(latest_time_s_ + reorder_window_s_);
 }
@@ -53,7 +60,7 @@ void FusionDriver::emit_tick(double tick_s) {
     for (auto* observer : observers_) observer->on_zone_event(event);
   }
   ++ticks_emitted_;
-  next_tick_s_ = static_cast<double>(ticks_emitted_) * output_period_s_;
+  next_tick_s_ = static_cast<double>(first_tick_index_ + ticks_emitted_) * output_period_s_;
 }
 
 }  // namespace dronetrack::apps

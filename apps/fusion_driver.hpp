@@ -37,6 +37,9 @@ class FusionDriver {
   double reorder_window_s_;
   double next_tick_s_ = 0.0;
   double latest_time_s_ = 0.0;
+  // Ticks are multiples of the output period from the stream's start, not from t = 0: a DOA
+  // file on another clock (seconds since 1970) must not mean 17 billion empty ticks first.
+  std::int64_t first_tick_index_ = -1;
   std::int64_t ticks_emitted_ = 0;
   std::vector<fusion::TrackReport> tracks_;     // reused every tick
   std::vector<fusion::ZoneEvent> zone_events_;  // reused every tick

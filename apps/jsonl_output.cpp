@@ -1,9 +1,5 @@
 #include "apps/jsonl_output.hpp"
 
-#include <cerrno>
-#include <cstring>
-#include <stdexcept>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -11,31 +7,15 @@
 #include "doa/array_geometry.hpp"
 
 namespace dronetrack::apps {
-
-OutputFile::OutputFile(const std::filesystem::path& path) : path_(path.string()) {
-  if (path_ == "-") {
-    file_ = stdout;
-    return;
-  }
-  file_ = std::fopen(path_.c_str(), "w");
-  if (!file_) throw std::runtime_error(path_ + ": cannot create (" + std::strerror(errno) + ")");
-  owned_ = true;
+namespace {
+// A line that did not fit its buffer would be cut: refuse rather than write broken JSON.
+void write_formatted(OutputFile& out, const char* buffer, std::size_t size, int length) {
+  if (length < 0 || static_cast<std::size_t>(length) >= size)
+    throw OutputError(out.name() + ": a line did not fit its " + std::to_string(size) +
+                      "-byte buffer (an array id or zone name too long?)");
+  out.write_line(buffer, static_cast<std::size_t>(length));
 }
-
-OutputFile::~OutputFile() {
-  if (owned_)
-    std::fclose(file_);
-  else
-    std::fflush(file_);
-}
-
-void OutputFile::write_line(const char* text, int length) {
-  if (length <= 0) return;
-  std::fwrite(text, 1, static_cast<std::size_t>(length), file_);
-  std::fputc('\n', file_);
-}
-
-void OutputFile::flush() { std::fflush(file_); }
+}  // namespace
 
 int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size) {
   const Eigen::Vector3d& u = doa.direction;
@@ -96,16 +76,17 @@ int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t 
 }
 
 void AlertLinesWriter::on_zone_event(const fusion::ZoneEvent& event) {
-  out_.write_line(buffer_, format_alert_line(event, buffer_, sizeof buffer_));
+  write_formatted(out_, buffer_, sizeof buffer_, format_alert_line(event, buffer_, sizeof buffer_));
 }
 
 void DoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {
-  out_.write_line(buffer_, format_doa_line(doa, buffer_, sizeof buffer_));
+  write_formatted(out_, buffer_, sizeof buffer_, format_doa_line(doa, buffer_, sizeof buffer_));
 }
 
 void TrackLinesWriter::on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) {
   for (const auto& track : tracks) {
-    out_.write_line(buffer_, format_track_line(time_s, track, buffer_, sizeof buffer_));
+    write_formatted(out_, buffer_, sizeof buffer_,
+                    format_track_line(time_s, track, buffer_, sizeof buffer_));
   }
 }
 

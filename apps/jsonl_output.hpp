@@ -1,29 +1,15 @@
 #pragma once
-// JSON-lines outputs of SPEC 3.2 (DOAs, tracks) as fusion observers writing to a file or stdout.
+// JSON-lines outputs of SPEC 3.2 (DOAs, tracks, alerts) as fusion observers writing to an
+// OutputFile (a file committed when the run completes, a live log, or stdout).
 // Formatted with snprintf into a reused buffer: this runs for every DOA of a long replay.
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
 #include "apps/fusion_observer.hpp"
+#include "common/output_file.hpp"
 
 namespace dronetrack::apps {
-
-// One open output: a file, or stdout for "-". Throws a one-line error if it cannot be created.
-class OutputFile {
- public:
-  explicit OutputFile(const std::filesystem::path& path);
-  ~OutputFile();
-  OutputFile(const OutputFile&) = delete;
-  OutputFile& operator=(const OutputFile&) = delete;
-  void write_line(const char* text, int length);
-  void flush();
-
- private:
-  std::FILE* file_ = nullptr;
-  bool owned_ = false;
-  std::string path_;
-};
 
 // {"t":..,"array":"A1","direction":[..],"azimuth_deg":..,"elevation_deg":..,"quality":..,...}
 int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t size);
@@ -34,7 +20,10 @@ int format_track_line(double time_s, const fusion::TrackReport& track, char* buf
 
 class DoaLinesWriter : public FusionObserver {
  public:
-  explicit DoaLinesWriter(const std::filesystem::path& path) : out_(path) {}
+  explicit DoaLinesWriter(const std::filesystem::path& path,
+                          OutputFile::Mode mode = OutputFile::Mode::replace)
+      : out_(path, mode) {}
+  OutputFile& output() { return out_; }
   void on_doa(const doa::DoaMeasurement& doa) override;
 
  private:
@@ -44,7 +33,10 @@ class DoaLinesWriter : public FusionObserver {
 
 class TrackLinesWriter : public FusionObserver {
  public:
-  explicit TrackLinesWriter(const std::filesystem::path& path) : out_(path) {}
+  explicit TrackLinesWriter(const std::filesystem::path& path,
+                            OutputFile::Mode mode = OutputFile::Mode::replace)
+      : out_(path, mode) {}
+  OutputFile& output() { return out_; }
   void on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) override;
 
  private:
@@ -58,7 +50,10 @@ int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t 
 
 class AlertLinesWriter : public FusionObserver {
  public:
-  explicit AlertLinesWriter(const std::filesystem::path& path) : out_(path) {}
+  explicit AlertLinesWriter(const std::filesystem::path& path,
+                            OutputFile::Mode mode = OutputFile::Mode::replace)
+      : out_(path, mode) {}
+  OutputFile& output() { return out_; }
   void on_zone_event(const fusion::ZoneEvent& event) override;
 
  private:

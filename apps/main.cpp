@@ -3,13 +3,17 @@
 #include <exception>
 
 #include "apps/commands.hpp"
+#include "apps/signals.hpp"
 #include "common/log.hpp"
+#include "common/output_file.hpp"
 #include "config/site_config.hpp"
 
 namespace {
 
 int run(int argc, char** argv) {
   using namespace dronetrack;
+  guard_standard_streams();
+  apps::install_stop_handlers();  // one policy for every subcommand, from the first instruction
   CLI::App root{"dronetrack: acoustic drone tracking with tetrahedral microphone arrays"};
   root.require_subcommand(1);
   root.set_version_flag("--version", std::string("dronetrack ") + DRONETRACK_VERSION);

@@ -157,7 +157,13 @@ ReplaySummary run_replay(const config::SiteConfig& site,
                 target_s / std::max(wall_s, 1e-9), "x real time");
     }
   }
-  for (const auto& lane : lanes) summary.stream_s = std::max(summary.stream_s, lane.node.time_s());
+  for (const auto& lane : lanes) {
+    summary.stream_s = std::max(summary.stream_s, lane.node.time_s());
+    if (lane.node.source().cut_short() && summary.cut_short.empty())
+      summary.cut_short = lane.node.source().describe() + " ended at " +
+                          std::to_string(lane.node.time_s()) +
+                          " s, before its header's end (truncated while being read)";
+  }
   driver.finish();
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();

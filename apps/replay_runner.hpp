@@ -26,6 +26,7 @@ struct ReplaySummary {
   std::int64_t doas_accepted = 0;
   std::int64_t ticks = 0;
   fusion::FusionCounters counters;  // the engine's, at the end
+  std::string cut_short;  // why the result is partial though the run finished ("" if whole)
 };
 
 // Throws on unreadable recordings (one line naming file and problem).

@@ -8,27 +8,43 @@
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/replay_runner.hpp"
+#include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
 #include "http_api/http_server.hpp"
 
 namespace dronetrack::apps {
+namespace {
+
+void log_fusion_counters(const fusion::FusionCounters& counters) {
+  log::info("fusion: ", counters.accepted,
+            " DOAs accepted; rejected: ", counters.rejected_non_finite, " non-finite, ",
+            counters.rejected_unknown_array, " unknown array, ", counters.rejected_too_late,
+            " too late, ", counters.rejected_duplicate, " duplicate, ",
+            counters.rejected_bad_direction, " bad direction; ", counters.gated_out,
+            " matched no track; tracks started ", counters.tracks_started, ", confirmed ",
+            counters.tracks_confirmed, ", deleted ", counters.tracks_deleted);
+}
+
+}  // namespace
 
 int run_replay_session(const config::SiteConfig& site, const ReplaySessionOptions& options) {
-  // Read before any output file is created: bad input must not truncate an earlier result.
+  // Everything that can refuse the run does so before any output exists: the paths, the DOA
+  // lines, the HTTP address. The outputs themselves only replace their targets at the end.
+  const bool tracks_to_stdout =
+      options.tracks_out.empty() && options.doa_out.empty() && options.http.empty();
+  const std::string tracks_out = tracks_to_stdout ? std::string("-") : options.tracks_out;
+  {
+    std::vector<NamedPath> inputs = site_inputs(site, options.doa_in.empty());
+    if (!options.doa_in.empty()) inputs.push_back({"--doa-in", options.doa_in});
+    std::vector<NamedPath> outputs;
+    if (!tracks_out.empty()) outputs.push_back({"--tracks-out", tracks_out});
+    if (!options.doa_out.empty()) outputs.push_back({"--doa-out", options.doa_out});
+    if (!options.alerts_out.empty()) outputs.push_back({"--alerts-out", options.alerts_out});
+    check_output_paths(inputs, outputs);
+  }
   std::vector<doa::DoaMeasurement> recorded_doas;
   if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);
-  std::vector<std::unique_ptr<FusionObserver>> writers;
-  if (!options.doa_out.empty())
-    writers.push_back(std::make_unique<DoaLinesWriter>(options.doa_out));
-  if (!options.alerts_out.empty())
-    writers.push_back(std::make_unique<AlertLinesWriter>(options.alerts_out));
-  if (!options.tracks_out.empty() || (options.doa_out.empty() && options.http.empty())) {
-    writers.push_back(std::make_unique<TrackLinesWriter>(
-        options.tracks_out.empty() ? std::string("-") : options.tracks_out));
-  }
-  std::vector<FusionObserver*> observers;
-  for (auto& writer : writers) observers.push_back(writer.get());
 
   // Serving: the live state is fed like any other output; the server reads snapshots of it.
   std::unique_ptr<http_api::LiveState> live_state;
@@ -38,12 +54,35 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     live_observer = std::make_unique<LiveStateObserver>(*live_state);
-    observers.push_back(live_observer.get());
     http_api::HttpOptions http_options;
     http_options.bind = options.http;
     http_options.web_root = default_web_root();
     server = std::make_unique<http_api::HttpServer>(*live_state, http_options);
     server->start();
+  }
+
+  std::unique_ptr<DoaLinesWriter> doa_writer;
+  std::unique_ptr<AlertLinesWriter> alert_writer;
+  std::unique_ptr<TrackLinesWriter> track_writer;
+  RunOutputs outputs;
+  std::vector<FusionObserver*> observers;
+  if (!options.doa_out.empty()) {
+    doa_writer = std::make_unique<DoaLinesWriter>(options.doa_out);
+    outputs.add(doa_writer->output());
+    observers.push_back(doa_writer.get());
+  }
+  if (!options.alerts_out.empty()) {
+    alert_writer = std::make_unique<AlertLinesWriter>(options.alerts_out);
+    outputs.add(alert_writer->output());
+    observers.push_back(alert_writer.get());
+  }
+  if (!tracks_out.empty()) {
+    track_writer = std::make_unique<TrackLinesWriter>(tracks_out);
+    outputs.add(track_writer->output());
+    observers.push_back(track_writer.get());
+  }
+  if (live_observer) observers.push_back(live_observer.get());
+  if (server) {
     // The URL goes to stdout too: it is what a person running the demo looks for.
     std::printf("dronetrack: serving %s\n", server->url().c_str());
     std::fflush(stdout);
@@ -51,7 +90,7 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
 
   ReplaySummary summary;
   if (!options.doa_in.empty()) {
-    summary = replay_doas(site, recorded_doas, observers);
+    summary = replay_doas(site, recorded_doas, observers, &install_stop_handlers());
     log::info("replay: ", summary.doas, " DOAs of ", options.doa_in, " (", summary.stream_s,
               " s) through the fusion in ", summary.wall_s, " s (", summary.doas_accepted,
               " accepted), ", summary.ticks, " track ticks");
@@ -64,18 +103,13 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
               summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
               " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
   }
-  const fusion::FusionCounters& counters = summary.counters;
-  log::info("fusion: ", counters.accepted,
-            " DOAs accepted; rejected: ", counters.rejected_non_finite, " non-finite, ",
-            counters.rejected_unknown_array, " unknown array, ", counters.rejected_too_late,
-            " too late, ", counters.rejected_duplicate, " duplicate, ",
-            counters.rejected_bad_direction, " bad direction; ", counters.gated_out,
-            " matched no track; tracks started ", counters.tracks_started, ", confirmed ",
-            counters.tracks_confirmed, ", deleted ", counters.tracks_deleted);
-  writers.clear();  // flush and close the output files before waiting
+  log_fusion_counters(summary.counters);
+  const int exit_code = outputs.finish("replay", summary.cut_short);
+  if (exit_code != 0) return exit_code;
   if (server && options.keep_serving && !stop_requested()) {
     log::info("recordings finished; still serving ", server->url(), " (Ctrl-C to stop)");
     wait_for_stop();
+    return interrupted_exit_code();  // the outputs were complete and are in place
   }
   return 0;
 }

@@ -27,6 +27,9 @@ class AudioSource {
   virtual int channels() const = 0;  // after the channel map: one per mic
   virtual const SourceCounters& counters() const = 0;
   virtual std::string describe() const = 0;  // for logs: file name or device name
+  // True when the stream ended before its own declared end (a recording truncated while it was
+  // being read): what was processed is a partial result.
+  virtual bool cut_short() const { return false; }
 };
 
 }  // namespace dronetrack::capture

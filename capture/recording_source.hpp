@@ -44,6 +44,7 @@ class RecordingSource : public AudioSource {
   std::int64_t frames_delivered() const { return position_; }
   // True once a read came up short before the declared end (see the header comment).
   bool truncated() const { return truncated_; }
+  bool cut_short() const override { return truncated_; }
 
  private:
   std::filesystem::path file_;

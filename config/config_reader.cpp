@@ -1,7 +1,9 @@
 #include "config/config_reader.hpp"
 
 #include <cmath>
+#include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 namespace dronetrack::config {
 namespace {
@@ -18,7 +20,66 @@ void Diagnostics::error(const std::string& path, const std::string& what) {
   errors.push_back(path.empty() ? what : path + ": " + what);
 }
 void Diagnostics::warn(const std::string& path, const std::string& what) {
-  warnings.push_back(path.empty() ? what : path + ": " + what);
+  // A document with a million unknown keys must not print a million lines.
+  ++warning_count;
+  if (warnings.size() < kMaxReportedWarnings) {
+    warnings.push_back(path.empty() ? what : path + ": " + what);
+  } else if (warnings.size() == kMaxReportedWarnings) {
+    warnings.push_back("(further warnings not shown)");
+  } else {
+    warnings.back() =
+        "... and " + std::to_string(warning_count - kMaxReportedWarnings) + " more warnings";
+  }
+}
+
+std::string read_text_file(const std::filesystem::path& file, std::size_t max_bytes,
+                           const std::string& what) {
+  std::error_code error;
+  if (std::filesystem::is_directory(file, error))
+    throw std::runtime_error(file.string() + ": is a directory, not a " + what);
+  std::ifstream stream(file, std::ios::binary);
+  if (!stream) throw std::runtime_error(file.string() + ": cannot open " + what);
+  const auto size = std::filesystem::file_size(file, error);
+  if (!error && size > max_bytes) {
+    throw std::runtime_error(file.string() + ": " + std::to_string(size) + " bytes; a " + what +
+                             " may be at most " + std::to_string(max_bytes >> 20) + " MiB");
+  }
+  // Read in bounded chunks: a FIFO or /proc file has no size to check up front.
+  std::string text;
+  char chunk[65536];
+  while (stream.read(chunk, sizeof chunk) || stream.gcount() > 0) {
+    text.append(chunk, static_cast<std::size_t>(stream.gcount()));
+    if (text.size() > max_bytes)
+      throw std::runtime_error(file.string() + ": larger than " + std::to_string(max_bytes >> 20) +
+                               " MiB; a " + what + " may be at most that");
+  }
+  if (stream.bad()) throw std::runtime_error(file.string() + ": read error");
+  return text;
+}
+
+bool LineReader::next(std::string& line) {
+  line.clear();
+  std::streambuf* buffer = stream_.rdbuf();
+  if (too_long_ || buffer == nullptr) return false;
+  for (;;) {
+    const int next = buffer->sbumpc();
+    if (next == std::char_traits<char>::eof()) {
+      if (line.empty()) return false;
+      ++number_;
+      return true;
+    }
+    if (next == '\n') {
+      ++number_;
+      return true;
+    }
+    if (line.size() >= max_) {
+      ++number_;
+      too_long_ = true;
+      line.clear();
+      return false;
+    }
+    line.push_back(static_cast<char>(next));
+  }
 }
 
 std::string describe_json_type(const nlohmann::json& node) {

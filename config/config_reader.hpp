@@ -2,7 +2,10 @@
 // Walks a JSON document while remembering the path to each value, so every problem is reported
 // as one line naming where it is ("arrays[1].mics_m[2]: expected 3 numbers, got 2"). Problems
 // are collected, not thrown, so one run reports them all. Unknown keys become warnings.
+#include <cstddef>
+#include <filesystem>
 #include <functional>
+#include <istream>
 #include <optional>
 #include <set>
 #include <string>
@@ -15,7 +18,8 @@ namespace dronetrack::config {
 
 struct Diagnostics {
   std::vector<std::string> errors;
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings;  // at most kMaxReportedWarnings + 1 (a count of the rest)
+  std::size_t warning_count = 0;
   void error(const std::string& path, const std::string& what);
   void warn(const std::string& path, const std::string& what);
 };
@@ -67,6 +71,34 @@ class ObjectReader {
   Diagnostics& diagnostics_;
   std::set<std::string> known_;
   bool is_object_ = true;
+};
+
+// Input bounds (docs/contract.md): a file or line larger than these is refused before it is read
+// into memory, so a hostile or broken input costs a stat, not gigabytes.
+inline constexpr std::size_t kMaxConfigBytes = 4u << 20;   // site config, scenario: a few kB
+inline constexpr std::size_t kMaxTruthBytes = 256u << 20;  // truth.json: ~1 MB per scene minute
+inline constexpr std::size_t kMaxLineBytes = 64u << 10;    // a DOA/track/alert line: < 1 kB
+inline constexpr std::size_t kMaxReportedWarnings = 20;    // then "... and N more"
+
+// The whole file as text; throws std::runtime_error "FILE: ..." if it cannot be read or is
+// larger than `max_bytes` (`what` names the kind of file in that message).
+std::string read_text_file(const std::filesystem::path& file, std::size_t max_bytes,
+                           const std::string& what);
+
+// Lines of a JSON-lines stream, each at most `max_bytes`; a longer one stops the reader with
+// too_long() set (its text is skipped, never held).
+class LineReader {
+ public:
+  LineReader(std::istream& stream, std::size_t max_bytes) : stream_(stream), max_(max_bytes) {}
+  bool next(std::string& line);
+  int number() const { return number_; }  // of the last line returned (1-based)
+  bool too_long() const { return too_long_; }
+
+ private:
+  std::istream& stream_;
+  std::size_t max_;
+  int number_ = 0;
+  bool too_long_ = false;
 };
 
 // Reads a JSON array of exactly 3 finite numbers at `path`.

@@ -51,6 +51,12 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
         diagnostics.error(path, "expected 0 <= low_hz < high_hz");
         return;
       }
+      if (band.high_hz > 5e5) {
+        diagnostics.error(path,
+                          "high_hz above 500 kHz, the Nyquist frequency of the fastest "
+                          "sample rate dronetrack takes (1 MHz)");
+        return;
+      }
       params.bands_hz.push_back(band);
     });
     if (params.bands_hz.empty())

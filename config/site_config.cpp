@@ -8,9 +8,20 @@
 #include "capture/recording_info.hpp"
 #include "config/config_reader.hpp"
 #include "config/parse_sections.hpp"
+#include "doa/node_pipeline.hpp"
 
 namespace dronetrack::config {
 namespace {
+
+// Bounds on the site's geometry (docs/contract.md). Acoustic range is a few km: coordinates past
+// 100 km are a unit or sign mistake, and past 1e15 m a double cannot hold a millimetre.
+constexpr double kMaxSiteCoordinate_m = 1e5;
+constexpr const char* kSiteExtentReason =
+    "a coordinate beyond 100 km of the site origin (acoustic range is a few km; metres?)";
+// A mic belongs to its array: the far-field model holds over a few metres, not a kilometre.
+constexpr double kMaxMicOffset_m = 100.0;
+// A zone smaller than this cannot be entered by a track with metre-level error.
+constexpr double kMinZoneArea_m2 = 1.0;
 
 std::string join_lines(const std::vector<std::string>& lines) {
   std::string out;
@@ -33,6 +44,15 @@ void parse_mics(const nlohmann::json& node, const std::string& path, Diagnostics
   if (mics.size() < 2) {
     diagnostics.error(path, "an array needs at least 2 mics, got " + std::to_string(mics.size()));
     return;
+  }
+  for (std::size_t i = 0; i < mics.size(); ++i) {
+    if (mics[i].norm() > kMaxMicOffset_m) {
+      diagnostics.error(path + "[" + std::to_string(i) + "]",
+                        "mic " + format_number(mics[i].norm()) +
+                            " m from its array's centre; at most " +
+                            format_number(kMaxMicOffset_m) + " m (one array is one place)");
+      return;
+    }
   }
   constexpr double kMinSpacing_m = 1e-3;
   for (std::size_t i = 0; i < mics.size(); ++i) {
@@ -65,7 +85,11 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
       break;
     }
   }
-  if (auto position = reader.vector3("position_m", true)) array.geometry.position_m = *position;
+  if (auto position = reader.vector3("position_m", true)) {
+    array.geometry.position_m = *position;
+    if (position->cwiseAbs().maxCoeff() > kMaxSiteCoordinate_m)
+      diagnostics.error(reader.path_of("position_m"), kSiteExtentReason);
+  }
   array.geometry.yaw_deg = reader.number("yaw_deg", 0.0, -360.0, 360.0);
   array.geometry.mic_position_std_m = reader.number("mic_position_std_m", 0.0, 0.0, 1.0);
   reader.accept("mics_m");
@@ -112,7 +136,8 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
 }
 
 void check_recording(const ArrayConfig& array, const std::string& path, bool explicit_map,
-                     double band_high_hz, Diagnostics& diagnostics) {
+                     double band_high_hz, const doa::DoaParams& params, double speed_of_sound_mps,
+                     Diagnostics& diagnostics) {
   capture::RecordingInfo info;
   try {
     info = capture::probe_recording(array.recording);
@@ -136,12 +161,27 @@ void check_recording(const ArrayConfig& array, const std::string& path, bool exp
       }
     }
   }
+  if (!(info.sample_rate_hz >= kMinSampleRate_hz && info.sample_rate_hz <= kMaxSampleRate_hz)) {
+    diagnostics.error(path + ".recording", array.recording.string() + ": sample rate " +
+                                               format_number(info.sample_rate_hz) +
+                                               " Hz; dronetrack takes " +
+                                               format_number(kMinSampleRate_hz) + " to " +
+                                               format_number(kMaxSampleRate_hz) + " Hz");
+    return;
+  }
   if (info.sample_rate_hz / 2.0 < band_high_hz) {
     diagnostics.error(path + ".recording",
                       array.recording.string() + ": sample rate " +
-                          std::to_string(static_cast<int>(info.sample_rate_hz)) +
+                          format_number(info.sample_rate_hz) +
                           " Hz puts the Nyquist frequency below the band's upper edge (" +
-                          std::to_string(static_cast<int>(band_high_hz)) + " Hz)");
+                          format_number(band_high_hz) + " Hz)");
+    return;
+  }
+  const std::string problem = doa::NodePipeline::setup_problem(
+      array.geometry, params, info.sample_rate_hz, speed_of_sound_mps);
+  if (!problem.empty()) {
+    diagnostics.error(path, "with " + array.recording.string() + " (" +
+                                format_number(info.sample_rate_hz) + " Hz): " + problem);
   }
 }
 
@@ -162,6 +202,22 @@ void parse_zone(const nlohmann::json& node, const std::string& path, Diagnostics
       });
   if (reader.has("polygon_m") && zone.polygon_m.size() < 3) {
     diagnostics.error(reader.path_of("polygon_m"), "a zone needs at least 3 vertices");
+  } else if (zone.polygon_m.size() >= 3) {
+    double twice_area = 0.0;
+    bool inside_site = true;
+    for (std::size_t i = 0; i < zone.polygon_m.size(); ++i) {
+      const Eigen::Vector2d& a = zone.polygon_m[i];
+      const Eigen::Vector2d& b = zone.polygon_m[(i + 1) % zone.polygon_m.size()];
+      twice_area += a.x() * b.y() - b.x() * a.y();
+      inside_site = inside_site && a.cwiseAbs().maxCoeff() <= kMaxSiteCoordinate_m;
+    }
+    if (!inside_site) {
+      diagnostics.error(reader.path_of("polygon_m"), kSiteExtentReason);
+    } else if (std::abs(0.5 * twice_area) < kMinZoneArea_m2) {
+      diagnostics.error(reader.path_of("polygon_m"),
+                        "encloses " + format_number(std::abs(0.5 * twice_area)) +
+                            " m^2; a zone needs at least 1 m^2 (collinear or repeated vertices?)");
+    }
   }
   if (auto band = reader.numbers("altitude_m", 2, false)) {
     zone.altitude_min_m = (*band)[0];
@@ -211,6 +267,19 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
     ObjectReader root(document, "", diagnostics);
     site.speed_of_sound_mps = root.number("speed_of_sound_mps", 343.0, 100.0, 2000.0);
     std::set<std::string> ids;
+    if (document.is_object() && document.contains("arrays") && document["arrays"].is_array() &&
+        document["arrays"].size() > kMaxArrays) {
+      // Before parsing any: each array becomes a node with FFT plans and buffers.
+      diagnostics.error("arrays", "at most " + std::to_string(kMaxArrays) +
+                                      " arrays (the fusion keeps a 64-bit mask of the arrays "
+                                      "behind each track), got " +
+                                      std::to_string(document["arrays"].size()));
+      throw ConfigError(std::move(diagnostics.errors));
+    }
+    if (options.for_fusion && document.is_object() && document.contains("arrays") &&
+        document["arrays"].is_array() && document["arrays"].size() == 1) {
+      diagnostics.error("arrays", "the fusion needs at least 2 arrays (it triangulates), got 1");
+    }
     root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
       ArrayConfig array = parse_array(node, path, base_dir, diagnostics);
       if (!array.geometry.id.empty() && !ids.insert(array.geometry.id).second) {
@@ -291,7 +360,8 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
         continue;
       }
       const bool explicit_map = document["arrays"][i].contains("channel_map");
-      check_recording(site.arrays[i], path, explicit_map, band_high_hz, diagnostics);
+      check_recording(site.arrays[i], path, explicit_map, band_high_hz, site.doa_params(i),
+                      site.speed_of_sound_mps, diagnostics);
     }
   }
   warnings.insert(warnings.end(), diagnostics.warnings.begin(), diagnostics.warnings.end());
@@ -308,13 +378,15 @@ doa::DoaParams SiteConfig::doa_params(std::size_t array) const {
 
 SiteConfig load_site_config(const std::filesystem::path& file, std::vector<std::string>& warnings,
                             const LoadOptions& options) {
-  std::ifstream stream(file);
-  if (!stream) throw ConfigError({file.string() + ": cannot open site config"});
-  std::ostringstream text;
-  text << stream.rdbuf();
+  std::string text;
+  try {
+    text = read_text_file(file, kMaxConfigBytes, "site config");
+  } catch (const std::runtime_error& failure) {
+    throw ConfigError({failure.what()});
+  }
   std::vector<std::string> local_warnings;
   try {
-    SiteConfig site = parse_site_config(text.str(), file.parent_path(), local_warnings, options);
+    SiteConfig site = parse_site_config(text, file.parent_path(), local_warnings, options);
     site.file = file;
     for (const auto& warning : local_warnings) warnings.push_back(file.string() + ": " + warning);
     return site;

@@ -64,7 +64,14 @@ struct LoadOptions {
   // Check each recording exists and has one channel per mic (off when the recordings are about
   // to be written, e.g. by the simulator, or when capturing live).
   bool check_recordings = true;
+  // The site feeds a fusion (replay, fusion): it needs at least 2 arrays.
+  bool for_fusion = false;
 };
+
+// Input bounds checked while parsing (docs/contract.md).
+inline constexpr std::size_t kMaxArrays = 64;        // the fusion's 64-bit array mask
+inline constexpr double kMinSampleRate_hz = 1000.0;  // as NodePipeline accepts
+inline constexpr double kMaxSampleRate_hz = 1e6;
 
 // Reads and validates a site config file. Throws ConfigError (message prefixed with the file
 // name). Warnings (unknown keys) are appended to `warnings`.

@@ -36,10 +36,11 @@ constexpr int kMaxSources = 8;
 // generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
 constexpr std::int64_t kStaticNullLookFrames = 2;
 
-void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
-              double speed_of_sound_mps) {
+std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
+                          double sample_rate_hz, double speed_of_sound_mps) {
+  std::string problem;
   auto fail = [&](const std::string& what) {
-    throw std::invalid_argument("array " + geometry.id + ": " + what);
+    if (problem.empty()) problem = what;
   };
   if (!(sample_rate_hz >= 1000.0 && sample_rate_hz <= 1e6))
     fail("sample_rate_hz must be in [1000, 1e6], got " + std::to_string(sample_rate_hz));
@@ -58,6 +59,33 @@ void validate(const ArrayGeometry& geometry, const DoaParams& params, double sam
   if (params.regression_delay_frames < 0 ||
       params.regression_delay_frames >= params.regression_window_frames)
     fail("regression_delay_frames must be in [0, regression_window_frames)");
+  if (!problem.empty()) return problem;
+  // A pair's delay must fit well inside a frame, or its correlation peak is not in the frame.
+  const double frame_s = std::lround(params.frame_s * sample_rate_hz) / sample_rate_hz;
+  for (std::size_t i = 0; i < geometry.mic_count(); ++i) {
+    for (std::size_t j = i + 1; j < geometry.mic_count(); ++j) {
+      const double delay_s = (geometry.mics_m[i] - geometry.mics_m[j]).norm() / speed_of_sound_mps;
+      if (delay_s > 0.5 * frame_s) {
+        return "mics " + std::to_string(i) + " and " + std::to_string(j) + " are " +
+               std::to_string(delay_s * speed_of_sound_mps) + " m apart: their delay (" +
+               std::to_string(delay_s) + " s) exceeds half a frame (doa.frame_s " +
+               std::to_string(params.frame_s) + " s)";
+      }
+    }
+  }
+  const int frame_length = static_cast<int>(std::lround(params.frame_s * sample_rate_hz));
+  try {
+    (void)band_runs(params.bands_hz, sample_rate_hz, fftw_friendly_size(frame_length));
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return problem;
+}
+
+void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
+              double speed_of_sound_mps) {
+  const std::string problem = setup_problem(geometry, params, sample_rate_hz, speed_of_sound_mps);
+  if (!problem.empty()) throw std::invalid_argument("array " + geometry.id + ": " + problem);
 }
 
 std::vector<MicPairSpec> pair_specs(const LsDoaSolver& solver) {
@@ -88,6 +116,11 @@ double srp_noise_sigma(const std::vector<BandRun>& band, int frame_length, int f
 }
 
 }  // namespace
+
+std::string NodePipeline::setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
+                                        double sample_rate_hz, double speed_of_sound_mps) {
+  return dronetrack::doa::setup_problem(geometry, params, sample_rate_hz, speed_of_sound_mps);
+}
 
 struct NodePipeline::Impl {
   Impl(ArrayGeometry geometry_in, int array_index_in, const DoaParams& params_in,

@@ -3,6 +3,7 @@
 // Synchronous and preallocated: threads and queues wrap it from outside (capture/, apps/).
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "doa/array_geometry.hpp"
@@ -35,6 +36,10 @@ class NodePipeline {
   ~NodePipeline();
   NodePipeline(NodePipeline&&) noexcept;
   NodePipeline& operator=(NodePipeline&&) noexcept;
+  // What would make the constructor throw, as one line ("" when the setup is valid), so a
+  // config check can name the file and key before anything is allocated.
+  static std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
+                                   double sample_rate_hz, double speed_of_sound_mps);
 
   // Feeds any number of samples; appends to `out` the DOAs of every analysis frame completed.
   // Never throws on odd audio (silence, clipping, NaN, dropouts): counts it in diagnostics().

@@ -50,6 +50,7 @@ struct DoaRecord {
   std::optional<Eigen::Vector2d> azel_std_deg;  // absent: the reader of the file decides
   double azel_correlation = 0.0;                // of the azimuth and elevation errors
   doa::AcousticFeatures acoustic;               // "acoustic" object (valid when present)
+  int line = 0;                                 // in its file, for messages
 };
 
 struct TrackRecord {

@@ -6,7 +6,9 @@
 #include <map>
 #include <set>
 
+#include "config/config_reader.hpp"
 #include "doa/array_geometry.hpp"
+#include "eval/readers.hpp"
 #include "fusion/assignment.hpp"
 
 namespace dronetrack::eval {
@@ -199,6 +201,12 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
   start += options.skip_s;
   report.start_s = start;
   report.end_s = end;
+  // Each step assigns tracks to sources: bound them before looping.
+  if (std::isfinite(start) && end > start && (end - start) / tick > kMaxEvalSteps) {
+    throw InputError("a step of " + config::format_number(tick) + " s over the truth's " +
+                     config::format_number(end - start) + " s makes more than " +
+                     config::format_number(kMaxEvalSteps) + " steps; use a larger --tick-s");
+  }
 
   ErrorSamples all;
   std::vector<ErrorSamples> per_source(truth.sources.size());

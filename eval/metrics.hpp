@@ -14,6 +14,9 @@
 
 namespace dronetrack::eval {
 
+// The most evaluation steps one run may take (a 24 h truth at 10 ms); more throws InputError.
+inline constexpr double kMaxEvalSteps = 1e7;
+
 //
 // Drone or not (issue 14): a counted track assigned to no drone at a tick follows the nearest
 // other truth source within the association gate, widened to 5 % of that source's distance from

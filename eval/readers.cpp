@@ -12,13 +12,33 @@ namespace {
 using config::Diagnostics;
 using config::ObjectReader;
 
-std::string read_file(const std::filesystem::path& file) {
+std::string read_file(const std::filesystem::path& file, std::size_t max_bytes) {
+  try {
+    return config::read_text_file(file, max_bytes, "file");
+  } catch (const std::runtime_error& error) {
+    throw InputError(error.what());
+  }
+}
+
+std::ifstream open_lines(const std::filesystem::path& file) {
+  std::error_code error;
+  if (std::filesystem::is_directory(file, error))
+    throw InputError(file.string() + ": is a directory");
   std::ifstream stream(file, std::ios::binary);
   if (!stream) throw InputError(file.string() + ": cannot open for reading");
-  std::ostringstream text;
-  text << stream.rdbuf();
-  if (stream.bad()) throw InputError(file.string() + ": read error");
-  return text.str();
+  return stream;
+}
+
+// The library's message without its "[json.exception.parse_error.101] parse error at ..."
+// prefix: the reader says where.
+std::string json_problem(const nlohmann::json::exception& error) {
+  std::string what = error.what();
+  const auto bracket = what.find("] ");
+  if (bracket != std::string::npos) what = what.substr(bracket + 2);
+  const auto colon = what.find(": ", what.find("parse error"));
+  if (what.rfind("parse error", 0) == 0 && colon != std::string::npos)
+    what = what.substr(colon + 2);
+  return what;
 }
 
 // One line: the first problem, and how many more there were.
@@ -38,10 +58,10 @@ nlohmann::json parse_document(const std::string& text, const std::string& where)
     // Turn the byte offset into a line number; the library's message names the token.
     const std::size_t byte = std::min<std::size_t>(error.byte, text.size());
     const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(byte), '\n');
-    std::string what = error.what();
-    const auto colon = what.find(": ", what.find("parse error"));
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    throw InputError(where + ":" + std::to_string(line) + ": invalid JSON: " + what);
+    throw InputError(where + ":" + std::to_string(line) + ": invalid JSON: " + json_problem(error));
+  } catch (const nlohmann::json::exception& error) {
+    // A number that overflows a double (1e999) is not a parse_error.
+    throw InputError(where + ": invalid JSON: " + json_problem(error));
   }
 }
 
@@ -119,25 +139,20 @@ TruthSource read_source(const nlohmann::json& node, const std::string& path,
   return source;
 }
 
-// Reads every non-blank line as one JSON object; `each` fills a record from its reader.
+// Reads every non-blank line as one JSON object; `fill` fills a record from its reader.
 template <typename Record, typename Fill>
-std::vector<Record> parse_lines(const std::string& text, const std::string& file, Fill fill) {
+std::vector<Record> parse_lines(std::istream& stream, const std::string& file, Fill fill) {
   std::vector<Record> out;
-  std::istringstream stream(text);
+  config::LineReader lines(stream, config::kMaxLineBytes);
   std::string line;
-  int number = 0;
-  while (std::getline(stream, line)) {
-    ++number;
+  while (lines.next(line)) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const std::string where = file + ":" + std::to_string(number);
+    const std::string where = file + ":" + std::to_string(lines.number());
     nlohmann::json node;
     try {
       node = nlohmann::json::parse(line);
-    } catch (const nlohmann::json::parse_error& error) {
-      std::string what = error.what();
-      const auto colon = what.find(": ", what.find("parse error"));
-      if (colon != std::string::npos) what = what.substr(colon + 2);
-      throw InputError(where + ": invalid JSON: " + what);
+    } catch (const nlohmann::json::exception& error) {
+      throw InputError(where + ": invalid JSON: " + json_problem(error));
     }
     Diagnostics diagnostics;
     Record record;
@@ -146,9 +161,28 @@ std::vector<Record> parse_lines(const std::string& text, const std::string& file
       fill(reader, node, diagnostics, record);
     }
     throw_if_errors(diagnostics, where);
+    if constexpr (requires { record.line; }) record.line = lines.number();
     out.push_back(std::move(record));
   }
+  if (lines.too_long()) {
+    throw InputError(file + ":" + std::to_string(lines.number()) + ": line longer than " +
+                     std::to_string(config::kMaxLineBytes) +
+                     " bytes (a JSON line of this format is under 1 kB)");
+  }
+  if (stream.bad()) throw InputError(file + ": read error");
   return out;
+}
+
+template <typename Record, typename Fill>
+std::vector<Record> parse_text_lines(const std::string& text, const std::string& file, Fill fill) {
+  std::istringstream stream(text);
+  return parse_lines<Record>(stream, file, fill);
+}
+
+template <typename Record, typename Fill>
+std::vector<Record> read_file_lines(const std::filesystem::path& file, Fill fill) {
+  std::ifstream stream = open_lines(file);
+  return parse_lines<Record>(stream, file.string(), fill);
 }
 
 }  // namespace
@@ -191,96 +225,99 @@ Truth parse_truth(const std::string& text, const std::string& file) {
   return truth;
 }
 
+namespace {
+void fill_track(ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
+                TrackRecord& record) {
+  for (const char* key : {"velocity_mps", "acceleration_mps2", "position_std_m", "covariance",
+                          "arrays", "contributing_arrays"}) {
+    reader.accept(key);
+  }
+  (void)node;
+  (void)diagnostics;
+  record.time_s =
+      reader.required_number("t", -kMaxAbsoluteTime_s, kMaxAbsoluteTime_s).value_or(0.0);
+  if (reader.has("id")) {
+    record.id = reader.integer("id", 0, -2147483647, 2147483647);
+  } else {
+    reader.diagnostics().error("id", "required integer is missing");
+  }
+  record.position_m = reader.vector3("position_m", true).value_or(Eigen::Vector3d::Zero());
+  record.status = reader.choice("status", "confirmed", {"tentative", "confirmed", "coasting"});
+  record.track_class =
+      reader.choice("class", "unknown", {"drone", "ground", "aircraft", "unknown"});
+  // Extra keys are allowed in JSON lines.
+  for (const auto& item : node.items()) reader.accept(item.key());
+}
+
+void fill_alert(ObjectReader& reader, const nlohmann::json& node, Diagnostics&,
+                AlertRecord& record) {
+  record.time_s =
+      reader.required_number("t", -kMaxAbsoluteTime_s, kMaxAbsoluteTime_s).value_or(0.0);
+  record.zone = reader.string("zone", "");
+  record.track_id = reader.optional_integer("track_id", -2147483647, 2147483647).value_or(0);
+  record.event = reader.choice("event", "entered", {"entered", "left", "class_changed"});
+  for (const auto& item : node.items()) reader.accept(item.key());
+}
+
+void fill_doa(ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
+              DoaRecord& record) {
+  record.time_s =
+      reader.required_number("t", -kMaxAbsoluteTime_s, kMaxAbsoluteTime_s).value_or(0.0);
+  record.array = reader.required_string("array").value_or("");
+  record.direction = reader.vector3("direction", true).value_or(Eigen::Vector3d::UnitX());
+  if (!(record.direction.norm() > 0.5)) {
+    diagnostics.error("direction", "expected a unit vector");
+  }
+  record.source_index = reader.integer("source", 0, 0, 1000);
+  record.quality = reader.number("quality", 0.0);
+  record.snr_db = reader.number("snr_db", 0.0);
+  record.ambiguity = reader.choice("ambiguity", "none", {"none", "mirror_up_down", "cone"});
+  if (const auto std_deg = reader.numbers("azel_std_deg", 2, false)) {
+    if ((*std_deg)[0] > 0.0 && (*std_deg)[1] > 0.0) {
+      record.azel_std_deg = Eigen::Vector2d((*std_deg)[0], (*std_deg)[1]);
+    } else {
+      diagnostics.error("azel_std_deg", "expected two positive numbers");
+    }
+  }
+  record.azel_correlation = reader.number("azel_correlation", 0.0, -1.0, 1.0);
+  if (reader.has("acoustic")) {
+    ObjectReader acoustic = reader.object("acoustic");
+    doa::AcousticFeatures& a = record.acoustic;
+    a.valid = true;
+    a.fundamental_hz = acoustic.number("fundamental_hz", 0.0, 0.0, 1e5);
+    a.comb_strength = acoustic.number("comb_strength", 0.0, 0.0, 1.0);
+    a.harmonic_count = acoustic.integer("harmonics", 0, 0, 100000);
+    a.broadband_share = acoustic.number("broadband_share", 1.0, 0.0, 1.0);
+    a.comb_persistence = acoustic.number("comb_persistence", 0.0, 0.0, 1.0);
+    a.fundamental_spread = acoustic.number("fundamental_spread", 0.0, 0.0, 1e3);
+    a.level_modulation_db = acoustic.number("level_modulation_db", 0.0, 0.0, 1e3);
+    a.history_s = acoustic.number("history_s", 0.0, 0.0, 1e6);
+  }
+  for (const auto& item : node.items()) reader.accept(item.key());
+}
+}  // namespace
+
 std::vector<TrackRecord> parse_tracks(const std::string& text, const std::string& file) {
-  return parse_lines<TrackRecord>(
-      text, file,
-      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
-         TrackRecord& record) {
-        for (const char* key : {"velocity_mps", "acceleration_mps2", "position_std_m", "covariance",
-                                "arrays", "contributing_arrays"}) {
-          reader.accept(key);
-        }
-        (void)node;
-        (void)diagnostics;
-        record.time_s = reader.required_number("t").value_or(0.0);
-        if (reader.has("id")) {
-          record.id = reader.integer("id", 0, -2147483647, 2147483647);
-        } else {
-          reader.diagnostics().error("id", "required integer is missing");
-        }
-        record.position_m = reader.vector3("position_m", true).value_or(Eigen::Vector3d::Zero());
-        record.status =
-            reader.choice("status", "confirmed", {"tentative", "confirmed", "coasting"});
-        record.track_class =
-            reader.choice("class", "unknown", {"drone", "ground", "aircraft", "unknown"});
-        // Extra keys are allowed in JSON lines.
-        for (const auto& item : node.items()) reader.accept(item.key());
-      });
+  return parse_text_lines<TrackRecord>(text, file, fill_track);
 }
-
 std::vector<AlertRecord> parse_alerts(const std::string& text, const std::string& file) {
-  return parse_lines<AlertRecord>(
-      text, file,
-      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics&, AlertRecord& record) {
-        record.time_s = reader.required_number("t").value_or(0.0);
-        record.zone = reader.string("zone", "");
-        record.track_id = reader.optional_integer("track_id", -2147483647, 2147483647).value_or(0);
-        record.event = reader.choice("event", "entered", {"entered", "left", "class_changed"});
-        for (const auto& item : node.items()) reader.accept(item.key());
-      });
+  return parse_text_lines<AlertRecord>(text, file, fill_alert);
 }
-std::vector<AlertRecord> read_alerts(const std::filesystem::path& file) {
-  return parse_alerts(read_file(file), file.string());
-}
-
 std::vector<DoaRecord> parse_doas(const std::string& text, const std::string& file) {
-  return parse_lines<DoaRecord>(
-      text, file,
-      [](ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
-         DoaRecord& record) {
-        record.time_s = reader.required_number("t").value_or(0.0);
-        record.array = reader.required_string("array").value_or("");
-        record.direction = reader.vector3("direction", true).value_or(Eigen::Vector3d::UnitX());
-        if (!(record.direction.norm() > 0.5)) {
-          diagnostics.error("direction", "expected a unit vector");
-        }
-        record.source_index = reader.integer("source", 0, 0, 1000);
-        record.quality = reader.number("quality", 0.0);
-        record.snr_db = reader.number("snr_db", 0.0);
-        record.ambiguity = reader.choice("ambiguity", "none", {"none", "mirror_up_down", "cone"});
-        if (const auto std_deg = reader.numbers("azel_std_deg", 2, false)) {
-          if ((*std_deg)[0] > 0.0 && (*std_deg)[1] > 0.0) {
-            record.azel_std_deg = Eigen::Vector2d((*std_deg)[0], (*std_deg)[1]);
-          } else {
-            diagnostics.error("azel_std_deg", "expected two positive numbers");
-          }
-        }
-        record.azel_correlation = reader.number("azel_correlation", 0.0, -1.0, 1.0);
-        if (reader.has("acoustic")) {
-          ObjectReader acoustic = reader.object("acoustic");
-          doa::AcousticFeatures& a = record.acoustic;
-          a.valid = true;
-          a.fundamental_hz = acoustic.number("fundamental_hz", 0.0, 0.0, 1e5);
-          a.comb_strength = acoustic.number("comb_strength", 0.0, 0.0, 1.0);
-          a.harmonic_count = acoustic.integer("harmonics", 0, 0, 100000);
-          a.broadband_share = acoustic.number("broadband_share", 1.0, 0.0, 1.0);
-          a.comb_persistence = acoustic.number("comb_persistence", 0.0, 0.0, 1.0);
-          a.fundamental_spread = acoustic.number("fundamental_spread", 0.0, 0.0, 1e3);
-          a.level_modulation_db = acoustic.number("level_modulation_db", 0.0, 0.0, 1e3);
-          a.history_s = acoustic.number("history_s", 0.0, 0.0, 1e6);
-        }
-        for (const auto& item : node.items()) reader.accept(item.key());
-      });
+  return parse_text_lines<DoaRecord>(text, file, fill_doa);
 }
 
 Truth read_truth(const std::filesystem::path& file) {
-  return parse_truth(read_file(file), file.string());
+  return parse_truth(read_file(file, config::kMaxTruthBytes), file.string());
 }
 std::vector<TrackRecord> read_tracks(const std::filesystem::path& file) {
-  return parse_tracks(read_file(file), file.string());
+  return read_file_lines<TrackRecord>(file, fill_track);
+}
+std::vector<AlertRecord> read_alerts(const std::filesystem::path& file) {
+  return read_file_lines<AlertRecord>(file, fill_alert);
 }
 std::vector<DoaRecord> read_doas(const std::filesystem::path& file) {
-  return parse_doas(read_file(file), file.string());
+  return read_file_lines<DoaRecord>(file, fill_doa);
 }
 
 }  // namespace dronetrack::eval

@@ -15,6 +15,10 @@ struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Times in DOA, track and alert lines: seconds of stream time, or of any clock a tool uses (UNIX
+// time is 1.8e9); beyond 1e10 a double no longer resolves a microsecond and the value is a bug.
+inline constexpr double kMaxAbsoluteTime_s = 1e10;
+
 Truth read_truth(const std::filesystem::path& file);
 std::vector<TrackRecord> read_tracks(const std::filesystem::path& file);
 std::vector<DoaRecord> read_doas(const std::filesystem::path& file);

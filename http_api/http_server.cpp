@@ -15,6 +15,8 @@
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
+#include "http_api/bind_address.hpp"
+
 namespace dronetrack::http_api {
 namespace {
 
@@ -118,25 +120,6 @@ bool read_file(const std::filesystem::path& file, std::string& out) {
   return got == out.size();
 }
 
-std::pair<std::string, int> parse_bind(const std::string& bind) {
-  const auto colon = bind.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == bind.size()) {
-    throw std::runtime_error("HTTP bind address '" + bind + "' is not HOST:PORT");
-  }
-  std::string host = bind.substr(0, colon);
-  if (host.size() > 2 && host.front() == '[' && host.back() == ']') {
-    host = host.substr(1, host.size() - 2);
-  }
-  const std::string port_text = bind.substr(colon + 1);
-  int port = -1;
-  const auto [end, ec] =
-      std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
-  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 0 || port > 65535) {
-    throw std::runtime_error("HTTP bind address '" + bind + "': port must be 0..65535");
-  }
-  return {host, port};
-}
-
 constexpr int kListenBacklog = 256;
 constexpr int kStreamPollMs = 40;
 
@@ -154,7 +137,7 @@ std::string HttpServer::url() const {
 
 void HttpServer::start() {
   if (server_) throw std::runtime_error("HTTP server already started");
-  auto [host, port] = parse_bind(options_.bind);
+  auto [host, port] = parse_bind_address(options_.bind);
   host_ = host;
   server_ = std::make_unique<httplib::Server>();
   // Each SSE client holds a worker thread for as long as it stays connected; leave room for

@@ -2,13 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 
 #include <sndfile.h>
 
 #include "common/log.hpp"
+#include "common/output_file.hpp"
 #include "sim/noise.hpp"
 #include "sim/propagation.hpp"
 #include "sim/source_signal.hpp"
@@ -180,26 +181,24 @@ class Renderer {
 
 nlohmann::json vector_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
-void write_wav(const std::filesystem::path& path, const RenderedArray& array) {
+// Into `out`'s temporary, by descriptor: libsndfile seeks back to finish the header.
+void write_wav(OutputFile& out, const RenderedArray& array) {
   SF_INFO info{};
   info.samplerate = static_cast<int>(std::lround(array.sample_rate_hz));
   info.channels = static_cast<int>(array.channels);
   info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
-  SNDFILE* file = sf_open(path.string().c_str(), SFM_WRITE, &info);
-  if (!file)
-    throw std::runtime_error(path.string() + ": cannot write (" + sf_strerror(nullptr) + ")");
+  SNDFILE* file = sf_open_fd(out.descriptor(), SFM_WRITE, &info, SF_FALSE);
+  if (!file) throw OutputError(out.name() + ": cannot write (" + sf_strerror(nullptr) + ")");
   const auto frames = static_cast<sf_count_t>(array.frames());
   const sf_count_t written = sf_writef_float(file, array.samples.data(), frames);
   const std::string error = sf_strerror(file);
-  sf_close(file);
-  if (written != frames) throw std::runtime_error(path.string() + ": write failed (" + error + ")");
+  const int closed = sf_close(file);
+  if (written != frames || closed != 0)
+    throw OutputError(out.name() + ": write failed (" + error + ")");
 }
 
-void write_json(const std::filesystem::path& path, const nlohmann::json& document, int indent) {
-  std::ofstream stream(path);
-  if (!stream) throw std::runtime_error(path.string() + ": cannot write");
-  stream << document.dump(indent) << "\n";
-  if (!stream) throw std::runtime_error(path.string() + ": write failed");
+void write_json(OutputFile& out, const nlohmann::json& document, int indent) {
+  out.write(document.dump(indent) + "\n");
 }
 
 }  // namespace
@@ -322,16 +321,31 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   if (error)
     throw std::runtime_error(out_dir.string() + ": cannot create (" + error.message() + ")");
   WrittenScene written;
+  written.site = out_dir / "site.json";
+  written.truth = out_dir / "truth.json";
+  std::vector<NamedPath> outputs{{"the scene's site", written.site},
+                                 {"the scene's truth", written.truth}};
+  for (const auto& array : scenario.site.arrays) {
+    written.recordings.push_back(out_dir / (array.geometry.id + ".wav"));
+    outputs.push_back({"array " + array.geometry.id + "'s recording", written.recordings.back()});
+  }
+  check_output_paths({{"the scenario", scenario.file}}, outputs);
+
   const RenderedScene scene = render_scene(scenario);
   written.scale = scene.scale;
-  for (const auto& array : scene.arrays) {
-    written.recordings.push_back(out_dir / (array.id + ".wav"));
-    write_wav(written.recordings.back(), array);
+  // All files of the scene or none: each goes to a temporary, and they are renamed into place
+  // only once every one is written (a scene with a new site.json and old recordings is worse
+  // than the old scene).
+  std::vector<std::unique_ptr<OutputFile>> files;
+  for (std::size_t i = 0; i < scene.arrays.size(); ++i) {
+    files.push_back(std::make_unique<OutputFile>(written.recordings.at(i)));
+    write_wav(*files.back(), scene.arrays[i]);
   }
-  written.site = out_dir / "site.json";
-  write_json(written.site, scene_site_json(scenario), 2);
-  written.truth = out_dir / "truth.json";
-  write_json(written.truth, compute_truth(scenario).to_json(scenario), -1);
+  files.push_back(std::make_unique<OutputFile>(written.site));
+  write_json(*files.back(), scene_site_json(scenario), 2);
+  files.push_back(std::make_unique<OutputFile>(written.truth));
+  write_json(*files.back(), compute_truth(scenario).to_json(scenario), -1);
+  for (auto& file : files) file->commit();
   return written;
 }
 

@@ -426,11 +426,15 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
 }
 
 Scenario load_scenario(const std::filesystem::path& file, std::vector<std::string>& warnings) {
-  std::ifstream stream(file);
-  if (!stream) throw config::ConfigError({file.string() + ": cannot open scenario file"});
+  std::string text;
+  try {
+    text = config::read_text_file(file, config::kMaxConfigBytes, "scenario file");
+  } catch (const std::runtime_error& failure) {
+    throw config::ConfigError({failure.what()});
+  }
   json document;
   try {
-    document = json::parse(stream);
+    document = json::parse(text);
   } catch (const json::exception& failure) {
     throw config::ConfigError({file.string() + ": invalid JSON: " + failure.what()});
   }
