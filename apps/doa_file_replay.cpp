@@ -10,7 +10,6 @@
 
 #include "apps/commands.hpp"
 #include "apps/fusion_driver.hpp"
-#include "apps/signals.hpp"
 #include "common/log.hpp"
 #include "config/config_reader.hpp"
 #include "eval/readers.hpp"

@@ -61,6 +61,11 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     server->start();
   }
 
+  if (stop_requested()) {  // while reading: nothing was produced, so nothing is kept
+    log::error("replay: interrupted by ", stop_signal_name(), " before any output was written");
+    return interrupted_exit_code();
+  }
+
   std::unique_ptr<DoaLinesWriter> doa_writer;
   std::unique_ptr<AlertLinesWriter> alert_writer;
   std::unique_ptr<TrackLinesWriter> track_writer;

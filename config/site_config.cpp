@@ -135,6 +135,9 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
   return array;
 }
 
+// Sample rates are whole numbers of hertz: print all their digits (2147483647, not 2.14748e+09).
+std::string hertz_text(double rate_hz) { return std::to_string(static_cast<long long>(rate_hz)); }
+
 void check_recording(const ArrayConfig& array, const std::string& path, bool explicit_map,
                      double band_high_hz, const doa::DoaParams& params, double speed_of_sound_mps,
                      Diagnostics& diagnostics) {
@@ -163,7 +166,7 @@ void check_recording(const ArrayConfig& array, const std::string& path, bool exp
   }
   if (!(info.sample_rate_hz >= kMinSampleRate_hz && info.sample_rate_hz <= kMaxSampleRate_hz)) {
     diagnostics.error(path + ".recording", array.recording.string() + ": sample rate " +
-                                               format_number(info.sample_rate_hz) +
+                                               hertz_text(info.sample_rate_hz) +
                                                " Hz; dronetrack takes " +
                                                format_number(kMinSampleRate_hz) + " to " +
                                                format_number(kMaxSampleRate_hz) + " Hz");
@@ -172,7 +175,7 @@ void check_recording(const ArrayConfig& array, const std::string& path, bool exp
   if (info.sample_rate_hz / 2.0 < band_high_hz) {
     diagnostics.error(path + ".recording",
                       array.recording.string() + ": sample rate " +
-                          format_number(info.sample_rate_hz) +
+                          hertz_text(info.sample_rate_hz) +
                           " Hz puts the Nyquist frequency below the band's upper edge (" +
                           format_number(band_high_hz) + " Hz)");
     return;
@@ -181,7 +184,7 @@ void check_recording(const ArrayConfig& array, const std::string& path, bool exp
       array.geometry, params, info.sample_rate_hz, speed_of_sound_mps);
   if (!problem.empty()) {
     diagnostics.error(path, "with " + array.recording.string() + " (" +
-                                format_number(info.sample_rate_hz) + " Hz): " + problem);
+                                hertz_text(info.sample_rate_hz) + " Hz): " + problem);
   }
 }
 
