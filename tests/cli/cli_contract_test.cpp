@@ -123,6 +123,7 @@ Outcome run(const std::vector<std::string>& arguments, const fs::path& dir,
 }
 
 void expect_small_rss(const Outcome& outcome) {
+  std::printf("    peak RSS of the refused run: %.1f MB\n", outcome.max_rss_kB / 1024.0);
   if (!kSanitized) {
     EXPECT_LT(outcome.max_rss_kB, kMaxRss_kB) << "peak RSS of the refused run";
   }
