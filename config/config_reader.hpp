@@ -76,7 +76,7 @@ class ObjectReader {
 // Input bounds (docs/contract.md): a file or line larger than these is refused before it is read
 // into memory, so a hostile or broken input costs a stat, not gigabytes.
 inline constexpr std::size_t kMaxConfigBytes = 4u << 20;   // site config, scenario: a few kB
-inline constexpr std::size_t kMaxTruthBytes = 256u << 20;  // truth.json: ~1 MB per scene minute
+inline constexpr std::size_t kMaxTruthBytes = 512u << 20;  // truth.json: 4-7 MB per scene minute
 inline constexpr std::size_t kMaxLineBytes = 64u << 10;    // a DOA/track/alert line: < 1 kB
 inline constexpr std::size_t kMaxReportedWarnings = 20;    // then "... and N more"
 
