@@ -12,6 +12,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -72,7 +73,10 @@ Outcome run(const std::vector<std::string>& arguments, const fs::path& dir,
             const RunOptions& options = {}) {
   const fs::path out_path = dir / "run.out";
   const fs::path err_path = dir / "run.err";
-  std::vector<std::string> copies{DRONETRACK_BINARY};
+  // DRONETRACK_UNDER_TEST runs the cases against another build (e.g. an older commit's, to see
+  // them fail there).
+  const char* other = std::getenv("DRONETRACK_UNDER_TEST");
+  std::vector<std::string> copies{other ? other : DRONETRACK_BINARY};
   copies.insert(copies.end(), arguments.begin(), arguments.end());
   std::vector<char*> argv;
   for (auto& argument : copies) argv.push_back(argument.data());
