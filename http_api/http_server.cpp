@@ -11,11 +11,11 @@
 #include <stdexcept>
 #include <utility>
 
-#include <httplib.h>
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
 #include "http_api/bind_address.hpp"
+#include "http_api/guarded_server.hpp"
 
 namespace dronetrack::http_api {
 namespace {
@@ -122,6 +122,25 @@ bool read_file(const std::filesystem::path& file, std::string& out) {
 
 constexpr int kListenBacklog = 256;
 constexpr int kStreamPollMs = 40;
+// Workers beyond the stream clients: room for this many clients each holding its full share of
+// slow connections (heads trickling in until their deadline) ...
+constexpr int kSlowClientsAbsorbed = 4;
+// ... and still this many for the API and the page.
+constexpr int kApiWorkers = 16;
+
+void check_limits(const HttpOptions& options) {
+  const ConnectionLimits& limits = options.limits;
+  const auto fail = [](const char* what) {
+    throw std::runtime_error(std::string("HTTP limits: ") + what);
+  };
+  if (options.max_stream_clients < 0) fail("max_stream_clients must not be negative");
+  if (limits.head_timeout.count() <= 0) fail("head_timeout must be positive");
+  if (limits.keep_alive_timeout.count() < 0) fail("keep_alive_timeout must not be negative");
+  if (limits.max_requests_per_connection < 1) fail("max_requests_per_connection must be >= 1");
+  if (limits.write_timeout.count() <= 0) fail("write_timeout must be positive");
+  if (limits.max_connections_per_client < 1) fail("max_connections_per_client must be >= 1");
+  if (limits.max_request_bytes < 1024) fail("max_request_bytes must be at least 1024");
+}
 
 }  // namespace
 
@@ -139,17 +158,20 @@ void HttpServer::start() {
   if (server_) throw std::runtime_error("HTTP server already started");
   auto [host, port] = parse_bind_address(options_.bind);
   host_ = host;
-  server_ = std::make_unique<httplib::Server>();
-  // Each SSE client holds a worker thread for as long as it stays connected; leave room for
-  // ordinary requests beside the maximum number of streams.
-  const std::size_t threads =
-      static_cast<std::size_t>(std::max(1, options_.max_stream_clients)) + 8;
-  server_->new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
-  // A stuck client's write fails after this long; its queue has long since been dropped.
-  server_->set_write_timeout(2, 0);
+  check_limits(options_);
+  server_ = std::make_unique<GuardedServer>(options_.limits);
+  // Each connection holds a worker for as long as it is open: an SSE client for as long as it
+  // stays connected, a slow client until its head deadline. Size the pool so the maximum number
+  // of streams and a few slow clients at their per-address limit still leave the API workers.
+  const int threads = options_.max_stream_clients +
+                      kSlowClientsAbsorbed * options_.limits.max_connections_per_client +
+                      kApiWorkers;
+  server_->new_task_queue = [threads] {
+    return new httplib::ThreadPool(static_cast<std::size_t>(threads));
+  };
   // httplib's default adds SO_REUSEPORT, which would let a second server silently share the
   // port. A modest send buffer (inherited by accepted sockets) bounds what a stuck client can
-  // absorb before its writes block and it is cut off.
+  // absorb before its writes block and it is cut off (after limits.write_timeout).
   server_->set_socket_options([this](socket_t sock) {
     listen_socket_ = static_cast<int>(sock);
     const int yes = 1;
@@ -157,7 +179,6 @@ void HttpServer::start() {
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
     ::setsockopt(sock, SOL_SOCKET, SO_SNDBUF, &send_buffer_bytes, sizeof(send_buffer_bytes));
   });
-  server_->set_keep_alive_timeout(2);
   install_routes();
 
   errno = 0;
@@ -190,8 +211,8 @@ void HttpServer::start() {
 
 void HttpServer::stop() {
   if (!server_) return;
-  stopping_ = true;
-  server_->stop();
+  stopping_ = true;  // streams end at their next poll (40 ms)
+  server_->stop_and_disconnect();
   if (thread_.joinable()) thread_.join();
   server_.reset();
 }
