@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <stdexcept>
@@ -46,18 +45,20 @@ bool check_params(const httplib::Request& req, httplib::Response& res,
   return true;
 }
 
-// Optional finite number parameter; absent gives `fallback`.
+// Optional number parameter; absent gives `fallback`. Only a plain decimal number is accepted
+// ("12.5", "-3", "1e3"): strtod would also take "0x10", "inf", "nan" and leading spaces, which
+// no client means as a stream time.
 bool number_param(const httplib::Request& req, httplib::Response& res, const char* name,
                   double fallback, double& out) {
   out = fallback;
   if (!req.has_param(name)) return true;
   const std::string text = req.get_param_value(name);
-  char* end = nullptr;
-  errno = 0;
-  const double value = text.empty() ? NAN : std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE ||
-      !std::isfinite(value)) {
-    send_error(res, 400, std::string("query parameter '") + name + "' must be a finite number");
+  double value = 0.0;
+  const char* const end = text.data() + text.size();
+  const auto [stop, error] = std::from_chars(text.data(), end, value, std::chars_format::general);
+  if (text.empty() || error != std::errc() || stop != end || !std::isfinite(value)) {
+    send_error(res, 400,
+               std::string("query parameter '") + name + "' must be a finite decimal number");
     return false;
   }
   out = value;
@@ -326,13 +327,26 @@ void HttpServer::install_routes() {
     res.set_header("Cache-Control", "no-cache");
     res.set_content(std::move(body), content_type_for(*file));
   });
+  // Everything is read-only: any other method is a 405 naming what is allowed.
   const auto method_not_allowed = [](const httplib::Request& req, httplib::Response& res) {
+    res.set_header("Allow", "GET, HEAD");
     send_error(res, 405, "method " + req.method + " not allowed on " + req.path);
   };
   svr.Post(R"(/.*)", method_not_allowed);
   svr.Put(R"(/.*)", method_not_allowed);
   svr.Delete(R"(/.*)", method_not_allowed);
   svr.Patch(R"(/.*)", method_not_allowed);
+  svr.Options(R"(/.*)", method_not_allowed);
+  // httplib parses TRACE and CONNECT but has no routes for them (it answers 400): catch them
+  // before routing. Neither carries a body httplib would read.
+  svr.set_pre_routing_handler(
+      [method_not_allowed](const httplib::Request& req, httplib::Response& res) {
+        if (req.method != "TRACE" && req.method != "CONNECT") {
+          return httplib::Server::HandlerResponse::Unhandled;
+        }
+        method_not_allowed(req, res);
+        return httplib::Server::HandlerResponse::Handled;
+      });
 }
 
 }  // namespace dronetrack::http_api
