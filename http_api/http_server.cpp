@@ -5,17 +5,16 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <utility>
 
-#include <httplib.h>
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
 #include "http_api/bind_address.hpp"
+#include "http_api/guarded_server.hpp"
 
 namespace dronetrack::http_api {
 namespace {
@@ -46,18 +45,20 @@ bool check_params(const httplib::Request& req, httplib::Response& res,
   return true;
 }
 
-// Optional finite number parameter; absent gives `fallback`.
+// Optional number parameter; absent gives `fallback`. Only a plain decimal number is accepted
+// ("12.5", "-3", "1e3"): strtod would also take "0x10", "inf", "nan" and leading spaces, which
+// no client means as a stream time.
 bool number_param(const httplib::Request& req, httplib::Response& res, const char* name,
                   double fallback, double& out) {
   out = fallback;
   if (!req.has_param(name)) return true;
   const std::string text = req.get_param_value(name);
-  char* end = nullptr;
-  errno = 0;
-  const double value = text.empty() ? NAN : std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE ||
-      !std::isfinite(value)) {
-    send_error(res, 400, std::string("query parameter '") + name + "' must be a finite number");
+  double value = 0.0;
+  const char* const end = text.data() + text.size();
+  const auto [stop, error] = std::from_chars(text.data(), end, value, std::chars_format::general);
+  if (text.empty() || error != std::errc() || stop != end || !std::isfinite(value)) {
+    send_error(res, 400,
+               std::string("query parameter '") + name + "' must be a finite decimal number");
     return false;
   }
   out = value;
@@ -122,6 +123,25 @@ bool read_file(const std::filesystem::path& file, std::string& out) {
 
 constexpr int kListenBacklog = 256;
 constexpr int kStreamPollMs = 40;
+// Workers beyond the stream clients: room for this many clients each holding its full share of
+// slow connections (heads trickling in until their deadline) ...
+constexpr int kSlowClientsAbsorbed = 4;
+// ... and still this many for the API and the page.
+constexpr int kApiWorkers = 16;
+
+void check_limits(const HttpOptions& options) {
+  const ConnectionLimits& limits = options.limits;
+  const auto fail = [](const char* what) {
+    throw std::runtime_error(std::string("HTTP limits: ") + what);
+  };
+  if (options.max_stream_clients < 0) fail("max_stream_clients must not be negative");
+  if (limits.head_timeout.count() <= 0) fail("head_timeout must be positive");
+  if (limits.keep_alive_timeout.count() < 0) fail("keep_alive_timeout must not be negative");
+  if (limits.max_requests_per_connection < 1) fail("max_requests_per_connection must be >= 1");
+  if (limits.write_timeout.count() <= 0) fail("write_timeout must be positive");
+  if (limits.max_connections_per_client < 1) fail("max_connections_per_client must be >= 1");
+  if (limits.max_request_bytes < 1024) fail("max_request_bytes must be at least 1024");
+}
 
 }  // namespace
 
@@ -139,17 +159,20 @@ void HttpServer::start() {
   if (server_) throw std::runtime_error("HTTP server already started");
   auto [host, port] = parse_bind_address(options_.bind);
   host_ = host;
-  server_ = std::make_unique<httplib::Server>();
-  // Each SSE client holds a worker thread for as long as it stays connected; leave room for
-  // ordinary requests beside the maximum number of streams.
-  const std::size_t threads =
-      static_cast<std::size_t>(std::max(1, options_.max_stream_clients)) + 8;
-  server_->new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
-  // A stuck client's write fails after this long; its queue has long since been dropped.
-  server_->set_write_timeout(2, 0);
+  check_limits(options_);
+  server_ = std::make_unique<GuardedServer>(options_.limits);
+  // Each connection holds a worker for as long as it is open: an SSE client for as long as it
+  // stays connected, a slow client until its head deadline. Size the pool so the maximum number
+  // of streams and a few slow clients at their per-address limit still leave the API workers.
+  const int threads = options_.max_stream_clients +
+                      kSlowClientsAbsorbed * options_.limits.max_connections_per_client +
+                      kApiWorkers;
+  server_->new_task_queue = [threads] {
+    return new httplib::ThreadPool(static_cast<std::size_t>(threads));
+  };
   // httplib's default adds SO_REUSEPORT, which would let a second server silently share the
   // port. A modest send buffer (inherited by accepted sockets) bounds what a stuck client can
-  // absorb before its writes block and it is cut off.
+  // absorb before its writes block and it is cut off (after limits.write_timeout).
   server_->set_socket_options([this](socket_t sock) {
     listen_socket_ = static_cast<int>(sock);
     const int yes = 1;
@@ -157,7 +180,6 @@ void HttpServer::start() {
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
     ::setsockopt(sock, SOL_SOCKET, SO_SNDBUF, &send_buffer_bytes, sizeof(send_buffer_bytes));
   });
-  server_->set_keep_alive_timeout(2);
   install_routes();
 
   errno = 0;
@@ -190,8 +212,8 @@ void HttpServer::start() {
 
 void HttpServer::stop() {
   if (!server_) return;
-  stopping_ = true;
-  server_->stop();
+  stopping_ = true;  // streams end at their next poll (40 ms)
+  server_->stop_and_disconnect();
   if (thread_.joinable()) thread_.join();
   server_.reset();
 }
@@ -305,13 +327,26 @@ void HttpServer::install_routes() {
     res.set_header("Cache-Control", "no-cache");
     res.set_content(std::move(body), content_type_for(*file));
   });
+  // Everything is read-only: any other method is a 405 naming what is allowed.
   const auto method_not_allowed = [](const httplib::Request& req, httplib::Response& res) {
+    res.set_header("Allow", "GET, HEAD");
     send_error(res, 405, "method " + req.method + " not allowed on " + req.path);
   };
   svr.Post(R"(/.*)", method_not_allowed);
   svr.Put(R"(/.*)", method_not_allowed);
   svr.Delete(R"(/.*)", method_not_allowed);
   svr.Patch(R"(/.*)", method_not_allowed);
+  svr.Options(R"(/.*)", method_not_allowed);
+  // httplib parses TRACE and CONNECT but has no routes for them (it answers 400): catch them
+  // before routing. Neither carries a body httplib would read.
+  svr.set_pre_routing_handler(
+      [method_not_allowed](const httplib::Request& req, httplib::Response& res) {
+        if (req.method != "TRACE" && req.method != "CONNECT") {
+          return httplib::Server::HandlerResponse::Unhandled;
+        }
+        method_not_allowed(req, res);
+        return httplib::Server::HandlerResponse::Handled;
+      });
 }
 
 }  // namespace dronetrack::http_api

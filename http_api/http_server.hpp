@@ -7,19 +7,19 @@
 #include <string>
 #include <thread>
 
+#include "http_api/connection_limits.hpp"
 #include "http_api/live_state.hpp"
 
-namespace httplib {
-class Server;
-}
-
 namespace dronetrack::http_api {
+
+class GuardedServer;
 
 struct HttpOptions {
   std::string bind = "127.0.0.1:8080";  // HOST:PORT; port 0 picks a free port (see port())
   std::filesystem::path web_root;       // the page (index.html, app.js, ...); empty: API only
   int max_stream_clients = 64;          // further /api/stream requests get 503
   int stream_heartbeat_ms = 1000;       // a nodes event (stale flags) at least this often
+  ConnectionLimits limits;              // slow and hostile clients (connection_limits.hpp)
 };
 
 class HttpServer {
@@ -30,8 +30,9 @@ class HttpServer {
   HttpServer& operator=(const HttpServer&) = delete;
 
   // Binds and serves on a background thread. Throws std::runtime_error with a one-line message
-  // if the address is malformed or cannot be bound.
+  // if the address is malformed or cannot be bound, or a limit is out of range.
   void start();
+  // Returns within about 0.1 s whatever the clients do: every open connection is shut down.
   void stop();
   int port() const { return port_; }
   std::string url() const;  // http://HOST:PORT/
@@ -44,7 +45,7 @@ class HttpServer {
   std::string host_;
   int port_ = 0;
   int listen_socket_ = -1;  // seen in httplib's socket-options hook, to raise the backlog
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<GuardedServer> server_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};
   std::atomic<int> stream_clients_{0};

@@ -168,6 +168,47 @@ TEST_F(HttpServerTest, UnknownPathsAndMethodsAreJsonErrors) {
   EXPECT_TRUE(json::parse(res->body)["error"].is_string());
 }
 
+// docs/http_api.md: a method other than GET (and HEAD) is a 405, also those httplib has no
+// routes for (it answered OPTIONS with 404 and TRACE, CONNECT with 400), and a POST without
+// Content-Length (which has no body; httplib waited for one until its read timeout, then 400).
+TEST_F(HttpServerTest, MethodsOtherThanGetAre405) {
+  auto c = client();
+  auto res = c.Options("/api/tracks");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 405);
+  EXPECT_EQ(res->get_header_value("Allow"), "GET, HEAD");
+  EXPECT_TRUE(json::parse(res->body)["error"].is_string());
+  for (const std::string& head :
+       {std::string("TRACE /api/tracks HTTP/1.1\r\nHost: x\r\n"),
+        std::string("CONNECT example.com:443 HTTP/1.1\r\nHost: example.com:443\r\n"),
+        std::string("POST /api/tracks HTTP/1.1\r\nHost: x\r\n")}) {
+    const auto start = std::chrono::steady_clock::now();
+    const std::string response = raw_request(head + "Connection: close\r\n\r\n");
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1)) << head;
+    ASSERT_GE(response.size(), 12u) << head;
+    EXPECT_EQ(response.substr(9, 3), "405") << head << response;
+    EXPECT_NE(response.find("Allow: GET, HEAD"), std::string::npos) << response;
+    EXPECT_NE(response.find("\"error\""), std::string::npos) << response;
+  }
+}
+
+// A number query parameter is a plain decimal number: strtod's hex, infinities, NaN and
+// out-of-range values are a 400 naming the parameter.
+TEST_F(HttpServerTest, NumberParametersArePlainDecimals) {
+  for (const char* bad : {"0x10", "inf", "-inf", "nan", "1e999", "5abc", "%205", "+5", "1,5"}) {
+    for (const std::string endpoint : {"/api/tracks/history", "/api/alerts"}) {
+      const std::string path = endpoint + "?since=" + bad;
+      const json error = get_json(path, 400);
+      EXPECT_NE(error["error"].get<std::string>().find("'since'"), std::string::npos) << path;
+    }
+  }
+  state_.publish_tracks(12.7, {make_track(3, 12.7, {20, 23, 35}, {0, 5, 0})});
+  EXPECT_EQ(get_json("/api/tracks/history?since=12.5", 200)["tracks"][0]["points"].size(), 1u);
+  EXPECT_EQ(get_json("/api/tracks/history?since=-1e3", 200)["tracks"][0]["points"].size(), 2u);
+  EXPECT_EQ(get_json("/api/alerts?since=11.5", 200)["alerts"].size(), 1u);
+  EXPECT_EQ(get_json("/api/alerts?since=12.5", 200)["alerts"].size(), 0u);
+}
+
 TEST_F(HttpServerTest, ServesStaticFilesWithTypes) {
   auto c = client();
   auto res = c.Get("/");
