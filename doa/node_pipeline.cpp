@@ -3,6 +3,7 @@
 //                                        \-> SrpPhat (further sources) -> LsDoaSolver
 // With robust_regression the frame's sources are found per frame (per-frame peaks, then SRP),
 // and SourceTracks smooths each source's TDOAs over time on one time base before the final solve.
+// Beside the frames, ChannelHealth counts and judges every channel's samples as they come.
 // Everything is sized in the constructor; process() only appends to the caller's vector.
 #include "doa/node_pipeline.hpp"
 
@@ -15,6 +16,7 @@
 
 #include "doa/acoustic_features.hpp"
 #include "doa/bin_snr_weight.hpp"
+#include "doa/channel_health.hpp"
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ground_echo.hpp"
@@ -115,6 +117,14 @@ double srp_noise_sigma(const std::vector<BandRun>& band, int frame_length, int f
   return std::sqrt(1.0 / (2.0 * independent_bins * pair_count));
 }
 
+// A channel is said to clip when more of a stretch clips than a frame may hold and still give
+// a DOA.
+ChannelHealthSettings health_settings(const DoaParams& params) {
+  ChannelHealthSettings settings;
+  settings.clipped_share = params.max_clipped_fraction;
+  return settings;
+}
+
 }  // namespace
 
 std::string NodePipeline::setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
@@ -139,7 +149,8 @@ struct NodePipeline::Impl {
         gate(DetectionSettings{params.detection_snr_db, params.min_gcc_peak,
                                params.noise_floor_rise_db_per_s, 0.5, -130.0},
              params.hop_s),
-        band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())) {
+        band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())),
+        health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)) {
     TdoaTrackerSettings tracker_settings;
     tracker_settings.hop_s = static_cast<double>(hop) / sample_rate_hz;
     tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
@@ -230,6 +241,7 @@ struct NodePipeline::Impl {
   GccPhat gcc;
   DetectionGate gate;
   std::vector<BandRun> band;
+  ChannelHealth health;
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
@@ -656,15 +668,20 @@ NodePipeline& NodePipeline::operator=(NodePipeline&&) noexcept = default;
 
 void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasurement>& out) {
   Impl& impl = *impl_;
+  // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
+  impl.health.scan(block);
   impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
   const FramerCounters& counters = impl.framer.counters();
-  impl.diagnostics.non_finite_samples = counters.non_finite_samples;
-  impl.diagnostics.clipped_samples = counters.clipped_samples;
+  impl.diagnostics.non_finite_samples = impl.health.non_finite_samples();
+  impl.diagnostics.clipped_samples = impl.health.clipped_samples();
   impl.diagnostics.stream_gaps = counters.stream_gaps;
   impl.diagnostics.rejected_blocks = counters.rejected_blocks;
 }
 
+void NodePipeline::finish() { impl_->health.finish(); }
+
 const NodeDiagnostics& NodePipeline::diagnostics() const { return impl_->diagnostics; }
+const ChannelHealth& NodePipeline::health() const { return impl_->health; }
 const ArrayGeometry& NodePipeline::geometry() const { return impl_->geometry; }
 int NodePipeline::frame_length_samples() const { return impl_->frame_length; }
 int NodePipeline::hop_samples() const { return impl_->hop; }

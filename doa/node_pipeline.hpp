@@ -8,6 +8,7 @@
 
 #include "doa/array_geometry.hpp"
 #include "doa/audio_block.hpp"
+#include "doa/channel_health.hpp"
 #include "doa/doa_measurement.hpp"
 #include "doa/doa_params.hpp"
 
@@ -16,8 +17,8 @@ namespace dronetrack::doa {
 struct NodeDiagnostics {
   std::int64_t frames_processed = 0;
   std::int64_t doas_published = 0;
-  std::int64_t non_finite_samples = 0;  // NaN/Inf replaced by 0 and counted
-  std::int64_t clipped_samples = 0;     // |x| >= 0.999
+  std::int64_t non_finite_samples = 0;  // NaN/Inf replaced by 0 and counted, all channels
+  std::int64_t clipped_samples = 0;     // |x| >= 0.999, all channels (per channel: health())
   double level_dbfs = -120.0;           // RMS of the samples of the last hop, all channels
   double noise_floor_dbfs = -120.0;     // adaptive in-band noise floor
   double snr_db = 0.0;                  // in-band SNR of the last frame
@@ -45,7 +46,13 @@ class NodePipeline {
   // Never throws on odd audio (silence, clipping, NaN, dropouts): counts it in diagnostics().
   void process(const AudioBlockView& block, std::vector<DoaMeasurement>& out);
 
+  // The stream ended: judges the audio health of its last, partial stretch (health().events()).
+  void finish();
+
   const NodeDiagnostics& diagnostics() const;
+  // Per-channel audio health; its events() are the problems raised by the last process() or
+  // finish() call (docs/deployment.md "Audio health").
+  const ChannelHealth& health() const;
   const ArrayGeometry& geometry() const;
   int frame_length_samples() const;
   int hop_samples() const;
