@@ -1,12 +1,109 @@
 #include "apps/array_node.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include "capture/recording_info.hpp"
 #include "capture/recording_source.hpp"
+#include "common/log.hpp"
 
 namespace dronetrack::apps {
+
+namespace {
+
+std::string format(const char* pattern, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, pattern, value);
+  return text;
+}
+
+// "100 %", "2.5 %", "0.013 %".
+std::string percent(double share) {
+  const double value = 100.0 * share;
+  if (value >= 99.95 || value == 0.0) return format("%.0f %%", value);
+  return format(value >= 1.0 ? "%.1f %%" : "%.2g %%", value);
+}
+
+}  // namespace
+
+std::string health_warning(const std::string& array_id, int input_channel,
+                           const doa::HealthEvent& event) {
+  std::string line = array_id + " channel " + std::to_string(event.channel);
+  if (input_channel != event.channel)
+    line += " (input channel " + std::to_string(input_channel) + ")";
+  line += ": ";
+  const std::string since = " since " + format("%.2f", event.since_s) + " s";
+  const std::string of_stretch = " of " + format("%.2f", event.stretch_s) + " s";
+  switch (event.problem) {
+    case doa::HealthProblem::non_finite:
+      line += event.share >= 1.0
+                  ? "all samples non-finite (NaN/inf)"
+                  : "non-finite samples (NaN/inf), " + percent(event.share) + of_stretch + ",";
+      line += since + "; replaced by 0, frames holding them give no DOA";
+      break;
+    case doa::HealthProblem::silent:
+      line += event.peak == 0.0 ? "silent (all samples 0)"
+              : event.rms_dbfs <= -120.0
+                  ? "silent (RMS below -120 dBFS)"
+                  : "silent (RMS " + format("%.1f", event.rms_dbfs) + " dBFS)";
+      line += since + "; no signal from this mic";
+      break;
+    case doa::HealthProblem::clipped:
+      line += "clipping, " + percent(event.share) + of_stretch + " at full scale (|x| >= 0.999)," +
+              since + "; frames with more than max_clipped_fraction clipped give no DOA";
+      break;
+    case doa::HealthProblem::dc_offset:
+      line += "DC offset (mean " + format("%+.3f", event.mean) + " of full scale, RMS " +
+              format("%.1f", event.rms_dbfs) + " dBFS)" + since;
+      break;
+    case doa::HealthProblem::absurd_level:
+      line += "absurd level (peak " + format("%.3g", event.peak) + " x full scale)" + since +
+              "; the recording's scale is wrong (float samples belong in [-1, 1]), frames holding "
+              "them give no DOA";
+      break;
+  }
+  return line;
+}
+
+std::string health_summary(const doa::NodeStatus& status) {
+  const double samples = std::max(1.0, std::round(status.time_s * status.sample_rate_hz));
+  std::string line;
+  for (std::size_t c = 0; c < status.channels.size(); ++c) {
+    const doa::ChannelStatus& channel = status.channels[c];
+    if (channel.problems_seen == 0) continue;
+    line += (line.empty() ? status.array_id + " channel " : "; channel ") + std::to_string(c) + ":";
+    const char* separator = " ";
+    for (int p = 0; p < doa::kHealthProblemCount; ++p) {
+      const auto problem = static_cast<doa::HealthProblem>(p);
+      if (!doa::has_problem(channel.problems_seen, problem)) continue;
+      line += separator;
+      separator = ", ";
+      switch (problem) {
+        case doa::HealthProblem::non_finite:
+          line += "non-finite " + std::to_string(channel.non_finite_samples) + " samples (" +
+                  percent(static_cast<double>(channel.non_finite_samples) / samples) + ")";
+          break;
+        case doa::HealthProblem::clipped:
+          line += "clipped " + std::to_string(channel.clipped_samples) + " samples (" +
+                  percent(static_cast<double>(channel.clipped_samples) / samples) + ")";
+          break;
+        case doa::HealthProblem::silent:
+          line += "silent";
+          break;
+        case doa::HealthProblem::dc_offset:
+          line += "DC offset";
+          break;
+        case doa::HealthProblem::absurd_level:
+          line += "absurd level";
+          break;
+      }
+    }
+  }
+  return line;
+}
 
 std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConfig& array,
                                                          const std::filesystem::path& recording,
@@ -28,6 +125,7 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
                      std::unique_ptr<capture::AudioSource> source)
     : array_id_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry.id),
       array_index_(array_index),
+      channel_map_(site.arrays[static_cast<std::size_t>(array_index)].channel_map),
       source_(std::move(source)),
       pipeline_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry, array_index,
                 site.doa_params(static_cast<std::size_t>(array_index)), source_->sample_rate_hz(),
@@ -43,28 +141,47 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
 
 bool ArrayNode::step(std::vector<doa::DoaMeasurement>& doas) {
   doa::AudioBlockView block;
-  if (!source_->next(block)) return false;
+  if (!source_->next(block)) {
+    if (!finished_) {
+      finished_ = true;
+      pipeline_.finish();
+      warn_health_problems();
+    }
+    return false;
+  }
   pipeline_.process(block, doas);
   samples_read_ = block.first_sample + static_cast<std::int64_t>(block.frames);
+  warn_health_problems();
   return true;
+}
+
+void ArrayNode::warn_health_problems() const {
+  for (const doa::HealthEvent& event : pipeline_.health().events()) {
+    const auto mic = static_cast<std::size_t>(event.channel);
+    const int input = mic < channel_map_.size() ? channel_map_[mic] : event.channel;
+    log::warn(health_warning(array_id_, input, event));
+  }
 }
 
 doa::NodeStatus ArrayNode::status() const {
   const doa::NodeDiagnostics& diagnostics = pipeline_.diagnostics();
-  const capture::SourceCounters& counters = source_->counters();
   doa::NodeStatus status;
   status.array_id = array_id_;
   status.time_s = time_s();
   status.alive = true;
   status.sample_rate_hz = sample_rate_hz_;
-  status.overruns = counters.overruns;
-  status.clipped_samples = counters.clipped_samples + diagnostics.clipped_samples;
-  status.non_finite_samples = counters.non_finite_samples + diagnostics.non_finite_samples;
+  status.overruns = source_->counters().overruns;
+  status.clipped_samples = diagnostics.clipped_samples;
+  status.non_finite_samples = diagnostics.non_finite_samples;
   status.level_dbfs = diagnostics.level_dbfs;
   status.noise_floor_dbfs = diagnostics.noise_floor_dbfs;
   status.snr_db = diagnostics.snr_db;
   status.detecting = diagnostics.detecting;
   status.software_version = DRONETRACK_VERSION;
+  for (const doa::ChannelHealthCounters& channel : pipeline_.health().counters()) {
+    status.channels.push_back({channel.problems, channel.problems_seen, channel.non_finite_samples,
+                               channel.clipped_samples, channel.rms_dbfs});
+  }
   return status;
 }
 

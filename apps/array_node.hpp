@@ -1,8 +1,11 @@
 #pragma once
 // One array node as a process runs it: an audio source feeding a NodePipeline, plus the
 // once-a-second health report. Used by `replay` (all nodes in one process) and `node` (DDS).
+// It logs each audio health problem the pipeline raises as one warning line
+// (docs/deployment.md "Audio health").
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "capture/audio_source.hpp"
@@ -18,7 +21,8 @@ class ArrayNode {
   ArrayNode(const config::SiteConfig& site, int array_index,
             std::unique_ptr<capture::AudioSource> source);
 
-  // Reads one block and appends the DOAs it completes. False at end of stream.
+  // Reads one block and appends the DOAs it completes. False at end of stream. Logs a warning
+  // for every audio health problem raised (also on the last stretch, at the end).
   bool step(std::vector<doa::DoaMeasurement>& doas);
   // Stream time at the end of the last block read, seconds since sample 0.
   double time_s() const { return static_cast<double>(samples_read_) / sample_rate_hz_; }
@@ -33,14 +37,27 @@ class ArrayNode {
   const capture::AudioSource& source() const { return *source_; }
 
  private:
+  void warn_health_problems() const;
+
   std::string array_id_;
   int array_index_;
+  std::vector<int> channel_map_;  // input channel of each mic (for the warnings)
   std::unique_ptr<capture::AudioSource> source_;
   doa::NodePipeline pipeline_;
   double sample_rate_hz_;
   std::int64_t samples_read_ = 0;
   double next_status_s_ = 0.0;
+  bool finished_ = false;
 };
+
+// The warning line for one audio health problem of `array_id`'s channel (mic) `event.channel`,
+// e.g. "A2 channel 3: all samples non-finite (NaN/inf) since 0.00 s; ...". `input_channel` is
+// the recording's or device's channel the mic is on (named when it differs).
+std::string health_warning(const std::string& array_id, int input_channel,
+                           const doa::HealthEvent& event);
+// One line summing up a node's audio problems over the whole run ("" when it had none), e.g.
+// "A2 channel 3: non-finite 100 % of samples; channel 0: clipped 2.1 % of samples".
+std::string health_summary(const doa::NodeStatus& status);
 
 // Opens the array's recording (its channel map applied) in blocks of about block_s seconds.
 std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConfig& array,

@@ -4,6 +4,7 @@
 #include <barrier>
 #include <chrono>
 #include <limits>
+#include <string>
 #include <thread>
 
 #include "apps/array_node.hpp"
@@ -168,6 +169,12 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
   summary.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  // Bad audio must not pass in silence: one line per array whose audio had problems.
+  for (const auto& lane : lanes) {
+    summary.nodes.push_back(lane.node.status());
+    if (const std::string problems = health_summary(summary.nodes.back()); !problems.empty())
+      log::warn("replay: audio problems: ", problems);
+  }
   return summary;
 }
 

@@ -7,6 +7,7 @@
 
 #include "apps/fusion_observer.hpp"
 #include "config/site_config.hpp"
+#include "doa/node_status.hpp"
 #include "fusion/fusion_engine.hpp"
 
 namespace dronetrack::apps {
@@ -27,6 +28,10 @@ struct ReplaySummary {
   std::int64_t ticks = 0;
   fusion::FusionCounters counters;  // the engine's, at the end
   std::string cut_short;  // why the result is partial though the run finished ("" if whole)
+  // Every array's status at the end, in site order: per-channel audio health over the run
+  // (problems_seen, non-finite and clipped counts). run_replay logs one warning line per array
+  // that had any problem (health_summary() in apps/array_node.hpp).
+  std::vector<doa::NodeStatus> nodes;
 };
 
 // Throws on unreadable recordings (one line naming file and problem).

@@ -10,18 +10,17 @@
 namespace dronetrack::capture {
 
 struct SourceCounters {
-  std::int64_t overruns = 0;         // blocks lost because the consumer was late (live only)
-  std::int64_t clipped_samples = 0;  // |x| >= 0.999 of full scale
-  std::int64_t non_finite_samples = 0;
-  double peak_level_dbfs = -120.0;  // of the last block
-  double rms_level_dbfs = -120.0;   // of the last block
+  std::int64_t overruns = 0;        // blocks lost because the consumer was late (live only)
+  double peak_level_dbfs = -120.0;  // of the last block's finite samples
+  double rms_level_dbfs = -120.0;   // of the last block's finite samples
 };
 
 class AudioSource {
  public:
   virtual ~AudioSource() = default;
   // Fills the source's internal block and returns a view of it, or false at end of stream.
-  // The view stays valid until the next call. Channel i of the view is mic i.
+  // The view stays valid until the next call. Channel i of the view is mic i. Samples are as
+  // captured (NaN/Inf and over-range included): judging them is the node's job.
   virtual bool next(doa::AudioBlockView& block) = 0;
   virtual double sample_rate_hz() const = 0;
   virtual int channels() const = 0;  // after the channel map: one per mic

@@ -17,25 +17,22 @@ void map_channels_and_count(const float* in, std::size_t frames, std::size_t in_
   const std::size_t mics = channel_map.size();
   double peak = 0.0;
   double sum_squares = 0.0;
+  std::size_t finite = 0;
   for (std::size_t frame = 0; frame < frames; ++frame) {
     const float* in_frame = in + frame * in_channels;
     float* out_frame = out + frame * mics;
     for (std::size_t mic = 0; mic < mics; ++mic) {
-      float sample = in_frame[static_cast<std::size_t>(channel_map[mic])];
-      if (!std::isfinite(sample)) {
-        sample = 0.0F;
-        ++counters.non_finite_samples;
-      }
-      const float magnitude = std::fabs(sample);
-      if (magnitude >= kClipLevel) ++counters.clipped_samples;
-      peak = std::max(peak, static_cast<double>(magnitude));
-      sum_squares += static_cast<double>(sample) * static_cast<double>(sample);
+      const float sample = in_frame[static_cast<std::size_t>(channel_map[mic])];
       out_frame[mic] = sample;
+      if (!std::isfinite(sample)) continue;
+      ++finite;
+      peak = std::max(peak, static_cast<double>(std::fabs(sample)));
+      sum_squares += static_cast<double>(sample) * static_cast<double>(sample);
     }
   }
-  const auto count = static_cast<double>(frames * mics);
   counters.peak_level_dbfs = to_dbfs(peak);
-  counters.rms_level_dbfs = count > 0.0 ? to_dbfs(std::sqrt(sum_squares / count)) : kLevelFloorDbfs;
+  counters.rms_level_dbfs =
+      finite > 0 ? to_dbfs(std::sqrt(sum_squares / static_cast<double>(finite))) : kLevelFloorDbfs;
 }
 
 }  // namespace dronetrack::capture

@@ -1,7 +1,8 @@
 #pragma once
-// The per-block step every source shares: pick the array's mics out of the captured channels,
-// replace NaN/Inf by 0 (one bad sample would poison a whole FFT downstream) and update the
-// clipping, non-finite and level counters. Allocates nothing.
+// The per-block step every source shares: pick the array's mics out of the captured channels
+// and measure the block's level. Samples pass unchanged, NaN/Inf and over-range values
+// included: the node counts them per channel and replaces the non-finite ones by 0 before its
+// FFTs (doa/channel_health.hpp, doa/spectral_frame.hpp). Allocates nothing.
 #include <cstddef>
 #include <vector>
 
@@ -9,12 +10,11 @@
 
 namespace dronetrack::capture {
 
-constexpr float kClipLevel = 0.999F;        // |x| at or above this counts as clipped
 constexpr double kLevelFloorDbfs = -120.0;  // reported for silence
 
 // in: frames x in_channels interleaved; out: frames x channel_map.size() interleaved, where
 // out mic i = in channel channel_map[i] (all indices must be < in_channels).
-// Sets counters.peak_level_dbfs/rms_level_dbfs to this block's levels.
+// Sets counters.peak_level_dbfs/rms_level_dbfs to this block's levels (of its finite samples).
 void map_channels_and_count(const float* in, std::size_t frames, std::size_t in_channels,
                             const std::vector<int>& channel_map, float* out,
                             SourceCounters& counters);

@@ -5,7 +5,7 @@
 // Threading: PortAudio's callback thread only copies each device buffer (exactly block_frames
 // frames, PortAudio adapts the host's buffer size to that) into the next free slot of a
 // lock-free SPSC ring and stamps it with its first sample index. The consumer's next() takes
-// the oldest slot, applies the channel map, replaces NaN/Inf by 0 and updates the counters.
+// the oldest slot, applies the channel map and updates the counters.
 // When the ring is full the callback drops the buffer and counts an overrun; the sample index
 // still advances, so timestamps after a gap stay right (first_sample jumps).
 //

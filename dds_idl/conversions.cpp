@@ -183,6 +183,21 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
   sample.snr_db = status.snr_db;
   sample.detecting = status.detecting;
   copy_bounded(sample.software_version, status.software_version);
+  const std::size_t channels = std::min(status.channels.size(), doa::kMaxStatusChannels);
+  sample.channel_count = static_cast<std::uint8_t>(channels);
+  for (std::size_t c = 0; c < doa::kMaxStatusChannels; ++c) {
+    dronetrack_ChannelHealth& out = sample.channels[c];
+    if (c >= channels) {
+      out = dronetrack_ChannelHealth{};
+      continue;
+    }
+    const doa::ChannelStatus& channel = status.channels[c];
+    out.problems = channel.problems;
+    out.problems_seen = channel.problems_seen;
+    out.non_finite_samples = channel.non_finite_samples;
+    out.clipped_samples = channel.clipped_samples;
+    out.rms_dbfs = channel.rms_dbfs;
+  }
 }
 
 SampleProblem from_idl(const dronetrack_NodeStatus& sample,
@@ -196,8 +211,16 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   }
   if (sample.time_ns < 0) return SampleProblem::absurd_time;
   if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
-      sample.non_finite_samples < 0) {
+      sample.non_finite_samples < 0 || sample.channel_count > doa::kMaxStatusChannels) {
     return SampleProblem::bad_value;
+  }
+  constexpr unsigned kKnownProblems = (1U << doa::kHealthProblemCount) - 1U;
+  for (std::size_t c = 0; c < sample.channel_count; ++c) {
+    const dronetrack_ChannelHealth& channel = sample.channels[c];
+    if (!finite(channel.rms_dbfs)) return SampleProblem::non_finite;
+    if (channel.non_finite_samples < 0 || channel.clipped_samples < 0 ||
+        (channel.problems & ~kKnownProblems) != 0 || (channel.problems_seen & ~kKnownProblems) != 0)
+      return SampleProblem::bad_value;
   }
   out.array_id.assign(id);
   out.time_s = ns_to_seconds(sample.time_ns);
@@ -211,6 +234,12 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   out.snr_db = sample.snr_db;
   out.detecting = sample.detecting;
   out.software_version.assign(bounded_view(sample.software_version));
+  out.channels.clear();
+  for (std::size_t c = 0; c < sample.channel_count; ++c) {
+    const dronetrack_ChannelHealth& channel = sample.channels[c];
+    out.channels.push_back({channel.problems, channel.problems_seen, channel.non_finite_samples,
+                            channel.clipped_samples, channel.rms_dbfs});
+  }
   return SampleProblem::none;
 }
 

@@ -68,7 +68,27 @@ json doa_json(const doa::DoaMeasurement& doa) {
   };
 }
 
+// Problem flags as names ("non_finite", "silent", ...), in bit order.
+json problem_names(doa::HealthFlags flags) {
+  json names = json::array();
+  for (int p = 0; p < doa::kHealthProblemCount; ++p) {
+    const auto problem = static_cast<doa::HealthProblem>(p);
+    if (doa::has_problem(flags, problem)) names.push_back(doa::to_string(problem));
+  }
+  return names;
+}
+
 json status_json(const doa::NodeStatus& s) {
+  json channels = json::array();
+  for (const doa::ChannelStatus& channel : s.channels) {
+    channels.push_back(json{
+        {"problems", problem_names(channel.problems)},
+        {"problems_seen", problem_names(channel.problems_seen)},
+        {"non_finite_samples", channel.non_finite_samples},
+        {"clipped_samples", channel.clipped_samples},
+        {"rms_dbfs", channel.rms_dbfs},
+    });
+  }
   return json{
       {"t", s.time_s},
       {"alive", s.alive},
@@ -81,6 +101,7 @@ json status_json(const doa::NodeStatus& s) {
       {"snr_db", s.snr_db},
       {"detecting", s.detecting},
       {"software_version", s.software_version},
+      {"channels", std::move(channels)},
   };
 }
 

@@ -130,6 +130,47 @@ TEST(DdsConversions, DamagedStatusTrackAndAlert) {
   EXPECT_EQ(from_idl(alert, alert_out), SampleProblem::none);
 }
 
+// Per-channel audio health: round trip, then what a remote node could get wrong.
+TEST(DdsConversions, NodeStatusChannelsRoundTripAndAreValidated) {
+  doa::NodeStatus status;
+  status.array_id = "N2";
+  status.channels = {{0, 0, 0, 0, -31.5},
+                     {doa::health_flag(doa::HealthProblem::non_finite),
+                      doa::health_flag(doa::HealthProblem::non_finite) |
+                          doa::health_flag(doa::HealthProblem::clipped),
+                      48000, 12, -120.0},
+                     {0, doa::health_flag(doa::HealthProblem::absurd_level), 0, 9, -20.0}};
+  dronetrack_NodeStatus sample{};
+  to_idl(status, 0, sample);
+  EXPECT_EQ(sample.channel_count, 3);
+  EXPECT_EQ(sample.channels[1].non_finite_samples, 48000);
+  doa::NodeStatus out;
+  ASSERT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+  ASSERT_EQ(out.channels.size(), 3U);
+  for (std::size_t c = 0; c < 3; ++c) {
+    EXPECT_EQ(out.channels[c].problems, status.channels[c].problems) << c;
+    EXPECT_EQ(out.channels[c].problems_seen, status.channels[c].problems_seen) << c;
+    EXPECT_EQ(out.channels[c].non_finite_samples, status.channels[c].non_finite_samples) << c;
+    EXPECT_EQ(out.channels[c].clipped_samples, status.channels[c].clipped_samples) << c;
+    EXPECT_EQ(out.channels[c].rms_dbfs, status.channels[c].rms_dbfs) << c;
+  }
+
+  sample.channels[2].rms_dbfs = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
+  sample.channels[2].rms_dbfs = -20.0;
+  sample.channels[1].problems = 0x80;  // no such problem
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channels[1].problems = 0;
+  sample.channels[0].clipped_samples = -1;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channels[0].clipped_samples = 0;
+  sample.channel_count = 9;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channel_count = 0;
+  ASSERT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+  EXPECT_TRUE(out.channels.empty());
+}
+
 TEST(DdsConversions, LongIdsAreTruncatedToTheirBound) {
   dronetrack_NodeStatus status{};
   copy_bounded(status.software_version, std::string(100, 'v'));

@@ -129,6 +129,9 @@ TEST_F(DdsWrappers, NodeStatusTrackAndAlertRoundTrip) {
   status.snr_db = 12.0;
   status.detecting = true;
   status.software_version = "dronetrack 0.1.0";
+  status.channels = {{0, 0, 0, 0, -31.0},
+                     {doa::health_flag(doa::HealthProblem::silent),
+                      doa::health_flag(doa::HealthProblem::silent), 0, 14, -120.0}};
   dronetrack_NodeStatus status_sample{};
   to_idl(status, 5'000'000'000, status_sample);
   status_writer.write(status_sample);
@@ -166,6 +169,10 @@ TEST_F(DdsWrappers, NodeStatusTrackAndAlertRoundTrip) {
   EXPECT_EQ(got_status.noise_floor_dbfs, -60.25);
   EXPECT_TRUE(got_status.detecting);
   EXPECT_EQ(got_status.software_version, "dronetrack 0.1.0");
+  ASSERT_EQ(got_status.channels.size(), 2U);
+  EXPECT_EQ(got_status.channels[1].problems, doa::health_flag(doa::HealthProblem::silent));
+  EXPECT_EQ(got_status.channels[1].clipped_samples, 14);
+  EXPECT_EQ(got_status.channels[0].rms_dbfs, -31.0);
 
   fusion::TrackReport got_track;
   ASSERT_TRUE(receive_one(track_reader, [&](const dronetrack_Track& s) {

@@ -137,6 +137,11 @@ TEST(LiveState, NodesAreStaleWithoutRecentStatusOrWhenNotAlive) {
   a1.level_dbfs = -31.5;
   a1.clipped_samples = 3;
   a1.overruns = 2;
+  a1.channels = {{0, 0, 0, 0, -30.0},
+                 {doa::health_flag(doa::HealthProblem::non_finite),
+                  doa::health_flag(doa::HealthProblem::non_finite) |
+                      doa::health_flag(doa::HealthProblem::dc_offset),
+                  480, 3, -120.0}};
   state.publish_node(a1);
   doa::DoaMeasurement d;
   d.array_id = "A1";
@@ -162,6 +167,15 @@ TEST(LiveState, NodesAreStaleWithoutRecentStatusOrWhenNotAlive) {
   EXPECT_DOUBLE_EQ(n1["status"]["level_dbfs"].get<double>(), -31.5);
   EXPECT_EQ(n1["status"]["clipped_samples"], 3);
   EXPECT_EQ(n1["status"]["overruns"], 2);
+  // Per-channel audio health, problems by name.
+  const json& channels = n1["status"]["channels"];
+  ASSERT_EQ(channels.size(), 2u);
+  EXPECT_EQ(channels[0]["problems"], json::array());
+  EXPECT_EQ(channels[1]["problems"], json::array({"non_finite"}));
+  EXPECT_EQ(channels[1]["problems_seen"], json::array({"non_finite", "dc_offset"}));
+  EXPECT_EQ(channels[1]["non_finite_samples"], 480);
+  EXPECT_EQ(channels[1]["clipped_samples"], 3);
+  EXPECT_DOUBLE_EQ(channels[1]["rms_dbfs"].get<double>(), -120.0);
   ASSERT_EQ(n1["doa"].size(), 2u);
   EXPECT_EQ(n1["doa"][0]["source_index"], 0);
   EXPECT_NEAR(n1["doa"][0]["azimuth_deg"].get<double>(), 90.0, 1e-9);
