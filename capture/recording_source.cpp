@@ -3,14 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstring>
-#include <fstream>
-#include <optional>
 #include <stdexcept>
 
 #include <sndfile.h>
 
 #include "capture/block_mapping.hpp"
+#include "capture/container_extent.hpp"
 #include "common/log.hpp"
 
 namespace dronetrack::capture {
@@ -25,52 +23,33 @@ std::string truncation_message(std::int64_t declared_frames, std::int64_t data_e
          " frames, data ends at frame " + std::to_string(data_end_frame);
 }
 
-std::uint32_t read_le32(const unsigned char* bytes) {
-  return static_cast<std::uint32_t>(bytes[0]) | (static_cast<std::uint32_t>(bytes[1]) << 8) |
-         (static_cast<std::uint32_t>(bytes[2]) << 16) |
-         (static_cast<std::uint32_t>(bytes[3]) << 24);
-}
-
-struct DataChunkExtent {
-  std::int64_t declared_frames = 0;
-  std::int64_t present_frames = 0;
-};
-
-// libsndfile quietly shortens a RIFF WAV whose data chunk claims more bytes than the file holds,
-// so a recorder that died mid-write would look like a complete, shorter file. Walk the chunks
-// ourselves to compare the declared data size with what is on disk. Returns nothing when the
-// file is not plain RIFF/WAVE or uses a streaming placeholder size (0 or 0xFFFFFFFF).
-std::optional<DataChunkExtent> riff_data_extent(const std::filesystem::path& file) {
-  std::error_code error;
-  const auto file_size = static_cast<std::int64_t>(std::filesystem::file_size(file, error));
-  if (error) return std::nullopt;
-  std::ifstream in(file, std::ios::binary);
-  std::array<unsigned char, 12> riff{};
-  if (!in.read(reinterpret_cast<char*>(riff.data()), riff.size())) return std::nullopt;
-  if (std::memcmp(riff.data(), "RIFF", 4) != 0 || std::memcmp(riff.data() + 8, "WAVE", 4) != 0) {
-    return std::nullopt;
+// Bytes per frame of a fixed-size encoding; 0 for compressed ones (never checked at open).
+int bytes_per_frame(const SF_INFO& info) {
+  int bytes = 0;
+  switch (info.format & SF_FORMAT_SUBMASK) {
+    case SF_FORMAT_PCM_S8:
+    case SF_FORMAT_PCM_U8:
+    case SF_FORMAT_ULAW:
+    case SF_FORMAT_ALAW:
+      bytes = 1;
+      break;
+    case SF_FORMAT_PCM_16:
+      bytes = 2;
+      break;
+    case SF_FORMAT_PCM_24:
+      bytes = 3;
+      break;
+    case SF_FORMAT_PCM_32:
+    case SF_FORMAT_FLOAT:
+      bytes = 4;
+      break;
+    case SF_FORMAT_DOUBLE:
+      bytes = 8;
+      break;
+    default:
+      return 0;
   }
-  std::int64_t offset = 12;
-  std::uint32_t block_align = 0;
-  while (offset + 8 <= file_size) {
-    std::array<unsigned char, 8> header{};
-    in.seekg(offset);
-    if (!in.read(reinterpret_cast<char*>(header.data()), header.size())) return std::nullopt;
-    const std::uint32_t size = read_le32(header.data() + 4);
-    if (std::memcmp(header.data(), "fmt ", 4) == 0 && size >= 14) {
-      std::array<unsigned char, 14> fmt{};
-      if (!in.read(reinterpret_cast<char*>(fmt.data()), fmt.size())) return std::nullopt;
-      block_align =
-          static_cast<std::uint32_t>(fmt[12]) | (static_cast<std::uint32_t>(fmt[13]) << 8);
-    } else if (std::memcmp(header.data(), "data", 4) == 0) {
-      if (block_align == 0 || size == 0 || size == 0xFFFFFFFFU) return std::nullopt;
-      const std::int64_t present_bytes = file_size - (offset + 8);
-      return DataChunkExtent{static_cast<std::int64_t>(size) / block_align,
-                             std::min<std::int64_t>(size, present_bytes) / block_align};
-    }
-    offset += 8 + static_cast<std::int64_t>(size) + (size & 1U);  // chunks are word aligned
-  }
-  return std::nullopt;
+  return bytes * info.channels;
 }
 
 }  // namespace
@@ -96,7 +75,8 @@ RecordingSource::RecordingSource(const std::filesystem::path& file, std::vector<
     sample_rate_hz_ = info.samplerate;
     total_frames_ = info.frames;
     if (total_frames_ <= 0) throw file_error(file_, "empty recording (0 frames)");
-    if (const auto extent = riff_data_extent(file_);
+    // libsndfile reports the frames present; the container's header says what was meant.
+    if (const auto extent = data_extent(file_, bytes_per_frame(info));
         extent && extent->present_frames < extent->declared_frames) {
       throw file_error(file_, truncation_message(extent->declared_frames, extent->present_frames));
     }

@@ -7,8 +7,9 @@
 //
 // Errors (std::runtime_error, one line "<file>: <what>") at construction: missing file, not
 // audio, empty recording, channel_map index outside the file's channels, and a truncated file
-// whose header declares more frames than the data holds (checked at open for RIFF WAV, where the
-// data chunk's declared size can be compared with the file size). A truncation only discovered
+// whose header declares more frames than the data holds (checked at open for WAV, RF64, AIFF,
+// W64, CAF and AU with a fixed-size encoding, where the header's declared length can be compared
+// with the file size: capture/container_extent.hpp). A truncation only discovered
 // while reading (e.g. FLAC, whose STREAMINFO frame count cannot be checked without decoding)
 // is logged as an error with the same message, the frames that were present are delivered, the
 // stream ends there and truncated() becomes true: by then consumers hold state worth flushing.

@@ -278,6 +278,59 @@ TEST_F(RecordingSourceTest, TruncatedWavIsRejectedAtOpen) {
             file.string() + ": truncated: header declares 1000 frames, data ends at frame 699");
 }
 
+// Every container libsndfile would quietly shorten is refused at open, naming the frames the
+// header declares and those present; the same files intact open. 4 channels of PCM16 or float:
+// 8 or 16 bytes per frame, cut by 300 frames and a bit.
+struct ContainerCase {
+  const char* name;
+  int format;
+  int bytes_per_frame;
+};
+
+class EachContainer : public RecordingSourceTest,
+                      public ::testing::WithParamInterface<ContainerCase> {};
+
+TEST_P(EachContainer, TruncatedFileIsRefusedAtOpenAndIntactFileOpens) {
+  const ContainerCase& format = GetParam();
+  constexpr int kChannels = 4;
+  const fs::path intact = path(std::string("intact.") + format.name);
+  write_file(intact, format.format, kChannels, known_interleaved(1000, kChannels));
+  EXPECT_EQ(error_of(intact, {}, 256), "(no error)");
+  RecordingSource whole(intact, {}, 256);
+  EXPECT_EQ(whole.total_frames(), 1000);
+
+  const fs::path cut = path(std::string("cut.") + format.name);
+  write_file(cut, format.format, kChannels, known_interleaved(1000, kChannels));
+  fs::resize_file(cut, fs::file_size(cut) - 300 * format.bytes_per_frame - 4);
+  EXPECT_EQ(error_of(cut, {}, 256),
+            cut.string() + ": truncated: header declares 1000 frames, data ends at frame 699");
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Containers, EachContainer,
+    ::testing::Values(ContainerCase{"wav_float", SF_FORMAT_WAV | SF_FORMAT_FLOAT, 16},
+                      ContainerCase{"rf64_pcm16", SF_FORMAT_RF64 | SF_FORMAT_PCM_16, 8},
+                      ContainerCase{"rf64_float", SF_FORMAT_RF64 | SF_FORMAT_FLOAT, 16},
+                      ContainerCase{"aiff_pcm16", SF_FORMAT_AIFF | SF_FORMAT_PCM_16, 8},
+                      ContainerCase{"aifc_float", SF_FORMAT_AIFF | SF_FORMAT_FLOAT, 16},
+                      ContainerCase{"w64_pcm16", SF_FORMAT_W64 | SF_FORMAT_PCM_16, 8},
+                      ContainerCase{"au_pcm16", SF_FORMAT_AU | SF_FORMAT_PCM_16, 8},
+                      ContainerCase{"au_le_float",
+                                    SF_FORMAT_AU | SF_FORMAT_FLOAT | SF_ENDIAN_LITTLE, 16}),
+    [](const auto& param_info) { return std::string(param_info.param.name); });
+
+// CAF: libsndfile writes chunks after the audio data, so the cut takes them first; the audio
+// then ends before the declared 1000 frames all the same.
+TEST_F(RecordingSourceTest, TruncatedCafIsRefusedAtOpen) {
+  const fs::path cut = path("cut.caf");
+  write_file(cut, SF_FORMAT_CAF | SF_FORMAT_PCM_16, 4, known_interleaved(1000, 4));
+  EXPECT_EQ(error_of(cut, {}, 256), "(no error)");
+  fs::resize_file(cut, fs::file_size(cut) - 300 * 8 - 4);
+  EXPECT_NE(error_of(cut, {}, 256).find(cut.string() + ": truncated: header declares 1000 frames"),
+            std::string::npos)
+      << error_of(cut, {}, 256);
+}
+
 TEST_F(RecordingSourceTest, TruncatedFlacDeliversWhatIsThereThenEnds) {
   constexpr int kChannels = 2;
   constexpr std::int64_t kFrames = 48000;
