@@ -11,11 +11,13 @@
 
 #include <complex>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "doa/acoustic_features.hpp"
+#include "doa/channel_health.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/source_bin_mask.hpp"
@@ -238,6 +240,33 @@ void BM_Framer(benchmark::State& state) {
   benchmark::DoNotOptimize(frames);
 }
 BENCHMARK(BM_Framer)->Unit(benchmark::kMicrosecond);
+
+// The audio health scan alone (NodePipeline runs it on every block before the framer): one hop
+// of interleaved audio, per channel a sum, a sum of squares and a peak, the stretch judged once a
+// second. Arg 1: one channel all NaN and one clipped hard (the sample-by-sample path).
+void BM_ChannelHealth(benchmark::State& state) {
+  const DoaParams params;
+  const int hop = static_cast<int>(params.hop_s * kRate + 0.5);
+  static const testing::Recording broken = [] {
+    testing::Recording copy = scene();
+    for (std::size_t n = 0; n < copy.frames(); ++n) {
+      copy.interleaved[n * 4 + 1] = std::numeric_limits<float>::quiet_NaN();
+      copy.interleaved[n * 4 + 2] *= 100.0F;
+    }
+    return copy;
+  }();
+  const testing::Recording& audio = state.range(0) == 1 ? broken : scene();
+  ChannelHealth health(4, kRate);
+  std::size_t next = 0;
+  for (auto _ : state) {
+    if (next + static_cast<std::size_t>(hop) > audio.frames()) next = 0;
+    AudioBlockView block = audio.view(next, static_cast<std::size_t>(hop));
+    health.scan(block);
+    next += static_cast<std::size_t>(hop);
+  }
+  benchmark::DoNotOptimize(health.non_finite_samples());
+}
+BENCHMARK(BM_ChannelHealth)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // Records each benchmark's CPU time per iteration so main() can print the ratio: the median
 // over repetitions when --benchmark_repetitions is given (the machine is shared: single runs

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -61,6 +63,9 @@ ChannelHealth::ChannelHealth(int channels, double sample_rate_hz,
   counters_.assign(n, ChannelHealthCounters{});
   states_.assign(n, {});
   events_.reserve(n * kHealthProblemCount * kEventsPerProblem);
+  run_sums_.assign(n, 0.0F);
+  run_squares_.assign(n, 0.0F);
+  run_peaks_.assign(n, 0.0F);
 }
 
 std::int64_t ChannelHealth::non_finite_samples() const {
@@ -100,45 +105,124 @@ void ChannelHealth::finish() {
   }
 }
 
-// The fast pass: per channel a sum, a sum of squares and a peak, in four partial sums (one
-// running sum would make every sample wait for the previous addition). A float squared cannot
-// overflow a double, so the sum of squares is finite exactly when every sample is: a channel
-// whose sums are finite and whose peak is under the clip level needs no per-sample test.
+namespace {
+
+// The fast pass over the interleaved run as one flat array of floats: per channel a sum, a sum
+// of squares and a peak, in float (a run's worth; the stretch adds them up in double). Steps of
+// kStep floats, a multiple of both the channel count and the vector width, so lane j always
+// holds channel j % kChannels and the compiler keeps the sums in vectors (two at least, so that
+// no addition waits for the previous one). A non-finite sample makes its channel's sum of
+// squares non-finite, so a channel whose sums are finite and whose peak is under the clip level
+// needs no per-sample test; a float square overflows only beyond 1.8e19, which sends that
+// channel to the exact per-sample path too.
+template <int kChannels>
+void sum_run(const float* interleaved, std::size_t frames, float* sums, float* squares,
+             float* peaks) {
+  using Floats = float __attribute__((vector_size(16)));  // GCC/Clang vectors, as spectral_frame
+  constexpr int kLcm = std::lcm(kChannels, 4);
+  constexpr int kStep = kLcm < 16 ? (16 / kLcm) * kLcm : kLcm;  // floats per step
+  constexpr int kVectors = kStep / 4;
+  Floats sum[kVectors] = {};
+  Floats square[kVectors] = {};
+  Floats peak[kVectors] = {};
+  const std::size_t total = frames * kChannels;
+  std::size_t i = 0;
+  for (; i + kStep <= total; i += kStep) {
+    for (int v = 0; v < kVectors; ++v) {
+      Floats value;
+      std::memcpy(&value, interleaved + i + 4 * static_cast<std::size_t>(v), sizeof value);
+      sum[v] += value;
+      square[v] += value * value;
+      const Floats size = value < 0.0F ? -value : value;  // NaN stays NaN: the slow path's
+      peak[v] = peak[v] > size ? peak[v] : size;
+    }
+  }
+  float lanes_sum[kStep], lanes_square[kStep], lanes_peak[kStep];
+  std::memcpy(lanes_sum, sum, sizeof lanes_sum);
+  std::memcpy(lanes_square, square, sizeof lanes_square);
+  std::memcpy(lanes_peak, peak, sizeof lanes_peak);
+  for (int j = 0; i < total; ++i, ++j) {  // whole frames: lane j is still channel j % kChannels
+    const float value = interleaved[i];
+    lanes_sum[j] += value;
+    lanes_square[j] += value * value;
+    lanes_peak[j] = std::isnan(value) ? value : std::max(lanes_peak[j], std::fabs(value));
+  }
+  for (int c = 0; c < kChannels; ++c) {
+    sums[c] = 0.0F;
+    squares[c] = 0.0F;
+    peaks[c] = 0.0F;
+  }
+  for (int j = 0; j < kStep; ++j) {
+    sums[j % kChannels] += lanes_sum[j];
+    squares[j % kChannels] += lanes_square[j];
+    peaks[j % kChannels] = std::max(peaks[j % kChannels], lanes_peak[j]);
+  }
+}
+
+void sum_run(int channels, const float* interleaved, std::size_t frames, float* sums,
+             float* squares, float* peaks) {
+  switch (channels) {
+    case 1:
+      return sum_run<1>(interleaved, frames, sums, squares, peaks);
+    case 2:
+      return sum_run<2>(interleaved, frames, sums, squares, peaks);
+    case 3:
+      return sum_run<3>(interleaved, frames, sums, squares, peaks);
+    case 4:
+      return sum_run<4>(interleaved, frames, sums, squares, peaks);
+    case 5:
+      return sum_run<5>(interleaved, frames, sums, squares, peaks);
+    case 6:
+      return sum_run<6>(interleaved, frames, sums, squares, peaks);
+    case 7:
+      return sum_run<7>(interleaved, frames, sums, squares, peaks);
+    case 8:
+      return sum_run<8>(interleaved, frames, sums, squares, peaks);
+    default:
+      break;
+  }
+  // More channels than a node has mics: channel by channel.
+  for (int c = 0; c < channels; ++c) {
+    float sum = 0.0F, square = 0.0F, peak = 0.0F;
+    for (std::size_t n = 0; n < frames; ++n) {
+      const float value =
+          interleaved[n * static_cast<std::size_t>(channels) + static_cast<std::size_t>(c)];
+      sum += value;
+      square += value * value;
+      peak = std::max(peak, std::fabs(value));
+    }
+    sums[c] = sum;
+    squares[c] = square;
+    peaks[c] = peak;
+  }
+}
+
+}  // namespace
+
+// Runs of at most kRunFrames: float sums over a run lose nothing that matters (relative
+// error ~kRunFrames x 6e-8), and the per-run results stay on the stack.
 void ChannelHealth::accumulate(const float* interleaved, std::size_t frames,
                                std::int64_t first_sample) {
+  constexpr std::size_t kRunFrames = 4096;
   const auto stride = static_cast<std::size_t>(channels_);
-  for (int c = 0; c < channels_; ++c) {
-    const float* source = interleaved + c;
-    double sums[4] = {0.0, 0.0, 0.0, 0.0};
-    double squares[4] = {0.0, 0.0, 0.0, 0.0};
-    double peaks[4] = {0.0, 0.0, 0.0, 0.0};
-    std::size_t n = 0;
-    for (; n + 4 <= frames; n += 4) {
-      for (std::size_t lane = 0; lane < 4; ++lane) {
-        const double value = source[(n + lane) * stride];
-        sums[lane] += value;
-        squares[lane] += value * value;
-        peaks[lane] = std::max(peaks[lane], std::fabs(value));
+  for (std::size_t done = 0; done < frames; done += kRunFrames) {
+    const std::size_t count = std::min(kRunFrames, frames - done);
+    const float* run = interleaved + done * stride;
+    const std::int64_t run_first = first_sample + static_cast<std::int64_t>(done);
+    sum_run(channels_, run, count, run_sums_.data(), run_squares_.data(), run_peaks_.data());
+    for (int c = 0; c < channels_; ++c) {
+      const auto index = static_cast<std::size_t>(c);
+      if (!std::isfinite(run_squares_[index]) || !(run_peaks_[index] < settings_.clip_level)) {
+        accumulate_slowly(c, run, count, run_first);
+        continue;
       }
+      Stretch& stretch = stretches_[index];
+      stretch.finite += static_cast<std::int64_t>(count);
+      stretch.sum += run_sums_[index];
+      stretch.sum_squares += run_squares_[index];
+      stretch.peak = std::max(stretch.peak, static_cast<double>(run_peaks_[index]));
+      counters_[index].samples += static_cast<std::int64_t>(count);
     }
-    for (; n < frames; ++n) {
-      const double value = source[n * stride];
-      sums[0] += value;
-      squares[0] += value * value;
-      peaks[0] = std::max(peaks[0], std::fabs(value));
-    }
-    const double sum_squares = (squares[0] + squares[1]) + (squares[2] + squares[3]);
-    const double peak = std::max(std::max(peaks[0], peaks[1]), std::max(peaks[2], peaks[3]));
-    if (!std::isfinite(sum_squares) || !(peak < settings_.clip_level)) {
-      accumulate_slowly(c, interleaved, frames, first_sample);
-      continue;
-    }
-    Stretch& stretch = stretches_[static_cast<std::size_t>(c)];
-    stretch.finite += static_cast<std::int64_t>(frames);
-    stretch.sum += (sums[0] + sums[1]) + (sums[2] + sums[3]);
-    stretch.sum_squares += sum_squares;
-    stretch.peak = std::max(stretch.peak, peak);
-    counters_[static_cast<std::size_t>(c)].samples += static_cast<std::int64_t>(frames);
   }
 }
 

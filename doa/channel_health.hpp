@@ -6,8 +6,10 @@
 // rewarn_s. Plain logic: no I/O, no logging (the node adapter, apps/array_node, words and logs
 // the events). Channel c is mic c of the array (0-based, after any channel map).
 //
-// Cost: one pass over each block (per channel: a sum, a sum of squares and a peak); only a
-// channel whose block holds a non-finite or clipped sample is walked again sample by sample.
+// Cost: one pass over each block (per channel: a sum, a sum of squares and a peak, the channels
+// of a frame in one vector); only a channel whose block holds a non-finite or clipped sample is
+// walked again sample by sample. ~2.3 us per 0.05 s hop of 4 channels at 48 kHz (doa_bench
+// BM_ChannelHealth; the whole pipeline takes ~115 us per hop).
 // Everything is sized in the constructor; scan() allocates nothing.
 #include <array>
 #include <cstdint>
@@ -138,6 +140,9 @@ class ChannelHealth {
   std::vector<ChannelHealthCounters> counters_;
   std::vector<std::array<ProblemState, kHealthProblemCount>> states_;
   std::vector<HealthEvent> events_;  // capacity fixed at construction
+  std::vector<float> run_sums_;      // per channel, of the run being summed
+  std::vector<float> run_squares_;
+  std::vector<float> run_peaks_;
 };
 
 }  // namespace dronetrack::doa
