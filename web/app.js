@@ -341,9 +341,17 @@
         n.status ? `${s.overruns}` : '–',
         doa ? `${fmt(doa.azimuth_deg, 0)}°/${fmt(doa.elevation_deg, 0)}°` : '–',
       ];
+      // Audio health: channels (0-based mic index) with a problem on their last second.
+      const audio = (s.channels || [])
+        .map((c, index) => (c.problems || []).length ? `channel ${index}: ${c.problems.join(', ')}` : '')
+        .filter((text) => text);
       cells.forEach((text, i) => {
         const td = document.createElement('td');
         td.textContent = text;
+        if (i === 0 && audio.length) {
+          td.className = 'warn';
+          td.title = `audio: ${audio.join('; ')}`;
+        }
         if (i === 1) {
           td.className = 'state';
           if (n.stale_reason) td.title = `stale: ${n.stale_reason.replace('_', ' ')}` +
