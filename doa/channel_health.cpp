@@ -200,7 +200,7 @@ void sum_run(int channels, const float* interleaved, std::size_t frames, float* 
 }  // namespace
 
 // Runs of at most kRunFrames: float sums over a run lose nothing that matters (relative
-// error ~kRunFrames x 6e-8), and the per-run results stay on the stack.
+// error ~kRunFrames x 6e-8); each run's per-channel sums go to buffers sized at construction.
 void ChannelHealth::accumulate(const float* interleaved, std::size_t frames,
                                std::int64_t first_sample) {
   constexpr std::size_t kRunFrames = 4096;
