@@ -7,6 +7,7 @@
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/replay_session.hpp"
+#include "apps/signals.hpp"
 #include "common/log.hpp"
 #include "config/site_config.hpp"
 #include "sim/render.hpp"
@@ -14,6 +15,8 @@
 
 namespace dronetrack::apps {
 namespace {
+
+struct Interrupted {};
 
 struct DemoArguments {
   std::string scenario =
@@ -41,11 +44,19 @@ std::filesystem::path ensure_scene(const DemoArguments& arguments) {
   std::vector<std::string> warnings;
   const sim::Scenario scenario = sim::load_scenario(scenario_file, warnings);
   for (const auto& warning : warnings) log::warn(warning);
-  return sim::write_scene(scenario, scene_dir).site;
+  const sim::WrittenScene written = sim::write_scene(scenario, scene_dir, &install_stop_handlers());
+  if (written.interrupted) throw Interrupted();
+  return written.site;
 }
 
 int run(const DemoArguments& arguments) {
-  const std::filesystem::path site_file = ensure_scene(arguments);
+  std::filesystem::path site_file;
+  try {
+    site_file = ensure_scene(arguments);
+  } catch (const Interrupted&) {
+    log::error("demo: interrupted by ", stop_signal_name(), " while synthesising the scene");
+    return interrupted_exit_code();
+  }
   std::vector<std::string> warnings;
   const config::SiteConfig site = config::load_site_config(site_file, warnings);
   for (const auto& warning : warnings) log::warn(warning);

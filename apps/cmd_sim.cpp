@@ -7,6 +7,7 @@
 
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
+#include "apps/signals.hpp"
 #include "common/log.hpp"
 #include "sim/render.hpp"
 #include "sim/scenario.hpp"
@@ -32,7 +33,13 @@ int run_sim(const SimOptions& options) {
     }
   }
   const auto started = std::chrono::steady_clock::now();
-  const sim::WrittenScene written = sim::write_scene(scenario, options.out_dir);
+  const sim::WrittenScene written =
+      sim::write_scene(scenario, options.out_dir, &install_stop_handlers());
+  if (written.interrupted) {
+    log::error("sim: interrupted by ", stop_signal_name(), "; nothing written to ",
+               options.out_dir);
+    return interrupted_exit_code();
+  }
   const double elapsed_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   std::printf("wrote %s\n", written.site.string().c_str());

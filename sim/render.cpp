@@ -210,12 +210,16 @@ RenderedArray render_array(const Scenario& scenario, std::size_t array_index) {
   return Renderer(scenario, {array_index}).render(array_index);
 }
 
-RenderedScene render_scene(const Scenario& scenario) {
+RenderedScene render_scene(const Scenario& scenario, const std::atomic<bool>* stop) {
   std::vector<std::size_t> all(scenario.site.arrays.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
   const Renderer renderer(scenario, all);
   RenderedScene scene;
   for (std::size_t i : all) {
+    if (stop && stop->load()) {
+      scene.interrupted = true;
+      return scene;
+    }
     scene.arrays.push_back(renderer.render(i));
     for (float value : scene.arrays.back().samples) {
       scene.peak_before_scaling =
@@ -315,7 +319,8 @@ nlohmann::json scene_site_json(const Scenario& scenario) {
   return site;
 }
 
-WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir) {
+WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir,
+                         const std::atomic<bool>* stop) {
   std::error_code error;
   std::filesystem::create_directories(out_dir, error);
   if (error)
@@ -331,8 +336,10 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   }
   check_output_paths({{"the scenario", scenario.file}}, outputs);
 
-  const RenderedScene scene = render_scene(scenario);
+  const RenderedScene scene = render_scene(scenario, stop);
   written.scale = scene.scale;
+  written.interrupted = scene.interrupted;
+  if (written.interrupted) return written;
   // All files of the scene or none: each goes to a temporary, and they are renamed into place
   // only once every one is written (a scene with a new site.json and old recordings is worse
   // than the old scene).
@@ -345,6 +352,10 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   write_json(*files.back(), scene_site_json(scenario), 2);
   files.push_back(std::make_unique<OutputFile>(written.truth));
   write_json(*files.back(), compute_truth(scenario).to_json(scenario), -1);
+  if (stop && stop->load()) {  // the files are discarded with their temporaries
+    written.interrupted = true;
+    return written;
+  }
   for (auto& file : files) file->commit();
   return written;
 }

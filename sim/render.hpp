@@ -4,6 +4,7 @@
 // directly (no files):
 //   sim::Scenario scenario = sim::parse_scenario(json, ".");
 //   sim::RenderedArray a1 = sim::render_array(scenario, 0);
+#include <atomic>
 #include <cstddef>
 #include <filesystem>
 #include <string>
@@ -33,10 +34,12 @@ struct RenderedScene {
   std::vector<RenderedArray> arrays;
   double peak_before_scaling = 0.0;  // largest |sample| over all arrays
   double scale = 1.0;                // common factor applied to every array (< 1 if it clipped)
+  bool interrupted = false;          // `stop` was set: arrays holds only those rendered before
 };
 // Every array; if any sample would reach full scale, all arrays are scaled by one common factor
 // to a peak of 0.9 (so inter-array levels stay true) and a warning is logged.
-RenderedScene render_scene(const Scenario& scenario);
+// `stop`, when given and set, ends the rendering between arrays (RenderedScene::interrupted).
+RenderedScene render_scene(const Scenario& scenario, const std::atomic<bool>* stop = nullptr);
 
 struct SourceTruth {
   std::string id;
@@ -60,6 +63,7 @@ struct Truth {
 Truth compute_truth(const Scenario& scenario, double rate_hz = 100.0);
 
 struct WrittenScene {
+  bool interrupted = false;  // `stop` was set: nothing was written
   std::filesystem::path site;
   std::filesystem::path truth;
   std::vector<std::filesystem::path> recordings;
@@ -67,8 +71,10 @@ struct WrittenScene {
 };
 // Creates `out_dir` and writes site.json (SPEC 3.1; recordings relative, the scenario's doa,
 // fusion, zones, dds and http sections copied through), <array id>.wav (float32) per array and
-// truth.json. Throws std::runtime_error naming the file on I/O failure.
-WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir);
+// truth.json, all of them or none (docs/contract.md). Throws std::runtime_error naming the file on
+// I/O failure. A set `stop` (a signal) ends it between arrays with nothing written.
+WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir,
+                         const std::atomic<bool>* stop = nullptr);
 
 // The site section of the scene as written to DIR/site.json.
 nlohmann::json scene_site_json(const Scenario& scenario);

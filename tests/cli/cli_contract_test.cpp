@@ -510,6 +510,20 @@ TEST_F(CliContract, RecordingTruncatedMidRunFailsAndMarksPartial) {
   expect_whole_lines(dir_ / "t.jsonl.partial");
 }
 
+TEST_F(CliContract, SigintDuringSimWritesNothing) {
+  RunOptions options;
+  options.signal = SIGINT;
+  options.signal_after = 500ms;
+  const Outcome outcome = run(
+      {"sim", std::string(DRONETRACK_SOURCE_DIR) + "/config/scenarios/perimeter-two-drones.json",
+       "--out", (dir_ / "scene").string()},
+      dir_, options);
+  EXPECT_EQ(outcome.exit_code, 130) << outcome.err;
+  EXPECT_NE(outcome.err.find("sim: interrupted by SIGINT; nothing written"), std::string::npos)
+      << outcome.err;
+  EXPECT_TRUE(fs::is_empty(dir_ / "scene"));
+}
+
 TEST_F(CliContract, CompleteRunReplacesTheTargetAndClearsAnOldPartial) {
   write_text(dir_ / "t.jsonl.partial", "an older interrupted run\n");
   write_earlier_results();
