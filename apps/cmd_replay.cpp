@@ -53,6 +53,30 @@ void register_replay(CLI::App& root, CommandTable& table) {
               "recordings")
           ->check(CLI::ExistingFile)
           ->excludes(realtime);
+  auto* outliers =
+      command
+          ->add_option("--doa-outliers", arguments->session.doa_outliers.share,
+                       "With --doa-in: make this share of the DOAs outliers, alpha-stable angular "
+                       "errors on azimuth and elevation (fusion-only experiments; docs/fusion.md)")
+          ->check(finite_in(0.0, 1.0))
+          ->needs(doa_in);
+  command
+      ->add_option("--doa-outlier-alpha", arguments->session.doa_outliers.law_deg.alpha,
+                   "Stability of the outlier errors (2 Gaussian, 1 Cauchy)")
+      ->capture_default_str()
+      ->check(finite_in(0.1, 2.0))
+      ->needs(outliers);
+  command
+      ->add_option("--doa-outlier-scale-deg", arguments->session.doa_outliers.law_deg.scale,
+                   "Scale of the outlier errors, degrees")
+      ->capture_default_str()
+      ->check(finite_in(1e-3, 90.0))
+      ->needs(outliers);
+  command
+      ->add_option("--doa-outlier-seed", arguments->session.doa_outliers.seed,
+                   "Seed of the outlier draws")
+      ->capture_default_str()
+      ->needs(outliers);
   command
       ->add_option("--http", arguments->session.http,
                    "Serve the web page and JSON API on ADDR:PORT (e.g. 127.0.0.1:8080); keeps "

@@ -45,6 +45,13 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   }
   std::vector<doa::DoaMeasurement> recorded_doas;
   if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);
+  if (options.doa_outliers.share > 0.0) {
+    const sim::AlphaStable& law = options.doa_outliers.law_deg;
+    const std::size_t perturbed = sim::add_doa_outliers(recorded_doas, options.doa_outliers);
+    log::info("replay: ", perturbed, " of ", recorded_doas.size(), " DOAs made outliers (share ",
+              options.doa_outliers.share, ", alpha-stable alpha ", law.alpha, ", scale ", law.scale,
+              " deg, seed ", options.doa_outliers.seed, ")");
+  }
 
   // Serving: the live state is fed like any other output; the server reads snapshots of it.
   std::unique_ptr<http_api::LiveState> live_state;

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "config/site_config.hpp"
+#include "sim/doa_outliers.hpp"
 
 namespace dronetrack::apps {
 
@@ -12,7 +13,9 @@ struct ReplaySessionOptions {
   std::string doa_out;
   std::string alerts_out;  // zone alerts and class changes as JSON lines; "" for none
   std::string doa_in;      // DOA lines to run the fusion alone on, instead of the recordings
-  std::string http;        // ADDR:PORT to serve on; "" for none
+  sim::DoaOutlierSettings
+      doa_outliers;  // impulsive errors added to the doa_in lines (share 0: none)
+  std::string http;  // ADDR:PORT to serve on; "" for none
   bool realtime = false;
   double max_duration_s = 0.0;
   bool keep_serving = true;  // after the recordings end, serve until Ctrl-C
