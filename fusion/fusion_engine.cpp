@@ -14,6 +14,7 @@
 #include <string>
 
 #include "fusion/assignment.hpp"
+#include "fusion/doa_likelihood.hpp"
 #include "fusion/measurement_model.hpp"
 #include "fusion/track_filter.hpp"
 #include "fusion/triangulation.hpp"
@@ -142,7 +143,8 @@ struct FusionEngine::Impl {
   FilterSettings filter_settings;
   FusionCounters counters;
   std::optional<TrackClassifier> classifier;
-  double gate_chi2 = 0.0;  // 2 dof
+  double gate_chi2 = 0.0;  // 2 dof: initiation, and the Gaussian likelihood's track gate
+  std::optional<DoaLikelihood> likelihood;  // the tracks' gate, assignment cost and update
   double floor_variance_rad2 = 0.0;
 
   std::vector<doa::DoaMeasurement> queue;  // sorted by (time, array, source)
@@ -268,6 +270,9 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.imm_turn_jerk_std_mps3 = params.imm_turn_jerk_std_mps3;
   s.classifier.emplace(params.classifier, params.ground_altitude_m);
   s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
+  s.likelihood.emplace(params.likelihood == DoaLikelihoodKind::student_t ? LikelihoodKind::student_t
+                                                                         : LikelihoodKind::gaussian,
+                       params.student_t_dof, params.gate_probability);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
   s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
@@ -410,9 +415,9 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       Innovation candidate = track.innovation;
       candidate.covariance += track.inflation * m.azel_covariance_rad2;
       const double d2 = candidate.mahalanobis2(azel_of(m.direction));
-      if (d2 <= gate_chi2) {
+      if (d2 <= likelihood->gate_d2()) {
         cost[static_cast<std::size_t>(t) * doa_count + j] =
-            d2 + std::log(candidate.covariance.determinant());
+            likelihood->assignment_cost(d2, std::log(candidate.covariance.determinant()));
       }
     }
   }
@@ -428,6 +433,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     Innovation innovation = track.innovation;
     innovation.covariance += track.inflation * m.azel_covariance_rad2;
     innovation.noise = track.inflation * noise_of(m);
+    likelihood->reweight(innovation, azel_of(m.direction));
     const FilterStatus status = track.filter->update(innovation, azel_of(m.direction));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused

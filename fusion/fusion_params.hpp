@@ -10,6 +10,8 @@
 namespace dronetrack::fusion {
 
 enum class FilterKind { ukf, ukf_seed002, ekf, particle };
+// The DOA likelihood of the Gaussian filters' updates, gates and assignment (doa_likelihood.hpp).
+enum class DoaLikelihoodKind { gaussian, student_t };
 // How a new track's first position is found (SPEC 4.4).
 enum class TriangulationMethod { least_squares_3d, seed_xy_projection };
 
@@ -20,10 +22,12 @@ struct FusionParams {
   double jerk_noise_std_mps3 = 5.0;
   double output_rate_hz = 10.0;     // track reports per second
   double reorder_window_s = 0.3;    // DOAs are fed oldest first after this delay
-  double gate_probability = 0.999;  // chi-square gate on the DOA innovation
-  int confirm_hits = 5;             // M of N: M
-  int confirm_window = 8;           //         N
-  double coast_timeout_s = 3.0;     // a track unheard this long is deleted
+  double gate_probability = 0.999;  // gate on the DOA innovation (chi-square, or Student-t's)
+  DoaLikelihoodKind likelihood = DoaLikelihoodKind::gaussian;
+  double student_t_dof = 10.0;   // likelihood = student_t (10: tested, docs/fusion.md)
+  int confirm_hits = 5;          // M of N: M
+  int confirm_window = 8;        //         N
+  double coast_timeout_s = 3.0;  // a track unheard this long is deleted
 
   // Scaled unscented transform (filter = ukf). alpha = 1, kappa = 0 keeps every weight >= 0.
   double ukf_alpha = 1.0;

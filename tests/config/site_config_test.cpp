@@ -359,5 +359,23 @@ TEST_F(SiteWithRecordings, LoadPrefixesTheFileName) {
   }
 }
 
+TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
+  json site = two_array_site();
+  site["fusion"] = {{"likelihood", "student_t"}, {"student_t_dof", 6}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(parsed.fusion.likelihood, fusion::DoaLikelihoodKind::student_t);
+  EXPECT_EQ(parsed.fusion.student_t_dof, 6.0);
+  EXPECT_EQ(parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings())
+                .fusion.likelihood,
+            fusion::DoaLikelihoodKind::gaussian);
+  site["fusion"] = {{"likelihood", "cauchy"}};
+  const auto problems = problems_of(site);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("fusion.likelihood"), std::string::npos) << problems[0];
+  site["fusion"] = {{"student_t_dof", 0.5}};
+  expect_problem(site, "fusion.student_t_dof: must be in [1, 100], got 0.5");
+}
+
 }  // namespace
 }  // namespace dronetrack::config

@@ -1,0 +1,60 @@
+#include "fusion/doa_likelihood.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+
+namespace dronetrack::fusion {
+namespace {
+constexpr int kBisections = 30;  // the weight to 1e-9
+}  // namespace
+
+DoaLikelihood::DoaLikelihood(LikelihoodKind kind, double dof, double gate_probability)
+    : kind_(kind), dof_(dof) {
+  if (!(gate_probability > 0.0 && gate_probability < 1.0))
+    throw std::invalid_argument("gate_probability must be in (0, 1)");
+  if (kind_ == LikelihoodKind::student_t && !(dof_ >= 1.0))
+    throw std::invalid_argument("student_t_dof must be >= 1");
+  if (kind_ == LikelihoodKind::gaussian) {
+    gate_d2_ = -2.0 * std::log(1.0 - gate_probability);  // chi-square, 2 dof
+  } else {
+    // P(d^2 / 2 <= x) = 1 - (1 + 2 x / dof)^(-dof / 2) for F(2, dof).
+    gate_d2_ = dof_ * (std::pow(1.0 - gate_probability, -2.0 / dof_) - 1.0);
+  }
+}
+
+double DoaLikelihood::assignment_cost(double d2, double log_det_covariance) const {
+  if (kind_ == LikelihoodKind::gaussian) return d2 + log_det_covariance;
+  return (dof_ + 2.0) * std::log1p(d2 / dof_) + log_det_covariance;
+}
+
+double DoaLikelihood::reweight(Innovation& innovation, const Measurement& z) const {
+  if (kind_ == LikelihoodKind::gaussian) return 1.0;
+  const MeasurementCovariance state_part = innovation.covariance - innovation.noise;
+  const MeasurementCovariance noise = innovation.noise;
+  const Measurement residual = azel_residual(z, innovation.predicted);
+  // The weight solves w = (dof + 2) / (dof + d^2(w)), d^2(w) = r' (state_part + R / w)^-1 r.
+  // d^2 grows with w, so w - (dof + 2) / (dof + d^2(w)) grows with w: bisection finds the one
+  // root (plain iteration of the fixed point oscillates for large residuals).
+  const auto excess = [&](double weight) {
+    const MeasurementCovariance covariance = state_part + noise / weight;
+    const double d2 = residual.dot(covariance.ldlt().solve(residual));
+    return weight - (dof_ + 2.0) / (dof_ + d2);
+  };
+  const double at_one = excess(1.0);
+  if (!std::isfinite(at_one) || at_one <= 0.0) return 1.0;  // an inlier: as the Gaussian
+  double low = 0.0;
+  double high = 1.0;
+  for (int i = 0; i < kBisections; ++i) {
+    const double middle = 0.5 * (low + high);
+    (excess(std::max(middle, 1e-12)) < 0.0 ? low : high) = middle;
+  }
+  const double weight = std::max(high, 1e-12);
+  innovation.covariance = state_part + noise / weight;
+  innovation.noise = noise / weight;
+  return weight;
+}
+
+}  // namespace dronetrack::fusion
