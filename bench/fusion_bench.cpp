@@ -69,10 +69,13 @@ doa::ArrayGeometry tetrahedron(const char* id, Eigen::Vector3d position) {
 }
 
 // Whole engine: four arrays each reporting one drone every 50 ms (80 DOAs/s of scene time).
-// Argument: imm_turn_mode off (0) or on (1), the rest default.
+// Arguments: imm_turn_mode off (0) or on (1); likelihood gaussian (0) or student_t (1); every
+// 4th DOA an outlier of ~3 degrees (1) or none (0); the rest default.
 void BM_EngineFourArrays(benchmark::State& state) {
   FusionParams params;
   params.imm_turn_mode = state.range(0) != 0;
+  if (state.range(1) != 0) params.likelihood = DoaLikelihoodKind::student_t;
+  const bool outliers = state.range(2) != 0;
   const std::vector<doa::ArrayGeometry> arrays{
       tetrahedron("N1", {-100, -100, 2}), tetrahedron("N2", {100, -100, 2}),
       tetrahedron("N3", {100, 100, 2}), tetrahedron("N4", {-100, 100, 2})};
@@ -88,7 +91,9 @@ void BM_EngineFourArrays(benchmark::State& state) {
       m.array_id = arrays[a].id;
       m.array_index = static_cast<int>(a);
       m.time_s = t;
-      m.direction = (d + Eigen::Vector3d(noise(random), noise(random), noise(random))).normalized();
+      const double spread = outliers && (step + a) % 4 == 0 ? 6.0 : 1.0;
+      m.direction =
+          (d + spread * Eigen::Vector3d(noise(random), noise(random), noise(random))).normalized();
       m.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 7.6e-5;
       doas.push_back(m);
     }
@@ -105,7 +110,13 @@ void BM_EngineFourArrays(benchmark::State& state) {
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * doas.size()));
 }
-BENCHMARK(BM_EngineFourArrays)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EngineFourArrays)
+    ->Args({0, 0, 0})
+    ->Args({1, 0, 0})
+    ->Args({1, 1, 0})
+    ->Args({1, 0, 1})
+    ->Args({1, 1, 1})
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace dronetrack::fusion
