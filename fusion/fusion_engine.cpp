@@ -259,6 +259,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.ukf_beta = params.ukf_beta;
   s.filter_settings.ukf_kappa = params.ukf_kappa;
   s.filter_settings.particle_count = params.particle_count;
+  if (params.likelihood == DoaLikelihoodKind::student_t)
+    s.filter_settings.student_t_dof = params.student_t_dof;
   s.filter_settings.imm_jerk_std_mps3 = params.imm_jerk_std_mps3;
   if (params.imm_jerk_std_mps3.size() == 1) {  // one level: a single model at that level
     s.filter_settings.motion.jerk_variance_m2ps6 = std::pow(params.imm_jerk_std_mps3[0], 2);
@@ -433,7 +435,9 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     Innovation innovation = track.innovation;
     innovation.covariance += track.inflation * m.azel_covariance_rad2;
     innovation.noise = track.inflation * noise_of(m);
-    likelihood->reweight(innovation, azel_of(m.direction));
+    // The particle filter weighs its particles by the same Student-t itself (FilterSettings).
+    if (params.filter != FilterKind::particle)
+      likelihood->reweight(innovation, azel_of(m.direction));
     const FilterStatus status = track.filter->update(innovation, azel_of(m.direction));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused

@@ -259,10 +259,14 @@ class ParticleFilter final : public TrackFilter {
     // Mixture (1 - e) N(z; h(x), R) + e / (4 pi) (a DOA from anywhere on the sphere), scaled by
     // 2 pi sqrt(det R) so the Gaussian part is the plain exponential.
     const double floor = kOutlierProbability * std::sqrt(innovation.noise.determinant()) / 2.0;
+    const double dof = settings_.student_t_dof;
     double total = 0.0;
     for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
       const Measurement dz = azel_residual(z, predicted_.col(i));
-      const double likelihood = std::exp(-0.5 * dz.dot(information * dz)) + floor;
+      const double d2 = dz.dot(information * dz);
+      // Both up to the same factor for every particle: 2 pi sqrt(det R).
+      const double likelihood =
+          dof > 0.0 ? std::pow(1.0 + d2 / dof, -0.5 * (dof + 2.0)) : std::exp(-0.5 * d2) + floor;
       weights_(i) *= likelihood;
       total += weights_(i);
     }

@@ -49,6 +49,10 @@ struct FilterSettings {
   double ukf_kappa = 0.0;
   int particle_count = 1000;
   std::uint64_t random_seed = 1;
+  // The particle filter's DOA likelihood: Gaussian plus a uniform floor (0), or the multivariate
+  // Student-t of doa_likelihood.hpp with this many degrees of freedom (> 0), the same law the
+  // Gaussian filters' reweighted update follows.
+  double student_t_dof = 0.0;
   // Interacting multiple model (IMM) over jerk levels: with two or more levels, the Gaussian
   // filters (ukf, ukf_seed002, ekf) run one constant-jerk model per level and mix them
   // (Blom & Bar-Shalom); `motion` is then unused. A mode is kept for imm_sojourn_s on average.
