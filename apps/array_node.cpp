@@ -9,6 +9,7 @@
 #include "capture/recording_info.hpp"
 #include "capture/recording_source.hpp"
 #include "common/log.hpp"
+#include "config/config_reader.hpp"
 
 namespace dronetrack::apps {
 
@@ -113,8 +114,9 @@ std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConf
   if (!(info.sample_rate_hz >= config::kMinSampleRate_hz &&
         info.sample_rate_hz <= config::kMaxSampleRate_hz)) {
     throw std::runtime_error(recording.string() + ": sample rate " +
-                             std::to_string(info.sample_rate_hz) + " Hz; dronetrack takes 1000 " +
-                             "to 1e6 Hz");
+                             config::format_number(info.sample_rate_hz) + " Hz; dronetrack takes " +
+                             config::format_number(config::kMinSampleRate_hz) + " to " +
+                             config::format_number(config::kMaxSampleRate_hz) + " Hz");
   }
   const auto block_frames =
       static_cast<std::size_t>(std::max(1.0, std::round(block_s * info.sample_rate_hz)));

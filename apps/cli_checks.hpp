@@ -3,20 +3,14 @@
 // accept "nan" and "inf" (NaN compares false with everything), which then reach a loop bound or
 // a timer; these refuse anything not finite, and give each option a range with a reason.
 #include <cmath>
-#include <sstream>
 #include <string>
 
 #include <CLI/CLI.hpp>
 
+#include "config/config_reader.hpp"
 #include "http_api/bind_address.hpp"
 
 namespace dronetrack::apps {
-
-inline std::string shortest(double value) {
-  std::ostringstream text;
-  text << value;
-  return text.str();
-}
 
 // A finite number in [min, max]; a description like "a duration in seconds" goes in the error.
 inline CLI::Validator finite_in(double min, double max) {
@@ -26,11 +20,12 @@ inline CLI::Validator finite_in(double min, double max) {
         if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value))
           return "expected a finite number, got " + text;
         if (value < min || value > max) {
-          return "expected a number in [" + shortest(min) + ", " + shortest(max) + "], got " + text;
+          return "expected a number in [" + config::format_number(min) + ", " +
+                 config::format_number(max) + "], got " + text;
         }
         return std::string();
       },
-      "FINITE in [" + shortest(min) + ", " + shortest(max) + "]");
+      "FINITE in [" + config::format_number(min) + ", " + config::format_number(max) + "]");
 }
 
 // HOST:PORT for --http, checked when the command line is parsed (a bad one exits 2).

@@ -6,6 +6,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "fusion/triangulation.hpp"
+
 namespace dronetrack::fusion {
 namespace {
 constexpr int kBisections = 30;  // the weight to 1e-9
@@ -18,7 +20,7 @@ DoaLikelihood::DoaLikelihood(LikelihoodKind kind, double dof, double gate_probab
   if (kind_ == LikelihoodKind::student_t && !(dof_ >= 1.0))
     throw std::invalid_argument("student_t_dof must be >= 1");
   if (kind_ == LikelihoodKind::gaussian) {
-    gate_d2_ = -2.0 * std::log(1.0 - gate_probability);  // chi-square, 2 dof
+    gate_d2_ = chi_square_quantile(gate_probability, 2);
   } else {
     // P(d^2 / 2 <= x) = 1 - (1 + 2 x / dof)^(-dof / 2) for F(2, dof).
     gate_d2_ = dof_ * (std::pow(1.0 - gate_probability, -2.0 / dof_) - 1.0);
