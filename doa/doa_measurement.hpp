@@ -7,6 +7,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 namespace dronetrack::doa {
 
@@ -47,6 +48,19 @@ struct AcousticFeatures {
   double history_s = 0.0;            // the span those figures cover
 };
 
+// Where the array was, and how it was turned, at the frame's time (issue 15). A fixed array's
+// comes from the site config; a moving array's is interpolated from its pose (pose_file, or the
+// ArrayPose DDS topic live) at the frame's centre. The fusion builds its measurement model from
+// this stamp alone, so it never needs the pose stream.
+struct PoseStamp {
+  Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();  // acoustic centre, site frame
+  Eigen::Quaterniond array_to_site = Eigen::Quaterniond::Identity();
+  bool moving = false;  // from a pose track (false: the config's fixed pose)
+};
+
+// Seed 004's multi-peak likelihood keeps the GCC's strongest peaks, not only the largest.
+inline constexpr int kMaxConePeaks = 4;
+
 struct DoaMeasurement {
   std::string array_id;
   int array_index = -1;  // index into the site's arrays
@@ -59,6 +73,23 @@ struct DoaMeasurement {
   double snr_db = 0.0;   // in-band SNR against the adaptive noise floor
   int source_index = 0;  // 0..K-1 when one frame yields several directions
   DoaAmbiguity ambiguity = DoaAmbiguity::none;
+  // What a rank-deficient array measured (SPEC 4.2), site frame:
+  //   cone            the angle between ambiguity_axis (unit, from mic 0 towards mic 1) and the
+  //                   direction to the source, with its variance; `direction` is only the
+  //                   horizontal point of that cone, for display. Nothing downstream may use it as
+  //                   a direction.
+  //   mirror_up_down  ambiguity_axis is the array plane's unit normal; `direction` is the image on
+  //                   the normal's side, its mirror direction - 2 (direction . axis) axis is as
+  //                   likely, and azel_covariance_rad2 holds for both.
+  Eigen::Vector3d ambiguity_axis = Eigen::Vector3d::UnitZ();
+  double cone_angle_rad = 0.0;
+  double cone_angle_variance_rad2 = 0.0;
+  // Cone only: the GCC's strongest peaks as cone angles, strongest first (peak 0 is the one
+  // measured), with their GCC values as weights (seed 004, SPEC 4.3).
+  int cone_peak_count = 0;
+  std::array<double, kMaxConePeaks> cone_peak_angle_rad{};
+  std::array<double, kMaxConePeaks> cone_peak_weight{};
+  PoseStamp pose;
   int pair_count = 0;
   std::array<double, kMaxPairs> tdoa_s{};  // per mic pair (i<j in lexicographic order)
   AcousticFeatures acoustic;
