@@ -135,21 +135,24 @@ double LsDoaSolver::cone_cosine_for_tdoa(int pair, double tdoa_s) const {
   return -tdoa_s / pair_vectors_[static_cast<std::size_t>(pair)].dot(subspace_.col(0));
 }
 
-double cone_angle_variance_rad2(double cone_angle_rad, double cosine_variance) {
-  if (!(cosine_variance > 0.0) || !std::isfinite(cosine_variance) || !std::isfinite(cone_angle_rad))
+double cone_angle_variance_rad2(double measured_cosine, double cosine_variance) {
+  if (!(cosine_variance > 0.0) || !std::isfinite(cosine_variance) ||
+      !std::isfinite(measured_cosine))
     return 0.0;
   // Directions uniform on the sphere make cos(theta) uniform on [-1, 1], so given the measured
-  // cosine c^ the true one is a normal N(c^, s^2) truncated to [-1, 1], whose mode is
-  // clamp(c^) = cos(cone_angle_rad). The variance published is that posterior's mean squared
-  // distance of theta from the reported angle: calibrated by construction, the linearised
-  // s^2 / sin^2(theta) away from the axis, and on it (c^ = 1, 1 - c = s |z|, theta ~
-  // sqrt(2 s |z|)) E[theta^2] = 2 s E|z| = 2 sqrt(2 / pi) s. The integral runs over theta (c =
-  // cos theta, dc = sin theta dtheta), where the integrand is smooth even at the axis.
+  // cosine c^ the true one is a normal N(c^, s^2) truncated to [-1, 1], whose mode is the
+  // reported clamp(c^). The variance published is that posterior's mean squared distance of
+  // theta from the reported angle: calibrated by construction, the linearised s^2 / sin^2(theta)
+  // away from the axis, and on it (c^ = 1: 1 - c = s |z|, theta ~ sqrt(2 s |z|)) E[theta^2] =
+  // 2 s E|z| = 2 sqrt(2 / pi) s; a c^ beyond 1 says the source is nearer the axis still. The
+  // integral runs over theta (c = cos theta, dc = sin theta dtheta), where the integrand is
+  // smooth even at the axis.
   const double sigma = std::sqrt(cosine_variance);
-  const double measured = std::cos(cone_angle_rad);
+  const double reported_rad = std::acos(std::clamp(measured_cosine, -1.0, 1.0));
   constexpr double kSpan = 8.0;  // standard deviations of the cosine each side
-  const double low = std::max(-1.0, measured - kSpan * sigma);
-  const double high = std::min(1.0, measured + kSpan * sigma);
+  const double nearest = std::clamp(measured_cosine, -1.0, 1.0);
+  const double low = std::max(-1.0, nearest - kSpan * sigma);
+  const double high = std::min(1.0, nearest + kSpan * sigma);
   const double first = std::acos(high);
   const double last = std::acos(low);
   constexpr int kIntervals = 96;  // even (Simpson)
@@ -159,11 +162,11 @@ double cone_angle_variance_rad2(double cone_angle_rad, double cosine_variance) {
   double moment = 0.0;
   for (int i = 0; i <= kIntervals; ++i) {
     const double theta = first + step * i;
-    const double z = (std::cos(theta) - measured) / sigma;
+    const double z = (std::cos(theta) - measured_cosine) / sigma;
     const double simpson = i == 0 || i == kIntervals ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
     const double density = simpson * std::exp(-0.5 * z * z) * std::sin(theta);
     mass += density;
-    moment += density * (theta - cone_angle_rad) * (theta - cone_angle_rad);
+    moment += density * (theta - reported_rad) * (theta - reported_rad);
   }
   return mass > 0.0 ? moment / mass : 0.0;
 }
@@ -379,7 +382,7 @@ LsDoaSolver::ArrayFit LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas,
   if (dimensions == 1) {
     fit.cone_angle_rad = std::acos(std::clamp(fit.cone_cosine, -1.0, 1.0));
     fit.cone_angle_variance_rad2 =
-        cone_angle_variance_rad2(fit.cone_angle_rad, inverse(0, 0) * inflation);
+        cone_angle_variance_rad2(fit.cone_cosine, inverse(0, 0) * inflation);
   } else {
     fit.direction = direction_array;
     fit.covariance = direction_covariance * inflation;

@@ -137,12 +137,13 @@ class LsDoaSolver {
 // up/down mirror), 1 (two mics or collinear: a cone), 0 (fewer than two distinct mics).
 int direction_rank(const std::vector<Eigen::Vector3d>& mics_m);
 
-// Variance (rad^2) of the cone angle theta^ = acos(clamp(c^, -1, 1)) when the measured cosine
-// c^ = cos(theta) + e, e ~ N(0, cosine_variance), evaluated at theta = cone_angle_rad: the mean
-// squared error E[(theta^ - theta)^2] by quadrature over e. Away from the axis it is the
-// linearised cosine_variance / sin^2(theta); on the axis the linearisation fails (theta^ ~
-// sqrt(2 |e|)) and it tends to sqrt(2 / pi) * sqrt(cosine_variance) (docs/doa.md).
-double cone_angle_variance_rad2(double cone_angle_rad, double cosine_variance);
+// Variance (rad^2) of the cone angle theta^ = acos(clamp(c^, -1, 1)) reported for a measured
+// cosine c^ = cos(theta) + e, e ~ N(0, cosine_variance): the mean squared distance of theta from
+// theta^ under the posterior of cos(theta) given c^ (directions uniform on the sphere), by
+// quadrature. Away from the axis it is the linearised cosine_variance / sin^2(theta); on the
+// axis (c^ = +-1) the linearisation fails (theta ~ sqrt(2 |e|)) and it is
+// 2 sqrt(2 / pi) sqrt(cosine_variance) (docs/doa.md "Cones and mirrors").
+double cone_angle_variance_rad2(double measured_cosine, double cosine_variance);
 
 // The unit direction -> (azimuth, elevation) Jacobian applied to a 3x3 direction covariance.
 Eigen::Matrix2d azel_covariance_from_direction(const Eigen::Vector3d& unit_direction,
