@@ -10,10 +10,13 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
+#include "doa/gcc_phat.hpp"
 #include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
+#include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
 namespace dronetrack::doa {
@@ -330,6 +333,65 @@ TEST(Mirror, PlanarArrayGivesItsNormalOnTheReportedSide) {
   EXPECT_LT(std::min(angle_between_deg(solution.direction_site, side),
                      angle_between_deg(edge_mirror, side)),
             1e-5);
+}
+
+TEST(GccPeaks, TwoDelaysGiveTwoRefinedPeaksStrongestFirst) {
+  // Mic 0 hears source A 0.61 ms and source B -0.93 ms after mic 1 (B 1 dB weaker, same band):
+  // both lags are among the pair's strongest peaks, A first, within a fraction of a sample (each
+  // source's bins carry the other's too: on this frame that moves both peaks by 8 us); and
+  // every peak is refined to the continuous correlation's local maximum, like the main one.
+  constexpr int kFrame = 8160;
+  const int length = 3 * 8192;
+  const double delay_a = 0.61e-3;
+  const double delay_b = -0.93e-3;
+  const testing::BandNoise a(length, kRate, 1000.0, 4000.0, 41);
+  const testing::BandNoise b(length, kRate, 1000.0, 4000.0, 42);
+  testing::Recording recording = testing::silent_recording(2, static_cast<std::size_t>(length));
+  recording.add(0, a.delayed(delay_a, 0.1));
+  recording.add(1, a.delayed(0.0, 0.1));
+  recording.add(0, b.delayed(delay_b, 0.09));
+  recording.add(1, b.delayed(0.0, 0.09));
+  Framer framer(2, kFrame, kFrame);
+  MultichannelFft fft(2, kFrame, fftw_friendly_size(kFrame));
+  GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, {{0, 1, 0.6 / kSound}});
+  EXPECT_EQ(gcc.peak_count(), 1);
+  EXPECT_THROW(gcc.set_peak_count(0), std::invalid_argument);
+  EXPECT_THROW(gcc.set_peak_count(kMaxGccPeaks + 1), std::invalid_argument);
+  bool done = false;
+  framer.push(recording.view(4000, kFrame), [&](const FrameView& frame) {
+    fft.process(frame);
+    gcc.process(fft);
+    EXPECT_EQ(gcc.pair(0).peak_count, 1);  // the default: the main peak only
+    gcc.set_peak_count(kMaxGccPeaks);
+    gcc.process(fft);
+    done = true;
+  });
+  ASSERT_TRUE(done);
+  const PairCorrelation& pair = gcc.pair(0);
+  ASSERT_GE(pair.peak_count, 2);
+  EXPECT_EQ(pair.peaks[0].lag_s, pair.peak.lag_s);
+  EXPECT_NEAR(pair.peaks[0].lag_s, delay_a, 15e-6);
+  int b_found = -1;
+  for (int k = 1; k < pair.peak_count; ++k)
+    if (std::abs(pair.peaks[static_cast<std::size_t>(k)].lag_s - delay_b) < 15e-6) b_found = k;
+  std::printf("peaks: A %.2f us (true %.2f), B %.2f us (true %.2f), values %.3f / %.3f\n",
+              1e6 * pair.peaks[0].lag_s, 1e6 * delay_a,
+              b_found > 0 ? 1e6 * pair.peaks[static_cast<std::size_t>(b_found)].lag_s : 0.0,
+              1e6 * delay_b, pair.peaks[0].value,
+              b_found > 0 ? pair.peaks[static_cast<std::size_t>(b_found)].value : 0.0);
+  ASSERT_GT(b_found, 0);
+  EXPECT_GT(pair.peaks[static_cast<std::size_t>(b_found)].value, 0.2);
+  for (int k = 0; k < pair.peak_count; ++k) {
+    const GccPeak& peak = pair.peaks[static_cast<std::size_t>(k)];
+    if (k > 0) {
+      EXPECT_LE(peak.value, pair.peaks[static_cast<std::size_t>(k - 1)].value);
+    }
+    EXPECT_LE(std::abs(peak.lag_s), 0.6 / kSound + 1.0 / kRate);
+    // A local maximum of R(tau) to 10 ns, with the value R has there.
+    EXPECT_NEAR(gcc.value_at(0, peak.lag_s), peak.value, 1e-9);
+    EXPECT_LE(gcc.value_at(0, peak.lag_s + 10e-9), peak.value + 1e-12);
+    EXPECT_LE(gcc.value_at(0, peak.lag_s - 10e-9), peak.value + 1e-12);
+  }
 }
 
 // --- From audio: the node on a two-mic pair ----------------------------------------------
