@@ -50,7 +50,23 @@ struct DoaRecord {
   std::optional<Eigen::Vector2d> azel_std_deg;  // absent: the reader of the file decides
   double azel_correlation = 0.0;                // of the azimuth and elevation errors
   doa::AcousticFeatures acoustic;               // "acoustic" object (valid when present)
-  int line = 0;                                 // in its file, for messages
+  // Issue 15, each present only when so measured: a moving array's pose at the frame's time
+  // ("pose"), what a two-mic array measured ("cone"), a planar array's plane ("mirror_normal").
+  struct Pose {
+    Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d attitude_deg = Eigen::Vector3d::Zero();  // yaw, pitch, roll
+  };
+  struct Cone {
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+    double angle_deg = 0.0;
+    double angle_std_deg = 0.0;
+    std::vector<double> peaks_deg;  // the GCC's strongest peaks as cone angles, strongest first
+    std::vector<double> peak_weights;
+  };
+  std::optional<Pose> pose;
+  std::optional<Cone> cone;
+  std::optional<Eigen::Vector3d> mirror_normal;
+  int line = 0;  // in its file, for messages
 };
 
 struct TrackRecord {

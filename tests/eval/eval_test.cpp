@@ -178,6 +178,43 @@ TEST(EvalReaders, ReadsTheDocumentedShapes) {
   EXPECT_EQ(doas[0].array, "A1");
 }
 
+// A cone DOA must say what it measured, and only a cone may carry a cone.
+TEST(EvalReaders, ConeAndMirrorBlocksAreChecked) {
+  const std::string head = R"({"t": 1, "array": "H1", "direction": [1,0,0], )";
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone"})", "D.jsonl");
+            }).find("D.jsonl:1: cone: a cone DOA must say what it measured"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,1,0], )"
+                                R"("angle_deg": 30, "angle_std_deg": 1}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.axis: expected a unit vector"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,0,0], )"
+                                R"("angle_deg": 30, "angle_std_deg": 1, "peaks_deg": [30, 40], )"
+                                R"("peak_weights": [1]}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.peaks_deg: expected up to 4 angles"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,0,0], )"
+                                R"("angle_deg": 190, "angle_std_deg": 1}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.angle_deg"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("mirror_normal": [0,0,1]})", "D.jsonl");
+            }).find("D.jsonl:1: mirror_normal: only a mirror_up_down DOA carries one"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("pose": {"centre_m": [1,2,3], "attitude_deg": [0, 0]}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: pose.attitude_deg: expected 3 numbers"),
+            std::string::npos);
+}
+
 TEST(EvalReaders, BadInputNamesFileLineAndKey) {
   const std::string good =
       "{\"t\": 1, \"id\": 1, \"position_m\": [1,2,3], \"status\": \"confirmed\"}\n";
