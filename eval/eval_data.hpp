@@ -91,6 +91,9 @@ struct EvalOptions {
   double tick_s = 0.0;               // evaluation step; 0: the tracks' own output interval
   double skip_s = 0.0;               // ignore the first seconds (sound still in flight)
   bool include_tentative = false;    // tentative tracks count as tracks
+  // A source has converged once every later error of its associated tracks is within this
+  // (static and slow sources, issue 15: the papers' "time to converge").
+  double converge_gate_m = 3.0;
 };
 
 struct PositionMetrics {
@@ -121,6 +124,12 @@ struct SourceMetrics {
   double coverage = 0.0;  // covered / truth time
   int id_switches = 0;
   std::vector<int> track_ids;  // every track id associated with it
+  // Localisation of static and slow sources (issue 15): the error at the last tick a track
+  // followed it, and the time from its first tick in the window until its errors stayed within
+  // EvalOptions::converge_gate_m for good (-1: never tracked / never converged).
+  double final_error_m = -1.0;
+  double converged_after_s = -1.0;
+  double travelled_m = 0.0;  // path length of the truth in the window (0: a static source)
 };
 
 struct DoaArrayMetrics {
