@@ -173,6 +173,21 @@ TEST(Cone, CollinearMicsMeasureTheConeWithTheLongestPair) {
               std::cos(radians(70.0)), 1e-9);
 }
 
+TEST(Cone, NonFiniteTdoaGivesNoSolution) {
+  const ArrayGeometry geometry = mic_pair();
+  const LsDoaSolver solver(geometry, LsDoaSettings{});
+  for (const double bad :
+       {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    std::vector<PairTdoa> tdoas = {{bad, 1e-12, 0.9}};
+    EXPECT_FALSE(solver.solve(tdoas).accepted);
+    tdoas = {{1e-4, bad, 0.9}};
+    EXPECT_FALSE(solver.solve(tdoas).accepted);
+  }
+  // Beyond the physical lag by more than the norm gate (max_norm_error 0.25): no cone.
+  const std::vector<PairTdoa> beyond = {{1.3 * 0.6 / kSound, 1e-12, 0.9}};
+  EXPECT_FALSE(solver.solve(beyond).accepted);
+}
+
 TEST(Cone, AngleVarianceIsLinearOffTheAxisAndFollowsTheSquareRootOnIt) {
   const double cosine_variance = 1e-6;  // s = 1e-3
   const double s = std::sqrt(cosine_variance);
@@ -502,6 +517,37 @@ TEST(ConeFromAudio, SilentAndNanFramesGiveNoDoaAndNoCrash) {
   EXPECT_TRUE(run(nan_pipeline, nan).empty());
   EXPECT_GT(nan_pipeline.diagnostics().non_finite_samples, 0);
   EXPECT_GT(nan_pipeline.diagnostics().frames_processed, 0);
+
+  // A source with a burst of NaN in the middle: no DOA from a frame that holds any of it, the
+  // cone again after it, every figure finite.
+  const auto length = static_cast<std::size_t>(3.0 * kRate);
+  testing::Recording recording = testing::silent_recording(2, length);
+  const testing::BandNoise source(static_cast<int>(length), kRate, 1000.0, 4000.0, 51);
+  const Eigen::Vector3d truth = on_cone(Eigen::Vector3d::UnitX(), radians(70.0), 0.4);
+  testing::add_source(recording, geometry, truth, source, 0.05);
+  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.01, 52);
+  const std::size_t burst_begin = static_cast<std::size_t>(1.4 * kRate);
+  const std::size_t burst_end = static_cast<std::size_t>(1.5 * kRate);
+  for (std::size_t n = burst_begin * 2; n < burst_end * 2; ++n)
+    recording.interleaved[n] = std::numeric_limits<float>::quiet_NaN();
+  DoaParams params;
+  params.tdoa_tracker = TdoaTracker::per_frame;
+  NodePipeline burst_pipeline(geometry, 0, params, kRate, kSound);
+  const std::vector<DoaMeasurement> doas = run(burst_pipeline, recording);
+  const int frame = burst_pipeline.frame_length_samples();
+  int after = 0;
+  for (const DoaMeasurement& doa : doas) {
+    // The frame's first sample from its centre time.
+    const auto first =
+        static_cast<std::size_t>(std::llround(doa.time_s * kRate - 0.5 * (frame - 1)));
+    const bool overlaps =
+        first < burst_end && first + static_cast<std::size_t>(frame) > burst_begin;
+    EXPECT_FALSE(overlaps) << doa.time_s;
+    EXPECT_TRUE(std::isfinite(doa.cone_angle_rad) && std::isfinite(doa.cone_angle_variance_rad2));
+    EXPECT_NEAR(degrees(doa.cone_angle_rad), 70.0, 1.0);
+    after += doa.time_s > burst_end / kRate ? 1 : 0;
+  }
+  EXPECT_GT(after, 15);
 }
 
 }  // namespace
