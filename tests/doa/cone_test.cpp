@@ -295,6 +295,25 @@ TEST(Cone, AngleVarianceMatchesMonteCarloIncludingEndfire) {
       EXPECT_LT(bin.mean(), 1.15);
     }
   }
+  // A source exactly on the axis is the prior's edge: half its cosines land beyond 1 (angle 0,
+  // no error), and inside, where the posterior is nearly Gaussian about the reported angle, the
+  // whole error is bias (2 s |z| against ~s / (2 |z|): NEES ~4 z^2), so its NEES exceeds 1:
+  // calibrated given the measurement (above), not given this one truth. Expected: the integral
+  // over the cosine's noise of acos(1 + s z)^2 / variance(1 + s z), z < 0.
+  std::vector<NeesBin> exact{{0.0, 180.01}};
+  cone_nees(solver, geometry, 1.0, 1.0, std_s, 6, 20000, exact);
+  const double s = kSound * std_s / 0.6;
+  double expected = 0.0;
+  const double step = 1e-3;
+  for (double z = -8.0 + 0.5 * step; z < 0.0; z += step) {
+    const double cosine = 1.0 + s * z;
+    expected += step * std::exp(-0.5 * z * z) / std::sqrt(2.0 * kPi) *
+                std::pow(std::acos(cosine), 2) / cone_angle_variance_rad2(cosine, s * s);
+  }
+  std::printf("cone NEES, source exactly at endfire: %.3f (expected %.3f)\n", exact[0].mean(),
+              expected);
+  EXPECT_GT(expected, 2.0);
+  EXPECT_NEAR(exact[0].mean(), expected, 0.1 * expected);
 }
 
 TEST(Mirror, PlanarArrayGivesItsNormalOnTheReportedSide) {
