@@ -11,6 +11,7 @@
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "doa/gcc_phat.hpp"
@@ -102,7 +103,15 @@ std::vector<ConeCase> cone_cases() {
       cases.push_back({angle, yaw});
   return cases;
 }
-INSTANTIATE_TEST_SUITE_P(Pair, ConeAngle, ::testing::ValuesIn(cone_cases()));
+// Test names: angle and yaw in tenths of a degree ("angle1799_yawm1350").
+std::string cone_case_name(const ::testing::TestParamInfo<ConeCase>& info) {
+  const auto tenths = [](double degrees_value) {
+    const long value = std::lround(degrees_value * 10.0);
+    return (value < 0 ? "m" : "") + std::to_string(std::abs(value));
+  };
+  return "angle" + tenths(info.param.angle_deg) + "_yaw" + tenths(info.param.yaw_deg);
+}
+INSTANTIATE_TEST_SUITE_P(Pair, ConeAngle, ::testing::ValuesIn(cone_cases()), cone_case_name);
 
 TEST(Cone, AxisPointsFromMicZeroTowardsMicOne) {
   // A source straight out beyond mic 1 is heard there first: angle 0 to the axis mic 0 -> mic 1.
