@@ -20,9 +20,7 @@ constexpr double kRankTolerance = 1e-4;
 constexpr double kMinLever = 0.05;
 // Variance given to a direction the geometry cannot resolve (the cone's free angle): (90 deg)^2.
 constexpr double kUnresolvedVariance = (std::numbers::pi / 2.0) * (std::numbers::pi / 2.0);
-}  // namespace
 
-namespace {
 int rank_of_scatter(const Eigen::Vector3d& ascending_eigenvalues) {
   int rank = 0;
   for (int axis = 0; axis < 3; ++axis)
@@ -148,9 +146,9 @@ double cone_angle_variance_rad2(double measured_cosine, double cosine_variance) 
   // integral runs over theta (c = cos theta, dc = sin theta dtheta), where the integrand is
   // smooth even at the axis.
   const double sigma = std::sqrt(cosine_variance);
-  const double reported_rad = std::acos(std::clamp(measured_cosine, -1.0, 1.0));
-  constexpr double kSpan = 8.0;  // standard deviations of the cosine each side
   const double nearest = std::clamp(measured_cosine, -1.0, 1.0);
+  const double reported_rad = std::acos(nearest);
+  constexpr double kSpan = 8.0;  // standard deviations of the cosine each side
   const double low = std::max(-1.0, nearest - kSpan * sigma);
   const double high = std::min(1.0, nearest + kSpan * sigma);
   const double first = std::acos(high);
@@ -358,9 +356,9 @@ LsDoaSolver::ArrayFit LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas,
   } else {
     if (norm > 1.0 + settings_.max_norm_error) return fit;
     fit.cone_cosine = v(0);
-    // The residual judges the fit at the measured cosine: beyond +-1 is the cone's edge (the
-    // source near the axis plus noise), not a worse fit.
-    direction_array = basis.col(0) * v(0);
+    // The residual at the cosine clamped to the cone's edge: a cosine a few sigma beyond +-1 is a
+    // source near the axis plus noise, one far beyond is no plane wave (the gate below).
+    direction_array = basis.col(0) * std::clamp(v(0), -1.0, 1.0);
   }
   if (dimensions >= 2) direction_array.normalize();
 
@@ -380,9 +378,13 @@ LsDoaSolver::ArrayFit LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas,
   // direction is that much less certain.
   const double inflation = std::max(1.0, solution.chi2_per_dof);
   if (dimensions == 1) {
+    // The cosine's variance is inflated by the fit's own misfit only (chi^2 is quadratic in the
+    // cosine: the clamp adds (clamp - c^)^2 / var): the posterior already reads the overshoot.
+    const double excess = std::clamp(fit.cone_cosine, -1.0, 1.0) - fit.cone_cosine;
+    const double fit_chi2 = std::max(0.0, chi2 - excess * excess / inverse(0, 0));
     fit.cone_angle_rad = std::acos(std::clamp(fit.cone_cosine, -1.0, 1.0));
     fit.cone_angle_variance_rad2 =
-        cone_angle_variance_rad2(fit.cone_cosine, inverse(0, 0) * inflation);
+        cone_angle_variance_rad2(fit.cone_cosine, inverse(0, 0) * std::max(1.0, fit_chi2 / dof));
   } else {
     fit.direction = direction_array;
     fit.covariance = direction_covariance * inflation;

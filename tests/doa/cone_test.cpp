@@ -192,6 +192,18 @@ TEST(Cone, NonFiniteTdoaGivesNoSolution) {
     tdoas = {{1e-4, bad, 0.9}};
     EXPECT_FALSE(solver.solve(tdoas).accepted);
   }
+  // A cosine a few sigma beyond 1 is a source near the axis plus noise; one far beyond
+  // (chi^2 of the overshoot > max_chi2_per_dof = 30) is no plane wave.
+  const double sigma_s = 2e-6;
+  const double edge_s = -0.6 / kSound;  // tau_01 = -d/c: a source straight beyond mic 0
+  const double s = kSound * sigma_s / 0.6;
+  std::vector<PairTdoa> near_edge = {{edge_s - 3.0 * sigma_s, sigma_s * sigma_s, 0.9}};
+  const DoaSolution near = solver.solve(near_edge);
+  ASSERT_TRUE(near.accepted);
+  EXPECT_EQ(near.cone_angle_rad, kPi);
+  EXPECT_LT(near.cone_angle_variance_rad2, cone_angle_variance_rad2(-1.0, s * s));
+  near_edge[0].tdoa_s = edge_s - 10.0 * sigma_s;
+  EXPECT_FALSE(solver.solve(near_edge).accepted);
   // Beyond the physical lag by more than the norm gate (max_norm_error 0.25): no cone.
   const std::vector<PairTdoa> beyond = {{1.3 * 0.6 / kSound, 1e-12, 0.9}};
   EXPECT_FALSE(solver.solve(beyond).accepted);
