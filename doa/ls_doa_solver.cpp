@@ -155,7 +155,8 @@ double cone_angle_variance_rad2(double measured_cosine, double cosine_variance) 
   const double last = std::acos(low);
   constexpr int kIntervals = 96;  // even (Simpson)
   const double step = (last - first) / kIntervals;
-  if (!(step > 0.0)) return 0.0;
+  // A cosine noise below the doubles' resolution of the angle: the first-order answer.
+  if (!(step > 0.0)) return cosine_variance / std::max(1.0 - nearest * nearest, 1e-300);
   double mass = 0.0;
   double moment = 0.0;
   for (int i = 0; i <= kIntervals; ++i) {

@@ -235,6 +235,7 @@ TEST(Cone, AngleVarianceIsLinearOffTheAxisAndFollowsTheSquareRootOnIt) {
   EXPECT_LT(beyond, 0.7 * endfire);
   EXPECT_GT(beyond, 0.1 * endfire);
   EXPECT_EQ(cone_angle_variance_rad2(1.0, 0.0), 0.0);
+  EXPECT_NEAR(cone_angle_variance_rad2(0.5, 1e-40), 1e-40 / 0.75, 1e-42);  // below resolution
   EXPECT_EQ(cone_angle_variance_rad2(std::numeric_limits<double>::quiet_NaN(), 1e-6), 0.0);
 }
 
