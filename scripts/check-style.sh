@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Formatting (clang-format) and layering: the estimation core (doa/, fusion/) never includes an
-# edge header (DDS, PortAudio, sndfile, HTTP, JSON, CLI) nor a header of an edge module.
+# Formatting (clang-format) and layering: the estimation core (doa/, fusion/, calib/) never
+# includes an edge header (DDS, PortAudio, sndfile, HTTP, JSON, CLI) nor a header of an edge module.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 status=0
@@ -13,8 +13,8 @@ if command -v clang-format >/dev/null 2>&1; then
   fi
 fi
 forbidden='#include *[<"](dds/|portaudio|sndfile|httplib|nlohmann|CLI/|capture/|config/|sim/|dds_idl/|http_api/|apps/)'
-if grep -nE "$forbidden" $(git ls-files 'doa/*' 'fusion/*' | grep -E '\.(cpp|hpp)$'); then
-  echo "check-style: the core (doa/, fusion/) includes an edge header (above)" >&2
+if grep -nE "$forbidden" $(git ls-files 'doa/*' 'fusion/*' 'calib/*' | grep -E '\.(cpp|hpp)$'); then
+  echo "check-style: the core (doa/, fusion/, calib/) includes an edge header (above)" >&2
   status=1
 fi
 exit $status

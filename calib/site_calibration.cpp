@@ -1,0 +1,595 @@
+#include "calib/site_calibration.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <sstream>
+
+#include <ceres/ceres.h>
+#include <ceres/normal_prior.h>
+
+#include "calib/tdoa_model.hpp"
+
+namespace dronetrack::calib {
+namespace {
+
+constexpr double kRadPerDeg = std::numbers::pi / 180.0;
+constexpr std::size_t kMaxMics = 8;  // as doa::kMaxPairs (28 pairs)
+// Consistency factor of the median absolute deviation for a Gaussian.
+constexpr double kMadToStd = 1.4826;
+
+// The unknowns of one array, as corrections to its nominal values: the storage Ceres works on.
+struct ArrayUnknowns {
+  std::array<double, 3> attitude_rad{};  // yaw, pitch, roll corrections
+  std::array<double, 3> position_m{};    // site frame
+  std::vector<double> mic_offsets_m;     // 3 per mic, array frame
+  std::vector<double> delays_s;          // per mic; [0] held at 0
+  double clock_s = 0.0;
+};
+
+// One frame's residuals, whitened: (predicted - measured) / tdoa_std. The source is where the
+// two bracketing reference positions put it at the emission time solved at the current clock
+// offset; a change of the clock offset moves it back along the smoothed velocity (exact at
+// convergence: the outer loop re-solves the emission time at the new clock).
+struct TdoaResidual {
+  const ArrayNominal* array = nullptr;
+  std::vector<double> measured_s;
+  double weight = 0.0;  // of the upper sample at the emission time
+  Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();
+  double clock_linearised_s = 0.0;
+  double inverse_std = 1.0;
+  double speed_of_sound_mps = 343.0;
+
+  // parameters: attitude(3), position(3), mic offsets(3n), delays(n), clock(1), lower(3),
+  // upper(3)
+  template <class T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    const T* attitude = parameters[0];
+    const T* position = parameters[1];
+    const T* offsets = parameters[2];
+    const T* delays = parameters[3];
+    const T* clock = parameters[4];
+    const T* lower = parameters[5];
+    const T* upper = parameters[6];
+    const std::size_t mics = array->mics_m.size();
+    const T yaw = T(array->yaw_deg * kRadPerDeg) + attitude[0];
+    const T pitch = T(array->pitch_deg * kRadPerDeg) + attitude[1];
+    const T roll = T(array->roll_deg * kRadPerDeg) + attitude[2];
+    std::array<T, 3 * kMaxMics> mic_site;
+    for (std::size_t i = 0; i < mics; ++i) {
+      const T in_array[3] = {T(array->mics_m[i].x()) + offsets[3 * i],
+                             T(array->mics_m[i].y()) + offsets[3 * i + 1],
+                             T(array->mics_m[i].z()) + offsets[3 * i + 2]};
+      rotate_array_to_site(yaw, pitch, roll, in_array, &mic_site[3 * i]);
+      for (int axis = 0; axis < 3; ++axis)
+        mic_site[3 * i + static_cast<std::size_t>(axis)] +=
+            T(array->position_m(axis)) + position[axis];
+    }
+    const T clock_change = clock[0] - T(clock_linearised_s);
+    T source[3];
+    for (int axis = 0; axis < 3; ++axis)
+      source[axis] = lower[axis] + T(weight) * (upper[axis] - lower[axis]) -
+                     T(velocity_mps(axis)) * clock_change;
+    std::array<T, kMaxMics*(kMaxMics - 1) / 2> predicted;
+    predict_tdoas(source, mic_site.data(), delays, mics, speed_of_sound_mps, predicted.data());
+    for (std::size_t p = 0; p < measured_s.size(); ++p)
+      residuals[p] = (predicted[p] - T(measured_s[p])) * T(inverse_std);
+    return true;
+  }
+};
+
+std::string frame_name(const std::vector<ArrayNominal>& arrays, const TdoaFrame& frame,
+                       std::size_t index) {
+  std::ostringstream out;
+  out << "TDOA frame " << index << " (array "
+      << (frame.array >= 0 && static_cast<std::size_t>(frame.array) < arrays.size()
+              ? arrays[static_cast<std::size_t>(frame.array)].id
+              : std::string("?"))
+      << ", t = " << frame.time_s << " s)";
+  return out.str();
+}
+
+void check_input(const std::vector<ArrayNominal>& arrays, const std::vector<TdoaFrame>& frames,
+                 const ReferenceTrack& reference, const CalibrationSettings& settings) {
+  if (arrays.empty()) throw CalibrationError("no arrays to calibrate");
+  for (const auto& array : arrays) {
+    const std::size_t mics = array.mics_m.size();
+    if (mics < 2 || mics > kMaxMics)
+      throw CalibrationError("array " + array.id + ": " + std::to_string(mics) +
+                             " mics; the calibration takes 2 to 8");
+    bool finite = array.position_m.allFinite() && std::isfinite(array.yaw_deg) &&
+                  std::isfinite(array.pitch_deg) && std::isfinite(array.roll_deg) &&
+                  std::isfinite(array.mic_position_std_m) && array.mic_position_std_m >= 0.0;
+    for (const auto& mic : array.mics_m) finite = finite && mic.allFinite();
+    if (!finite) throw CalibrationError("array " + array.id + ": a non-finite nominal value");
+  }
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const TdoaFrame& frame = frames[k];
+    if (frame.array < 0 || static_cast<std::size_t>(frame.array) >= arrays.size())
+      throw CalibrationError(frame_name(arrays, frame, k) + ": no such array");
+    const std::size_t mics = arrays[static_cast<std::size_t>(frame.array)].mics_m.size();
+    if (frame.tdoa_s.size() != mics * (mics - 1) / 2)
+      throw CalibrationError(frame_name(arrays, frame, k) + ": " +
+                             std::to_string(frame.tdoa_s.size()) + " pair delays for " +
+                             std::to_string(mics) + " mics");
+    bool finite = std::isfinite(frame.time_s);
+    for (double tdoa : frame.tdoa_s) finite = finite && std::isfinite(tdoa);
+    if (!finite) throw CalibrationError(frame_name(arrays, frame, k) + ": a non-finite value");
+  }
+  for (std::size_t i = 0; i < reference.samples().size(); ++i) {
+    if (!reference.samples()[i].position_m.allFinite() ||
+        !std::isfinite(reference.samples()[i].time_s))
+      throw CalibrationError("reference sample " + std::to_string(i) + ": a non-finite value");
+  }
+  const CalibrationPriors& priors = settings.priors;
+  for (double value :
+       {priors.attitude_std_deg, priors.array_position_std_m, priors.channel_delay_std_s,
+        priors.clock_offset_std_s, settings.reference_position_std_m, settings.tdoa_std_s}) {
+    if (!(std::isfinite(value) && value >= 0.0))
+      throw CalibrationError("a prior std is negative or not finite");
+  }
+}
+
+// A frame placed on the reference track: its emission time and bracket.
+struct PlacedFrame {
+  std::size_t frame = 0;
+  double emission_s = 0.0;
+  ReferenceBracket bracket;
+  Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();
+};
+
+Eigen::Vector3d calibrated_centre(const ArrayNominal& array, const ArrayUnknowns& unknowns) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < array.mics_m.size(); ++i)
+    sum += array.mics_m[i] + Eigen::Vector3d(unknowns.mic_offsets_m[3 * i],
+                                             unknowns.mic_offsets_m[3 * i + 1],
+                                             unknowns.mic_offsets_m[3 * i + 2]);
+  const double in[3] = {sum.x() / static_cast<double>(array.mics_m.size()),
+                        sum.y() / static_cast<double>(array.mics_m.size()),
+                        sum.z() / static_cast<double>(array.mics_m.size())};
+  double out[3];
+  rotate_array_to_site((array.yaw_deg * kRadPerDeg) + unknowns.attitude_rad[0],
+                       (array.pitch_deg * kRadPerDeg) + unknowns.attitude_rad[1],
+                       (array.roll_deg * kRadPerDeg) + unknowns.attitude_rad[2], in, out);
+  return array.position_m +
+         Eigen::Vector3d(unknowns.position_m[0], unknowns.position_m[1], unknowns.position_m[2]) +
+         Eigen::Vector3d(out[0], out[1], out[2]);
+}
+
+std::vector<PlacedFrame> place_frames(const std::vector<ArrayNominal>& arrays,
+                                      const std::vector<TdoaFrame>& frames,
+                                      const std::vector<ArrayUnknowns>& unknowns,
+                                      const ReferenceTrack& reference,
+                                      const std::vector<Eigen::Vector3d>& positions,
+                                      double speed_of_sound_mps) {
+  std::vector<PlacedFrame> placed;
+  placed.reserve(frames.size());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const auto a = static_cast<std::size_t>(frames[k].array);
+    const Eigen::Vector3d listener = calibrated_centre(arrays[a], unknowns[a]);
+    const auto emission = reference.emission_time_s(frames[k].time_s - unknowns[a].clock_s,
+                                                    listener, speed_of_sound_mps, positions);
+    if (!emission) continue;
+    const auto bracket = reference.bracket(*emission);
+    if (!bracket) continue;
+    placed.push_back({k, *emission, *bracket, reference.velocity_mps(*emission, 1.0)});
+  }
+  return placed;
+}
+
+TdoaResidual make_residual(const ArrayNominal& array, const TdoaFrame& frame,
+                           const PlacedFrame& placed, double clock_s, double tdoa_std_s,
+                           double speed_of_sound_mps) {
+  TdoaResidual residual;
+  residual.array = &array;
+  residual.measured_s = frame.tdoa_s;
+  residual.weight = placed.bracket.weight;
+  residual.velocity_mps = placed.velocity_mps;
+  residual.clock_linearised_s = clock_s;
+  residual.inverse_std = 1.0 / tdoa_std_s;
+  residual.speed_of_sound_mps = speed_of_sound_mps;
+  return residual;
+}
+
+// Unwhitened residuals (s) of every placed frame at the current unknowns.
+std::vector<std::vector<double>> frame_residuals(const std::vector<ArrayNominal>& arrays,
+                                                 const std::vector<TdoaFrame>& frames,
+                                                 const std::vector<PlacedFrame>& placed,
+                                                 const std::vector<ArrayUnknowns>& unknowns,
+                                                 const std::vector<Eigen::Vector3d>& positions,
+                                                 double speed_of_sound_mps) {
+  std::vector<std::vector<double>> out;
+  out.reserve(placed.size());
+  for (const auto& place : placed) {
+    const TdoaFrame& frame = frames[place.frame];
+    const auto a = static_cast<std::size_t>(frame.array);
+    const TdoaResidual residual =
+        make_residual(arrays[a], frame, place, unknowns[a].clock_s, 1.0, speed_of_sound_mps);
+    const auto lower = static_cast<std::size_t>(place.bracket.index);
+    const double* parameters[7] = {unknowns[a].attitude_rad.data(),
+                                   unknowns[a].position_m.data(),
+                                   unknowns[a].mic_offsets_m.data(),
+                                   unknowns[a].delays_s.data(),
+                                   &unknowns[a].clock_s,
+                                   positions[lower].data(),
+                                   positions[lower + 1].data()};
+    std::vector<double> values(frame.tdoa_s.size());
+    residual(parameters, values.data());
+    out.push_back(std::move(values));
+  }
+  return out;
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+ResidualStats stats_of(const std::vector<std::vector<double>>& residuals,
+                       const std::vector<PlacedFrame>& placed, const std::vector<TdoaFrame>& frames,
+                       int array) {
+  std::vector<double> magnitudes;
+  double sum_squares = 0.0;
+  for (std::size_t k = 0; k < residuals.size(); ++k) {
+    if (array >= 0 && frames[placed[k].frame].array != array) continue;
+    for (double value : residuals[k]) {
+      magnitudes.push_back(std::abs(value));
+      sum_squares += value * value;
+    }
+  }
+  ResidualStats stats;
+  stats.count = static_cast<int>(magnitudes.size());
+  if (stats.count == 0) return stats;
+  stats.rms_s = std::sqrt(sum_squares / stats.count);
+  stats.median_abs_s = median(std::move(magnitudes));
+  return stats;
+}
+
+// Greedy count of directions (from the array's nominal centre to the source) at least
+// `separation_deg` apart; stops counting at `enough`.
+int distinct_directions(const ArrayNominal& array, const std::vector<TdoaFrame>& frames,
+                        const std::vector<PlacedFrame>& placed, int array_index,
+                        const ReferenceTrack& reference,
+                        const std::vector<Eigen::Vector3d>& positions, double separation_deg,
+                        int enough) {
+  const ArrayUnknowns zero{{}, {}, std::vector<double>(3 * array.mics_m.size(), 0.0), {}, 0.0};
+  const Eigen::Vector3d centre = calibrated_centre(array, zero);
+  const double cos_separation = std::cos(separation_deg * kRadPerDeg);
+  std::vector<Eigen::Vector3d> kept;
+  for (const auto& place : placed) {
+    if (frames[place.frame].array != array_index) continue;
+    const Eigen::Vector3d offset = reference.position_at(place.bracket, positions) - centre;
+    if (offset.norm() < 1e-6) continue;
+    const Eigen::Vector3d direction = offset.normalized();
+    const bool is_new = std::all_of(kept.begin(), kept.end(), [&](const Eigen::Vector3d& other) {
+      return direction.dot(other) < cos_separation;
+    });
+    if (is_new) kept.push_back(direction);
+    if (static_cast<int>(kept.size()) >= enough) break;
+  }
+  return static_cast<int>(kept.size());
+}
+
+// A Gaussian prior on a whole block: residual = (x - mean) / std, per coordinate.
+ceres::CostFunction* prior_on(const Eigen::VectorXd& mean, const Eigen::VectorXd& std) {
+  const Eigen::VectorXd inverse = std.cwiseInverse();
+  const ceres::Matrix weights = inverse.asDiagonal();
+  return new ceres::NormalPrior(weights, mean);
+}
+
+Estimate make_estimate(double nominal, double value, double variance, double prior_std,
+                       double excited_ratio) {
+  Estimate estimate;
+  estimate.nominal = nominal;
+  estimate.value = value;
+  estimate.std = std::sqrt(std::max(0.0, variance));
+  estimate.prior_std = prior_std;
+  estimate.excited = prior_std > 0.0 && estimate.std < excited_ratio * prior_std;
+  return estimate;
+}
+
+// The problem at one linearisation (emission times, TDOA std): built, solved, and kept for the
+// covariance.
+struct Solve {
+  std::unique_ptr<ceres::Problem> problem;
+  std::string report;
+};
+
+Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<TdoaFrame>& frames,
+                 const std::vector<PlacedFrame>& placed, std::vector<ArrayUnknowns>& unknowns,
+                 const ReferenceTrack& reference, std::vector<Eigen::Vector3d>& positions,
+                 const CalibrationSettings& settings, double tdoa_std_s) {
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  Solve solve;
+  solve.problem = std::make_unique<ceres::Problem>(problem_options);
+  ceres::Problem& problem = *solve.problem;
+  const CalibrationPriors& priors = settings.priors;
+
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    ArrayUnknowns& u = unknowns[a];
+    const std::size_t mics = arrays[a].mics_m.size();
+    problem.AddParameterBlock(u.attitude_rad.data(), 3);
+    problem.AddParameterBlock(u.position_m.data(), 3);
+    problem.AddParameterBlock(u.mic_offsets_m.data(), static_cast<int>(3 * mics));
+    problem.AddParameterBlock(u.delays_s.data(), static_cast<int>(mics),
+                              new ceres::SubsetManifold(static_cast<int>(mics), {0}));
+    problem.AddParameterBlock(&u.clock_s, 1);
+    const auto add_prior = [&](double* block, int size, double std) {
+      if (std <= 0.0) {
+        problem.SetParameterBlockConstant(block);
+        return;
+      }
+      problem.AddResidualBlock(
+          prior_on(Eigen::VectorXd::Zero(size), Eigen::VectorXd::Constant(size, std)), nullptr,
+          block);
+    };
+    add_prior(u.attitude_rad.data(), 3, priors.attitude_std_deg * kRadPerDeg);
+    add_prior(u.position_m.data(), 3, priors.array_position_std_m);
+    add_prior(u.mic_offsets_m.data(), static_cast<int>(3 * mics), arrays[a].mic_position_std_m);
+    add_prior(u.delays_s.data(), static_cast<int>(mics), priors.channel_delay_std_s);
+    add_prior(&u.clock_s, 1, priors.clock_offset_std_s);
+  }
+
+  std::vector<bool> used(positions.size(), false);
+  for (const auto& place : placed) {
+    const TdoaFrame& frame = frames[place.frame];
+    const auto a = static_cast<std::size_t>(frame.array);
+    ArrayUnknowns& u = unknowns[a];
+    const auto lower = static_cast<std::size_t>(place.bracket.index);
+    auto* cost =
+        new ceres::DynamicAutoDiffCostFunction<TdoaResidual, 8>(new TdoaResidual(make_residual(
+            arrays[a], frame, place, u.clock_s, tdoa_std_s, settings.speed_of_sound_mps)));
+    const std::size_t mics = arrays[a].mics_m.size();
+    for (int size : {3, 3, static_cast<int>(3 * mics), static_cast<int>(mics), 1, 3, 3})
+      cost->AddParameterBlock(size);
+    cost->SetNumResiduals(static_cast<int>(frame.tdoa_s.size()));
+    const std::vector<double*> blocks = {
+        u.attitude_rad.data(),      u.position_m.data(), u.mic_offsets_m.data(),
+        u.delays_s.data(),          &u.clock_s,          positions[lower].data(),
+        positions[lower + 1].data()};
+    problem.AddResidualBlock(cost, new ceres::HuberLoss(settings.huber_threshold), blocks);
+    used[lower] = used[lower + 1] = true;
+  }
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    if (!used[i]) continue;
+    if (settings.reference_position_std_m <= 0.0) {
+      problem.SetParameterBlockConstant(positions[i].data());
+      continue;
+    }
+    problem.AddResidualBlock(prior_on(reference.samples()[i].position_m,
+                                      Eigen::Vector3d::Constant(settings.reference_position_std_m)),
+                             nullptr, positions[i].data());
+  }
+
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = 100;
+  options.num_threads = 1;  // the machine's cores belong to the nodes
+  options.logging_type = ceres::SILENT;
+  options.function_tolerance = 1e-10;
+  options.parameter_tolerance = 1e-12;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) throw CalibrationError("the solver failed: " + summary.message);
+  solve.report = summary.BriefReport();
+  return solve;
+}
+
+// Free scalars the TDOA residuals see: the arrays' unknowns and the reference positions.
+int free_parameters(const Solve& solve, const std::vector<ArrayNominal>& arrays,
+                    std::vector<ArrayUnknowns>& unknowns, std::vector<Eigen::Vector3d>& positions) {
+  int count = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    for (double* block :
+         {unknowns[a].attitude_rad.data(), unknowns[a].position_m.data(),
+          unknowns[a].mic_offsets_m.data(), unknowns[a].delays_s.data(), &unknowns[a].clock_s}) {
+      if (!solve.problem->IsParameterBlockConstant(block))
+        count += solve.problem->ParameterBlockTangentSize(block);
+    }
+  }
+  for (auto& position : positions) {
+    if (solve.problem->HasParameterBlock(position.data()) &&
+        !solve.problem->IsParameterBlockConstant(position.data()))
+      count += 3;
+  }
+  return count;
+}
+
+}  // namespace
+
+CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
+                                 const std::vector<TdoaFrame>& frames,
+                                 const ReferenceTrack& reference,
+                                 const CalibrationSettings& settings) {
+  check_input(arrays, frames, reference, settings);
+  std::vector<ArrayUnknowns> unknowns(arrays.size());
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    unknowns[a].mic_offsets_m.assign(3 * arrays[a].mics_m.size(), 0.0);
+    unknowns[a].delays_s.assign(arrays[a].mics_m.size(), 0.0);
+  }
+  std::vector<Eigen::Vector3d> positions;
+  for (const auto& sample : reference.samples()) positions.push_back(sample.position_m);
+
+  CalibrationResult result;
+  std::vector<PlacedFrame> placed =
+      place_frames(arrays, frames, unknowns, reference, positions, settings.speed_of_sound_mps);
+  if (placed.empty()) {
+    double first = 0.0, last = 0.0;
+    if (!frames.empty()) {
+      const auto [low, high] = std::minmax_element(
+          frames.begin(), frames.end(),
+          [](const TdoaFrame& x, const TdoaFrame& y) { return x.time_s < y.time_s; });
+      first = low->time_s;
+      last = high->time_s;
+    }
+    std::ostringstream out;
+    out << "no TDOA frame falls on the reference track (reference t = " << reference.start_s()
+        << ".." << reference.end_s() << " s; "
+        << (frames.empty()
+                ? std::string("no TDOA frames at all")
+                : "TDOA frames t = " + std::to_string(first) + ".." + std::to_string(last) + " s")
+        << ")";
+    throw CalibrationError(out.str());
+  }
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    const int directions = distinct_directions(
+        arrays[a], frames, placed, static_cast<int>(a), reference, positions,
+        settings.min_direction_separation_deg, settings.min_distinct_directions);
+    if (directions < settings.min_distinct_directions) {
+      std::ostringstream out;
+      out << "array " << arrays[a].id << ": the reference is heard from " << directions
+          << " distinct direction" << (directions == 1 ? "" : "s") << "; at least "
+          << settings.min_distinct_directions << " at least "
+          << settings.min_direction_separation_deg
+          << " degrees apart are needed (fly around the array)";
+      throw CalibrationError(out.str());
+    }
+  }
+
+  const auto before =
+      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+  result.before = stats_of(before, placed, frames, -1);
+  std::vector<ResidualStats> before_per_array;
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    before_per_array.push_back(stats_of(before, placed, frames, static_cast<int>(a)));
+
+  // The first weights come from the nominal misfit (too wide: it holds the errors to be found);
+  // each pass re-places the frames at the new clocks and, unless given, re-estimates the TDOA
+  // noise from what the calibrated model leaves.
+  const bool estimate_std = settings.tdoa_std_s <= 0.0;
+  double tdoa_std_s = estimate_std
+                          ? std::max(1e-9, kMadToStd * std::max(result.before.median_abs_s, 1e-9))
+                          : settings.tdoa_std_s;
+  Solve solve;
+  const int passes = estimate_std ? 4 : 2;
+  for (int pass = 0; pass < passes; ++pass) {
+    if (pass > 0)
+      placed =
+          place_frames(arrays, frames, unknowns, reference, positions, settings.speed_of_sound_mps);
+    solve =
+        solve_once(arrays, frames, placed, unknowns, reference, positions, settings, tdoa_std_s);
+    if (estimate_std && pass + 1 < passes) {
+      const auto residuals =
+          frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+      const ResidualStats stats = stats_of(residuals, placed, frames, -1);
+      // The fit absorbs part of the noise (every reference sample moves to meet the TDOAs):
+      // scale by sqrt(n / (n - free parameters)), counting them all (a slight overestimate).
+      const double free = static_cast<double>(free_parameters(solve, arrays, unknowns, positions));
+      const double dof_factor =
+          stats.count > free ? std::sqrt(stats.count / (stats.count - free)) : 1.0;
+      tdoa_std_s = std::max(1e-9, kMadToStd * stats.median_abs_s * dof_factor);
+    }
+  }
+  result.tdoa_std_s = tdoa_std_s;
+  result.tdoa_std_estimated = estimate_std;
+  result.solver_report = solve.report;
+  result.frames_used = static_cast<int>(placed.size());
+  result.frames_off_reference = static_cast<int>(frames.size() - placed.size());
+
+  ceres::Covariance::Options covariance_options;
+  covariance_options.num_threads = 1;
+  ceres::Covariance covariance(covariance_options);
+  std::vector<std::pair<const double*, const double*>> wanted;
+  for (auto& u : unknowns) {
+    for (const double* block :
+         {static_cast<const double*>(u.attitude_rad.data()),
+          static_cast<const double*>(u.position_m.data()),
+          static_cast<const double*>(u.mic_offsets_m.data()),
+          static_cast<const double*>(u.delays_s.data()), static_cast<const double*>(&u.clock_s)}) {
+      if (!solve.problem->IsParameterBlockConstant(const_cast<double*>(block)))
+        wanted.emplace_back(block, block);
+    }
+  }
+  if (!covariance.Compute(wanted, solve.problem.get()))
+    throw CalibrationError(
+        "the calibration's covariance could not be computed (a parameter no data or prior "
+        "constrains)");
+  const auto variances = [&](const double* block, int size) {
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(size, size);
+    if (!solve.problem->IsParameterBlockConstant(const_cast<double*>(block)))
+      covariance.GetCovarianceBlock(block, block, out.data());
+    return out.diagonal().eval();
+  };
+
+  const auto after =
+      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+  result.after = stats_of(after, placed, frames, -1);
+  std::vector<bool> used(positions.size(), false);
+  for (const auto& place : placed)
+    used[static_cast<std::size_t>(place.bracket.index)] =
+        used[static_cast<std::size_t>(place.bracket.index) + 1] = true;
+  result.reference_samples_used = static_cast<int>(std::count(used.begin(), used.end(), true));
+
+  const CalibrationPriors& priors = settings.priors;
+  const double ratio = settings.excited_ratio;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    const ArrayNominal& nominal = arrays[a];
+    const ArrayUnknowns& u = unknowns[a];
+    const std::size_t mics = nominal.mics_m.size();
+    ArrayCalibration out;
+    out.id = nominal.id;
+    const Eigen::VectorXd attitude = variances(u.attitude_rad.data(), 3);
+    const double attitude_scale = 1.0 / kRadPerDeg;
+    const double attitude_prior = priors.attitude_std_deg;
+    out.yaw_deg =
+        make_estimate(nominal.yaw_deg, nominal.yaw_deg + u.attitude_rad[0] * attitude_scale,
+                      attitude(0) * attitude_scale * attitude_scale, attitude_prior, ratio);
+    out.pitch_deg =
+        make_estimate(nominal.pitch_deg, nominal.pitch_deg + u.attitude_rad[1] * attitude_scale,
+                      attitude(1) * attitude_scale * attitude_scale, attitude_prior, ratio);
+    out.roll_deg =
+        make_estimate(nominal.roll_deg, nominal.roll_deg + u.attitude_rad[2] * attitude_scale,
+                      attitude(2) * attitude_scale * attitude_scale, attitude_prior, ratio);
+    const Eigen::VectorXd position = variances(u.position_m.data(), 3);
+    for (int axis = 0; axis < 3; ++axis) {
+      const auto index = static_cast<std::size_t>(axis);
+      out.position_m[index] =
+          make_estimate(nominal.position_m(axis), nominal.position_m(axis) + u.position_m[index],
+                        position(axis), priors.array_position_std_m, ratio);
+    }
+    const Eigen::VectorXd offsets = variances(u.mic_offsets_m.data(), static_cast<int>(3 * mics));
+    const Eigen::VectorXd delays = variances(u.delays_s.data(), static_cast<int>(mics));
+    for (std::size_t i = 0; i < mics; ++i) {
+      std::array<Estimate, 3> mic;
+      for (int axis = 0; axis < 3; ++axis) {
+        const std::size_t k = 3 * i + static_cast<std::size_t>(axis);
+        mic[static_cast<std::size_t>(axis)] =
+            make_estimate(nominal.mics_m[i](axis), nominal.mics_m[i](axis) + u.mic_offsets_m[k],
+                          offsets(static_cast<Eigen::Index>(k)), nominal.mic_position_std_m, ratio);
+      }
+      out.mic_position_m.push_back(mic);
+      out.channel_delay_s.push_back(
+          make_estimate(0.0, u.delays_s[i], delays(static_cast<Eigen::Index>(i)),
+                        i == 0 ? 0.0 : priors.channel_delay_std_s, ratio));
+    }
+    out.clock_offset_s = make_estimate(0.0, u.clock_s, variances(&u.clock_s, 1)(0),
+                                       priors.clock_offset_std_s, ratio);
+    out.frames = 0;
+    for (const auto& place : placed) out.frames += frames[place.frame].array == static_cast<int>(a);
+    out.distinct_directions =
+        distinct_directions(nominal, frames, placed, static_cast<int>(a), reference, positions,
+                            settings.min_direction_separation_deg, 1000);
+    out.before = before_per_array[a];
+    out.after = stats_of(after, placed, frames, static_cast<int>(a));
+    out.calibrated = nominal;
+    out.calibrated.yaw_deg = out.yaw_deg.value;
+    out.calibrated.pitch_deg = out.pitch_deg.value;
+    out.calibrated.roll_deg = out.roll_deg.value;
+    for (int axis = 0; axis < 3; ++axis)
+      out.calibrated.position_m(axis) = out.position_m[static_cast<std::size_t>(axis)].value;
+    for (std::size_t i = 0; i < mics; ++i) {
+      for (int axis = 0; axis < 3; ++axis)
+        out.calibrated.mics_m[i](axis) =
+            out.mic_position_m[i][static_cast<std::size_t>(axis)].value;
+    }
+    result.arrays.push_back(std::move(out));
+  }
+  return result;
+}
+
+}  // namespace dronetrack::calib
