@@ -349,7 +349,11 @@ std::optional<MovingArray> parse_array_motion(json& array, const std::string& pa
   moving.motion.pitch_deg = reader.number("pitch_deg", 0.0, -90.0, 90.0);
   moving.motion.roll_deg = reader.number("roll_deg", 0.0, -180.0, 180.0);
   moving.pose_rate_hz = reader.number("pose_rate_hz", moving.pose_rate_hz, 1.0, 1000.0);
-  if (!trajectory || diagnostics.errors.size() != errors_before) return std::nullopt;
+  if (!trajectory || diagnostics.errors.size() != errors_before) {
+    // The site parser would add "position_m missing" to the real problem.
+    if (!array.contains("position_m")) array["position_m"] = {0.0, 0.0, 0.0};
+    return std::nullopt;
+  }
   moving.motion.trajectory = *trajectory;
   const Eigen::Vector3d start_m = trajectory->position(0.0);
   if (!array.contains("position_m")) {
