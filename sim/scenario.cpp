@@ -455,7 +455,9 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
     ObjectReader root(document, "", diagnostics);
     scenario.description = root.string("description", "");
     scenario.seed = static_cast<std::uint64_t>(root.integer("seed", 0, 0, 2147483647));
-    scenario.sample_rate_hz = root.number("sample_rate_hz", 48000.0, 8000.0, 192000.0);
+    // What replay takes (hydrophones sample at 100 kHz and more), no narrower.
+    scenario.sample_rate_hz = root.number("sample_rate_hz", 48000.0, config::kMinSampleRate_hz,
+                                          config::kMaxSampleRate_hz);
     scenario.duration_s = root.required_number("duration_s", 0.01, 3600.0).value_or(1.0);
     scenario.full_scale_db_spl = root.number("full_scale_db_spl", 120.0, 60.0, 200.0);
     {

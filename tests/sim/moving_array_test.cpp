@@ -353,5 +353,22 @@ TEST(MovingArray, BadMovingArrayKeysNameTheirPath) {
   EXPECT_EQ(first_problem(scene_with(unknown)).rfind("site.arrays[0].trajectory.type:", 0), 0u);
 }
 
+TEST(MovingArray, SampleRateBoundsAreTheSiteConfigs) {
+  // Whatever replay reads (1 kHz to 1 MHz), the simulator writes.
+  json source = broadband("S", {0, 40, 2});
+  source["signal"] = {{"type", "noise"}, {"low_hz", 100}, {"high_hz", 400}};
+  json pair = hydrophone_pair("H");
+  pair["position_m"] = {0, 0, 2};
+  json document = underwater_scene(json::array({pair}), json::array({source}), 1.0);
+  document["site"]["doa"]["bands_hz"] = {{100, 400}};
+  for (double rate_hz : {1000.0, 1e6}) {
+    document["sample_rate_hz"] = rate_hz;
+    EXPECT_EQ(first_problem(document), "") << rate_hz;
+  }
+  document["sample_rate_hz"] = 1.1e6;
+  EXPECT_EQ(first_problem(document).rfind("sample_rate_hz: must be in [1000, 1e+06]", 0), 0u)
+      << first_problem(document);
+}
+
 }  // namespace
 }  // namespace dronetrack::sim
