@@ -5,16 +5,12 @@
 
 #include <Eigen/Geometry>
 
+#include "doa/array_geometry.hpp"
+
 namespace dronetrack::sim {
 namespace {
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
-
-double wrap_deg(double angle_deg) {
-  double wrapped = std::remainder(angle_deg, 360.0);  // [-180, 180]
-  if (wrapped <= -180.0) wrapped += 360.0;
-  return wrapped;
-}
 
 }  // namespace
 
@@ -26,9 +22,9 @@ Eigen::Matrix3d attitude_matrix(double yaw_deg, double pitch_deg, double roll_de
 }
 
 double ArrayMotion::yaw_at_deg(double t_s) const {
-  if (yaw_mode == YawMode::fixed) return wrap_deg(yaw_deg);
+  if (yaw_mode == YawMode::fixed) return doa::wrap_deg_180(yaw_deg);
   const Eigen::Vector3d velocity = trajectory.at(t_s).velocity_mps;
-  return wrap_deg(std::atan2(velocity.y(), velocity.x()) * kDegPerRad + yaw_deg);
+  return doa::wrap_deg_180(std::atan2(velocity.y(), velocity.x()) * kDegPerRad + yaw_deg);
 }
 
 doa::PoseSample ArrayMotion::pose(double t_s) const {

@@ -9,6 +9,7 @@
 #include <sndfile.h>
 
 #include "config/config_reader.hpp"
+#include "doa/array_geometry.hpp"
 
 namespace dronetrack::sim {
 namespace {
@@ -307,7 +308,7 @@ double largest_yaw_step_deg(const ArrayMotion& motion, double rate_hz, double du
   double previous = motion.yaw_at_deg(0.0);
   for (std::size_t k = 1; k <= lines; ++k) {
     const double yaw = motion.yaw_at_deg(static_cast<double>(k) / rate_hz);
-    largest = std::max(largest, std::abs(std::remainder(yaw - previous, 360.0)));
+    largest = std::max(largest, std::abs(doa::wrap_deg_180(yaw - previous)));
     previous = yaw;
   }
   return largest;
