@@ -100,6 +100,40 @@ TEST(MovingArray, EmissionTimeSolvesTheMovingReceiverQuadratic) {
   EXPECT_GT(std::abs(kWater_mps * (arrival_s - 1.0) - at_emission_m), 0.01);
 }
 
+TEST(MovingArray, BothEndsMovingMatchTheClosedFormAndItsDerivative) {
+  // Source p(t) = p0 + v_s t and mic m(t) = m0 + v_m t: for a given arrival t the emission time
+  // solves |p0 + v_s t_e - m(t)| = c (t - t_e), a quadratic in t_e; its slope dt_e/dt (the
+  // Doppler factor the grid interpolates with) by central differences of that closed form.
+  const Eigen::Vector3d p0(-60.0, 25.0, 15.0), source_velocity(14.0, -2.0, 0.5);
+  const Trajectory source = Trajectory::straight(p0, source_velocity);
+  ArrayMotion motion;
+  motion.trajectory = Trajectory::straight({10.0, -5.0, 1.5}, {-6.0, 3.0, 0.0});
+  motion.yaw_mode = YawMode::heading;
+  const Eigen::Vector3d mic_array_m(0.25, -0.1, 0.3);
+  const Receiver receiver = Receiver::carried(motion, mic_array_m);
+  constexpr double kAir_mps = 343.0;
+  auto closed_form = [&](double t) {
+    const Eigen::Vector3d d = p0 - receiver.at(t).position_m;
+    const double a = source_velocity.dot(source_velocity) - kAir_mps * kAir_mps;
+    const double b = 2.0 * (d.dot(source_velocity) + kAir_mps * kAir_mps * t);
+    const double cc = d.dot(d) - kAir_mps * kAir_mps * t * t;
+    const double root = std::sqrt(b * b - 4.0 * a * cc);
+    return std::min((-b + root) / (2.0 * a), (-b - root) / (2.0 * a));  // the one before t
+  };
+  for (double t : {0.0, 0.8, 2.5, 7.0}) {
+    const EmissionSolution solution = solve_emission_time(source, receiver.at(t), t, kAir_mps);
+    EXPECT_NEAR(solution.emission_time_s, closed_form(t), 1e-12) << "t = " << t;
+    const double h = 1e-4;
+    const double slope = (closed_form(t + h) - closed_form(t - h)) / (2.0 * h);
+    EXPECT_NEAR(solution.derivative, slope, 1e-9) << "t = " << t;
+    // Both ends matter: the receiver's motion alone moves the slope by ~2 %.
+    EXPECT_GT(
+        std::abs(solution.derivative -
+                 solve_emission_time(source, receiver.at(t).position_m, t, kAir_mps).derivative),
+        0.005);
+  }
+}
+
 TEST(MovingArray, InterpolationStaysWithinNanosecondsWhileThePlatformTurns) {
   // Yaw following the heading through tight turns: the mic's velocity jumps where a line meets
   // an arc (the yaw rate does), the worst case for the cubic between grid points.
