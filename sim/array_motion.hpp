@@ -10,6 +10,10 @@
 
 namespace dronetrack::sim {
 
+// The yaw a platform may turn through between two pose lines; more and a reader could not
+// tell which way it turned (doa::kMaxPoseYawStep_deg of the pose-file reader).
+inline constexpr double kMaxPoseYawStep_deg = 45.0;
+
 enum class YawMode {
   fixed,    // yaw = yaw_deg
   heading,  // yaw = direction of horizontal motion + yaw_deg (the mounting offset)

@@ -10,6 +10,7 @@
 
 #include "common/log.hpp"
 #include "common/output_file.hpp"
+#include "doa/array_geometry.hpp"
 #include "sim/noise.hpp"
 #include "sim/propagation.hpp"
 #include "sim/source_signal.hpp"
@@ -401,6 +402,22 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
     }
   }
   check_output_paths({{"the scenario", scenario.file}}, outputs);
+  // The pose lines before the long render: the scenario checked its turns over its own
+  // duration, a longer --duration-s may reach turns it did not.
+  std::vector<std::string> pose_texts;
+  for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+    const MovingArray* moving = moving_array(scenario, a);
+    if (!moving) continue;
+    const std::vector<doa::PoseSample> lines = pose_lines(*moving, scenario.duration_s);
+    for (std::size_t k = 1; k < lines.size(); ++k) {
+      const double turn_deg = std::abs(doa::wrap_deg_180(lines[k].yaw_deg - lines[k - 1].yaw_deg));
+      if (turn_deg > kMaxPoseYawStep_deg)
+        throw std::runtime_error("array " + scenario.site.arrays[a].geometry.id + " turns " +
+                                 std::to_string(turn_deg) + " deg between pose lines at t = " +
+                                 std::to_string(lines[k].time_s) + " s; raise its pose_rate_hz");
+    }
+    pose_texts.push_back(pose_lines_text(lines));
+  }
 
   const RenderedScene scene = render_scene(scenario, stop);
   written.scale = scene.scale;
@@ -414,11 +431,9 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
     files.push_back(std::make_unique<OutputFile>(written.recordings.at(i)));
     write_wav(*files.back(), scene.arrays[i]);
   }
-  for (std::size_t a = 0, pose = 0; a < scenario.site.arrays.size(); ++a) {
-    const MovingArray* moving = moving_array(scenario, a);
-    if (!moving) continue;
-    files.push_back(std::make_unique<OutputFile>(written.poses.at(pose++)));
-    files.back()->write(pose_lines_text(pose_lines(*moving, scenario.duration_s)));
+  for (std::size_t pose = 0; pose < written.poses.size(); ++pose) {
+    files.push_back(std::make_unique<OutputFile>(written.poses[pose]));
+    files.back()->write(pose_texts.at(pose));
   }
   files.push_back(std::make_unique<OutputFile>(written.site));
   write_json(*files.back(), scene_site_json(scenario), 2);

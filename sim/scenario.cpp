@@ -298,10 +298,6 @@ void parse_noise(ObjectReader& reader, Scenario& scenario) {
   }
 }
 
-// The yaw a platform turns through between two pose lines, at most; more and a reader could
-// not tell which way it turned (doa::kMaxPoseYawStep_deg).
-constexpr double kMaxPoseYawStep_deg = 45.0;
-
 double largest_yaw_step_deg(const ArrayMotion& motion, double rate_hz, double duration_s) {
   double largest = 0.0;
   const auto lines = static_cast<std::size_t>(std::ceil(duration_s * rate_hz - 1e-9));

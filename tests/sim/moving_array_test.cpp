@@ -387,6 +387,33 @@ TEST(MovingArray, BadMovingArrayKeysNameTheirPath) {
   EXPECT_EQ(first_problem(scene_with(unknown)).rfind("site.arrays[0].trajectory.type:", 0), 0u);
 }
 
+TEST(MovingArray, RenderingLongerThanCheckedStillRefusesATooFastTurn) {
+  // 5 m/s into a 90-degree corner of radius 1 m at t = 4 s (286 deg/s, 57 deg per line at
+  // 5 Hz): fine over the scenario's 2 s, refused when stretched to 6 s (as --duration-s does),
+  // before anything is rendered or written.
+  json pair = hydrophone_pair("H");
+  pair["trajectory"] = {{"type", "waypoints"},
+                        {"points_m", {{0, 0, 2}, {20, 0, 2}, {20, 20, 2}}},
+                        {"speed_mps", 5.0},
+                        {"turn_radius_m", 1.0}};
+  pair["pose_rate_hz"] = 5;
+  Scenario scenario = parse_scenario(
+      underwater_scene(json::array({pair}), json::array({broadband("S", {0, 40, 2})}), 2.0), ".");
+  scenario.duration_s = 6.0;
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("sim_turn_test_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  try {
+    write_scene(scenario, dir);
+    ADD_FAILURE() << "a 57-degree step between pose lines was written";
+  } catch (const std::runtime_error& failure) {
+    EXPECT_EQ(std::string(failure.what()).rfind("array H turns ", 0), 0u) << failure.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "H.wav"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "H.pose.jsonl"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MovingArray, SampleRateBoundsAreTheSiteConfigs) {
   // Whatever replay reads (1 kHz to 1 MHz), the simulator writes.
   json source = broadband("S", {0, 40, 2});
