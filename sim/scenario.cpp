@@ -393,7 +393,8 @@ std::optional<MovingArray> parse_array_motion(json& array, const std::string& pa
 }
 
 // The site section: validated by the site-config parser itself (so the simulator accepts exactly
-// what replay will), with the simulator's own per-array key taken out first.
+// what replay will), with the simulator's own per-array keys (recording_end_s; a moving array's
+// trajectory, yaw and pose_rate_hz) taken out first.
 void parse_site(const json& node, const std::filesystem::path& base_dir, Scenario& scenario,
                 Diagnostics& diagnostics) {
   if (!node.is_object()) {
