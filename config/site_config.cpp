@@ -8,6 +8,7 @@
 #include "capture/recording_info.hpp"
 #include "config/config_reader.hpp"
 #include "config/parse_sections.hpp"
+#include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
 
 namespace dronetrack::config {
@@ -295,8 +296,11 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       parse_doa_params(doa_section, site.doa);
     }
     if (site.doa.ground_echo) {
-      // The echo model mirrors each mic in the ground: a mic at or under it has no mirror.
+      // The echo model mirrors each mic in the ground: a mic at or under it has no mirror. Only
+      // solid (3-D) arrays model the echo (a pair or a planar array cannot tell it from the
+      // source), so a hydrophone pair under the surface is fine.
       for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+        if (doa::direction_rank(site.arrays[i].geometry.mics_m) < 3) continue;
         const std::string array_path = "arrays[" + std::to_string(i) + "]";
         const double ground_m = site.doa_params(i).ground_height_m;
         const std::string ground_key = site.arrays[i].ground_height_m

@@ -220,6 +220,26 @@ TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   EXPECT_FALSE(parse_site_config(site.dump(), ".", warnings, no_recordings()).doa.ground_echo);
 }
 
+TEST(SiteConfig, TwoMicAndPlanarArraysNeedNoGroundUnderThem) {
+  // Only 3-D arrays model the ground echo: a hydrophone pair (a cone) or a planar array below
+  // the ground height is accepted beside a tetrahedron, which still must stand above it.
+  json site = two_array_site();
+  site["arrays"][1]["mics_m"] = {{-0.3, 0.0, 0.0}, {0.3, 0.0, 0.0}};
+  site["arrays"][1]["position_m"] = {20.0, 0.0, -5.0};
+  site["arrays"].push_back(tetra_array("A3", 40.0));
+  site["arrays"][2]["mics_m"] = {{0.3, 0.0, 0.0}, {-0.15, 0.26, 0.0}, {-0.15, -0.26, 0.0}};
+  site["arrays"][2]["position_m"] = {40.0, 0.0, -2.0};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  ASSERT_EQ(parsed.arrays.size(), 3U);
+  EXPECT_EQ(parsed.arrays[1].geometry.mic_count(), 2U);
+  EXPECT_TRUE(parsed.doa.ground_echo);
+  site["arrays"][0]["position_m"] = {0.0, 0.0, -5.0};
+  expect_problem(site,
+                 "arrays[0].mics_m[0]: mic at site z -4.5 m is not above the ground "
+                 "(doa.ground_height_m 0); raise it, or set doa.ground_echo false");
+}
+
 TEST(SiteConfig, AnArrayMayStandOnItsOwnGround) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 0.5}};
