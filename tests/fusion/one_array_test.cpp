@@ -417,5 +417,142 @@ TEST(SeedFour, MultipeakLikelihoodRidesOutReflections) {
   EXPECT_GT(ekf.mean_final_error_m, 5.0);
 }
 
+// Through the engine, as the replay feeds it: ONE moving two-mic array (the only array of the
+// site) publishes cone DOAs stamped with its pose; the fusion starts a track from them alone
+// (single_array_start, Gaussian sum, source plane z = 0) and holds one track on the source.
+TEST(FusionEngineOneArray, MovingTwoMicArrayLocalisesAStaticSource) {
+  const Platform platform;
+  doa::ArrayGeometry array;
+  array.id = "P1";
+  array.mics_m = {{-0.3, 0, 0}, {0.3, 0, 0}};  // 0.6 m, as seeds 003/004
+  FusionParams params;
+  params.single_array_start = true;
+  params.single_array_filter = FilterKind::gaussian_sum;
+  params.single_array.source_plane_z_m = 0.0;
+  params.single_array.jerk_std_mps3 = 1e-5;  // static source (see static_source_settings)
+  params.single_array.velocity_std_mps = 0.01;
+  params.single_array.acceleration_std_mps2 = 1e-4;
+  params.doa_error_correlation_s = 0.0;  // the DOAs below are independent
+  FusionEngine engine(params, {array}, kWaterSpeed);
+  std::mt19937_64 random(7);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double angle_std = 2.0 * kDegree;
+  std::vector<TrackReport> reports;
+  std::size_t most_tracks = 0;
+  for (int step = 0; step <= 400; ++step) {
+    const double t = 0.25 * step;
+    doa::DoaMeasurement m;
+    m.array_id = "P1";
+    m.array_index = 0;
+    m.time_s = t;
+    m.ambiguity = doa::DoaAmbiguity::cone;
+    m.ambiguity_axis = platform.axis(t);
+    m.cone_angle_rad =
+        std::clamp(true_cone_angle(platform, t, kSource) + angle_std * normal(random), 0.0, M_PI);
+    m.cone_angle_variance_rad2 = angle_std * angle_std;
+    // The display direction: the cone's horizontal point on the axis's left, whichever side the
+    // source is (the node cannot know).
+    const Eigen::Vector3d left = Eigen::Vector3d::UnitZ().cross(m.ambiguity_axis);
+    m.direction = std::cos(m.cone_angle_rad) * m.ambiguity_axis + std::sin(m.cone_angle_rad) * left;
+    m.pose.centre_m = platform.centre_m(t);
+    m.pose.moving = true;
+    ASSERT_EQ(engine.add(m), DoaVerdict::accepted);
+    engine.advance_to(t);
+    engine.tracks_at(t - params.reorder_window_s, reports);
+    most_tracks = std::max(most_tracks, reports.size());
+  }
+  ASSERT_EQ(reports.size(), 1u);  // at 99.7 s
+  const TrackReport& track = reports[0];
+  const double error_m = (track.position_m - kSource).head<2>().norm();
+  std::printf(
+      "    engine, one moving 2-mic array: final error %.2f m, %d hypothesis(es), at most "
+      "%zu tracks, status %s\n",
+      error_m, track.hypotheses, most_tracks, to_string(track.status));
+  EXPECT_LT(error_m, 1.5);
+  EXPECT_TRUE(track.one_array);
+  EXPECT_EQ(track.hypotheses, 1);  // the mirror side and the far ranges are gone
+  EXPECT_EQ(track.contributing_arrays, 1u);
+  EXPECT_EQ(track.status, TrackStatus::confirmed);
+  EXPECT_EQ(most_tracks, 1u);
+  EXPECT_EQ(engine.counters().tracks_started, 1);
+}
+
+// A fixed 3-D array alone starts a drone's track (a Gaussian sum along its ray); when a second
+// array's DOAs arrive the hypotheses collapse to one and the default filter takes over.
+TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A1", {0, 0, 2}),
+                                               testing::tetrahedron("A2", {200, 0, 2})};
+  const testing::Trajectory drone = [](double t) {
+    return Eigen::Vector3d(100.0 + 3.0 * t, 300.0 - 2.0 * t, 40.0);
+  };
+  constexpr double kAirSpeed = 343.0;
+  constexpr double kSecondArrayFromS = 10.0;
+  FusionParams params;
+  params.single_array_start = true;
+  params.single_array.hypothesis_spacing_m = 40.0;
+  params.single_array.hypotheses_per_side = 10;
+  params.single_array.max_range_m = 500.0;
+  FusionEngine engine(params, arrays, kAirSpeed);
+  std::mt19937_64 random(3);
+  std::vector<TrackReport> reports;
+  bool one_array_seen = false;
+  int first_track_id = -1;
+  double first_track_s = -1.0;
+  std::size_t most_tracks = 0;
+  double error_at_end_m = 1e9;
+  double handed_over_s = -1.0;
+  double widest_one_array_std_m = 0.0;
+  for (int step = 0; step <= 400; ++step) {
+    const double t = 0.05 * step;
+    for (int a = 0; a < 2; ++a) {
+      if (a == 1 && t < kSecondArrayFromS) continue;
+      const auto m = testing::ideal_doa(drone, arrays[a], a, t, kAirSpeed, {0.5, true}, random);
+      ASSERT_EQ(engine.add(m), DoaVerdict::accepted);
+    }
+    engine.advance_to(t);
+    const double report_s = t - params.reorder_window_s;
+    engine.tracks_at(report_s, reports);
+    most_tracks = std::max(most_tracks, reports.size());
+    for (const TrackReport& track : reports) {
+      if (first_track_id < 0) {
+        first_track_id = track.id;
+        first_track_s = report_s;
+      }
+      if (report_s < kSecondArrayFromS) {
+        // One array: says so, carries hypotheses along the ray, and points along it.
+        EXPECT_TRUE(track.one_array);
+        EXPECT_EQ(track.contributing_arrays, 1u);
+        const Eigen::Vector3d to_track = track.position_m - arrays[0].centre_site_m();
+        const Eigen::Vector3d to_drone = drone(report_s) - arrays[0].centre_site_m();
+        EXPECT_LT(doa::angle_between_deg(to_track, to_drone), 3.0) << report_s;
+        one_array_seen = one_array_seen || track.hypotheses > 1;
+        widest_one_array_std_m =
+            std::max(widest_one_array_std_m, track.position_std_m().maxCoeff());
+      }
+      if (!track.one_array && handed_over_s < 0.0) handed_over_s = report_s;
+      error_at_end_m = (track.position_m - drone(report_s)).norm();
+    }
+  }
+  ASSERT_EQ(reports.size(), 1u);
+  std::printf(
+      "    engine, 3-D array alone: first track at %.2f s, range open (hypotheses > 1): "
+      "%s, position std up to %.0f m; handed over %.2f s after the second array; 10 s "
+      "after it: error %.2f m, %d hypothesis, one_array %d\n",
+      first_track_s, one_array_seen ? "yes" : "no", widest_one_array_std_m,
+      handed_over_s - kSecondArrayFromS, error_at_end_m, reports[0].hypotheses,
+      reports[0].one_array ? 1 : 0);
+  EXPECT_LT(first_track_s, 1.0);  // the pairing window (0.3 s) and the reorder window (0.3 s)
+  EXPECT_GT(widest_one_array_std_m, 20.0);  // the covariance says the range is open
+  EXPECT_GE(handed_over_s, kSecondArrayFromS);
+  EXPECT_LT(handed_over_s, kSecondArrayFromS + 3.0);
+  EXPECT_TRUE(one_array_seen);
+  EXPECT_EQ(reports[0].id, first_track_id);  // the same track, handed over
+  EXPECT_FALSE(reports[0].one_array);
+  EXPECT_EQ(reports[0].hypotheses, 1);
+  EXPECT_EQ(reports[0].contributing_arrays, 3u);
+  EXPECT_LT(error_at_end_m, 5.0);
+  EXPECT_EQ(most_tracks, 1u);
+}
+
 }  // namespace
 }  // namespace dronetrack::fusion
