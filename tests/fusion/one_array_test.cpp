@@ -554,5 +554,55 @@ TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) 
   EXPECT_EQ(most_tracks, 1u);
 }
 
+// Two planar arrays (wall-mounted, normals +y and +x) each report the image of the drone on
+// their normal's side: the drone is behind both walls, so both reported directions are the
+// mirror images. The triangulation tries both images of each and the filters fold their
+// predictions onto the reported side: the track is on the drone, not on an image.
+TEST(FusionEngineMirror, PlanarArraysTrackTheDroneBehindTheirPlanes) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("W1", {0, 0, 2}),
+                                               testing::tetrahedron("W2", {200, 0, 2})};
+  const std::array<Eigen::Vector3d, 2> normals{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX()};
+  const testing::Trajectory drone = [](double t) {
+    const double angle = 0.25 * t;  // 20 m radius at 5 m/s
+    return Eigen::Vector3d(100.0 + 20.0 * std::cos(angle), -80.0 + 20.0 * std::sin(angle), 30.0);
+  };
+  FusionParams params;
+  FusionEngine engine(params, arrays, 343.0);
+  std::mt19937_64 random(5);
+  std::vector<TrackReport> reports;
+  double error2_sum = 0.0;
+  int error_count = 0;
+  std::size_t most_tracks = 0;
+  for (int step = 0; step <= 600; ++step) {
+    const double t = 0.05 * step;
+    for (int a = 0; a < 2; ++a) {
+      auto m = testing::ideal_doa(drone, arrays[a], a, t, 343.0, {0.3, true}, random);
+      const double along = m.direction.dot(normals[a]);
+      ASSERT_LT(along, 0.0);  // behind the wall: the node reports the image
+      m.direction -= 2.0 * along * normals[a];
+      m.ambiguity = doa::DoaAmbiguity::mirror_up_down;
+      m.ambiguity_axis = normals[a];
+      ASSERT_EQ(engine.add(m), DoaVerdict::accepted);
+    }
+    engine.advance_to(t);
+    const double report_s = t - params.reorder_window_s;
+    engine.tracks_at(report_s, reports);
+    most_tracks = std::max(most_tracks, reports.size());
+    if (report_s >= 10.0) {
+      ASSERT_EQ(reports.size(), 1u) << report_s;
+      error2_sum += (reports[0].position_m - drone(report_s)).squaredNorm();
+      ++error_count;
+    }
+  }
+  const double rmse_m = std::sqrt(error2_sum / error_count);
+  std::printf(
+      "    engine, two planar arrays, drone behind both: RMSE %.2f m from 10 s, at most %zu "
+      "tracks\n",
+      rmse_m, most_tracks);
+  EXPECT_LT(rmse_m, 2.0);
+  EXPECT_EQ(reports[0].status, TrackStatus::confirmed);
+  EXPECT_EQ(most_tracks, 1u);
+}
+
 }  // namespace
 }  // namespace dronetrack::fusion
