@@ -341,8 +341,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(one.acceleration_std_mps2 > 0.0, "single_array.acceleration_std_mps2", "must be > 0");
   check(one.particle_count >= 10, "single_array.particle_count", "must be >= 10");
   check(!one.source_plane_z_m || std::isfinite(*one.source_plane_z_m),
-        "single_array.source_plane_z_m", "must be finite");
-  check(one.source_plane_std_m > 0.0, "single_array.source_plane_std_m", "must be > 0");
+        "source_plane_z_m", "must be finite");
+  check(one.source_plane_std_m > 0.0, "source_plane_std_m", "must be > 0");
   const std::size_t min_arrays = params.single_array_start ? 1 : 2;
   if (arrays.size() < min_arrays || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
     throw std::invalid_argument(
