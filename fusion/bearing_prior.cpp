@@ -49,6 +49,12 @@ std::optional<BearingLocus> bearing_locus(const DoaMeasurementModel& model, cons
 }
 
 std::optional<Eigen::Vector3d> BearingLocus::offset_at(int branch, double range_m) const {
+  const auto offset = offset_anywhere(branch, range_m);
+  if (!offset || model.centre_m.z() + offset->z() < min_altitude_m) return std::nullopt;
+  return offset;
+}
+
+std::optional<Eigen::Vector3d> BearingLocus::offset_anywhere(int branch, double range_m) const {
   if (branch < 0 || branch >= branch_count || !(range_m > 0.0)) return std::nullopt;
   if (model.kind == MeasurementKind::cone) {
     // d = alpha e + beta a + t n with e = z-hat, a the axis, n = (a x e) / |a x e|:

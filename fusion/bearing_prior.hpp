@@ -13,6 +13,7 @@
 // With a source plane, the azel kinds keep the azimuth and take their height from the plane (the
 // papers' 2-D problem), so every branch is a curve on the plane.
 #include <array>
+#include <limits>
 #include <optional>
 
 #include <Eigen/Core>
@@ -29,9 +30,14 @@ struct BearingLocus {
   double angle_std_rad = 0.01;          // its angular std (incl. the noise floor)
   Eigen::Vector3d hint_direction = Eigen::Vector3d::UnitX();  // the node's display direction
   std::optional<double> source_plane_z_m;
+  // No source under the ground: points below this site height are not on the locus.
+  double min_altitude_m = -std::numeric_limits<double>::infinity();
   int branch_count = 0;
-  // Offset from the centre of the branch's point at range_m, if the branch reaches that range.
+  // Offset from the centre of the branch's point at range_m, if the branch reaches that range
+  // above min_altitude_m.
   std::optional<Eigen::Vector3d> offset_at(int branch, double range_m) const;
+  // The same, ignoring the ground.
+  std::optional<Eigen::Vector3d> offset_anywhere(int branch, double range_m) const;
   // The branch whose point at range_m is nearest the hint (seed 000's EKF takes one side).
   int preferred_branch(double range_m) const;
 };

@@ -340,8 +340,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(one.velocity_std_mps > 0.0, "single_array.velocity_std_mps", "must be > 0");
   check(one.acceleration_std_mps2 > 0.0, "single_array.acceleration_std_mps2", "must be > 0");
   check(one.particle_count >= 10, "single_array.particle_count", "must be >= 10");
-  check(!one.source_plane_z_m || std::isfinite(*one.source_plane_z_m),
-        "source_plane_z_m", "must be finite");
+  check(!one.source_plane_z_m || std::isfinite(*one.source_plane_z_m), "source_plane_z_m",
+        "must be finite");
   check(one.source_plane_std_m > 0.0, "source_plane_std_m", "must be > 0");
   const std::size_t min_arrays = params.single_array_start ? 1 : 2;
   if (arrays.size() < min_arrays || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
@@ -869,9 +869,12 @@ bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index
   }
   const double angle_std_rad =
       std::sqrt(model.dimension() == 1 ? seed.noise(0, 0) : 0.5 * seed.noise.trace());
-  const auto locus = bearing_locus(model, seed.z, angle_std_rad, seed.direction,
-                                   params.single_array.source_plane_z_m);
+  auto locus = bearing_locus(model, seed.z, angle_std_rad, seed.direction,
+                             params.single_array.source_plane_z_m);
   if (!locus) return false;  // a cone with no source plane cannot start a track
+  // No hypothesis under the ground: a ground echo's ray (the image a node reports as a second
+  // source) then starts nothing.
+  if (!params.single_array.source_plane_z_m) locus->min_altitude_m = params.ground_altitude_m;
   Track track;
   track.id = next_id;
   FilterSettings settings = one_array_settings;

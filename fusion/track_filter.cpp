@@ -316,9 +316,14 @@ class ParticleFilter final : public TrackFilter {
         position << centre.x() + radius * std::cos(angle), centre.y() + radius * std::sin(angle),
             *p.source_plane_z_m;
       } else {
-        Eigen::Vector3d direction(normal_(random_), normal_(random_), normal_(random_));
-        direction.normalize();
-        position = centre + p.max_range_m * std::cbrt(unit(random_)) * direction;
+        // Uniform in the ball, above the ground (rejection: at most half the ball is lost).
+        for (int attempt = 0; attempt < 64; ++attempt) {
+          Eigen::Vector3d direction(normal_(random_), normal_(random_), normal_(random_));
+          direction.normalize();
+          position = centre + p.max_range_m * std::cbrt(unit(random_)) * direction;
+          if (position.z() >= locus.min_altitude_m) break;
+        }
+        position.z() = std::max(position.z(), locus.min_altitude_m);
       }
       StateVector particle = StateVector::Zero();
       particle.segment<3>(StateBlock::position) = position;

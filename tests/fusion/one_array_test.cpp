@@ -295,6 +295,29 @@ TEST(BearingLocus, ConeCutsTheSourcePlaneInTwoBranches) {
   EXPECT_FALSE(bearing_locus(model, {angle, 0.0}, 0.01, Eigen::Vector3d::UnitX(), 10.0));
 }
 
+// A planar array's DOA: the ray and its mirror image through the array plane; a ray into the
+// ground (an echo's image) has no point above it.
+TEST(BearingLocus, MirrorBranchesAndTheGround) {
+  DoaMeasurementModel model;
+  model.kind = MeasurementKind::mirrored_azel;
+  model.centre_m = {0, 0, 2};
+  model.axis = Eigen::Vector3d::UnitY();  // a wall facing +y
+  const Eigen::Vector3d reported = Eigen::Vector3d(0.6, 0.7, 0.2).normalized();
+  auto locus = bearing_locus(model, azel_of(reported), 0.01, reported, std::nullopt);
+  ASSERT_TRUE(locus.has_value());
+  ASSERT_EQ(locus->branch_count, 2);
+  EXPECT_LT((*locus->offset_at(0, 50.0) - 50.0 * reported).norm(), 1e-9);
+  const Eigen::Vector3d behind(reported.x(), -reported.y(), reported.z());
+  EXPECT_LT((*locus->offset_at(1, 50.0) - 50.0 * behind).norm(), 1e-9);
+  const Eigen::Vector3d down = Eigen::Vector3d(0.9, 0.3, -0.3).normalized();
+  model.kind = MeasurementKind::azel;
+  locus = bearing_locus(model, azel_of(down), 0.01, down, std::nullopt);
+  ASSERT_TRUE(locus.has_value());
+  locus->min_altitude_m = 0.0;
+  EXPECT_TRUE(locus->offset_at(0, 5.0).has_value());    // 0.5 m above the ground
+  EXPECT_FALSE(locus->offset_at(0, 15.0).has_value());  // 2.5 m under it
+}
+
 TEST(SourcePlane, PseudoMeasurementHoldsTheVerticalStates) {
   StateVector mean = StateVector::Zero();
   mean.segment<3>(StateBlock::position) << 10, 20, 7;
