@@ -153,6 +153,8 @@ struct Track {
   // Started from one array's DOAs (issue 15) and not yet handed to the default filter: its
   // range rests on hypotheses or the platform's motion, not on a triangulation.
   bool one_array = false;
+  int origin_array = -1;                                                   // its one array
+  MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
 };
 
 }  // namespace
@@ -201,6 +203,29 @@ struct FusionEngine::Impl {
   // A one-array track whose hypotheses have collapsed to one and that a second array now hears is
   // handed to the default filter.
   void hand_over(Track& track);
+  // A one-array track that a second array's DOA (a ray) now hears: the track's bearing from its
+  // first array and that ray are triangulated, and the default filter starts at the fix (same
+  // id). False when they do not cross in front of both.
+  bool hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
+                                  const DoaMeasurementModel& model, double time_s);
+  // The prior of a track started at a triangulated fix.
+  void state_from_fix(const Triangulation& fix, const Eigen::Vector3d& centre_m,
+                      double speed_of_sound_mps, StateVector& mean,
+                      StateCovariance& covariance) const {
+    // The fix is where the drone was when the sound left it, about r / c ago; an unknown velocity
+    // over that delay widens the position.
+    const double delay_s = (fix.position_m - centre_m).norm() / speed_of_sound_mps;
+    mean = StateVector::Zero();
+    mean.segment<3>(StateBlock::position) = fix.position_m;
+    covariance = StateCovariance::Zero();
+    const double velocity_var = std::pow(params.init_velocity_std_mps, 2);
+    covariance.block<3, 3>(StateBlock::position, StateBlock::position) =
+        fix.covariance_m2 + Eigen::Matrix3d::Identity() * (velocity_var * delay_s * delay_s + 0.01);
+    covariance.block<3, 3>(StateBlock::velocity, StateBlock::velocity) =
+        Eigen::Matrix3d::Identity() * velocity_var;
+    covariance.block<3, 3>(StateBlock::acceleration, StateBlock::acceleration) =
+        Eigen::Matrix3d::Identity() * std::pow(params.init_acceleration_std_mps2, 2);
+  }
   double gate_for(int dimension) const { return dimension == 1 ? gate_chi2_1d : gate_chi2; }
   // The measurement model of one DOA: its array's, moved to the pose stamp's centre for a moving
   // array, of the kind its ambiguity says it measured.
@@ -572,6 +597,16 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     const int j = track_to_doa[t];
     if (j < 0) continue;
     const doa::DoaMeasurement& m = queue[begin + j];
+    if (track.one_array && array != track.origin_array &&
+        hand_over_by_triangulation(track, m, model, time_s)) {
+      doa_taken[j] = 1;
+      track.hits_by_array[array] |= 1u;
+      track.last_update_s = time_s;
+      track.heard_by_array_s[array] = time_s;
+      ++track.updates_by_array[array];
+      classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+      continue;
+    }
     Innovation innovation = track.innovation;
     innovation.covariance += track.inflation * own_noise(m);
     innovation.noise = track.inflation * noise_of(m);
@@ -804,19 +839,9 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     }
   }
 
-  // The fix is where the drone was when the sound left it, about r / c ago; an unknown velocity
-  // over that delay widens the position.
-  const double delay_s = (fix.position_m - seed_centre).norm() / models[array].speed_of_sound_mps;
-  StateVector mean = StateVector::Zero();
-  mean.segment<3>(StateBlock::position) = fix.position_m;
-  StateCovariance covariance = StateCovariance::Zero();
-  const double velocity_var = std::pow(params.init_velocity_std_mps, 2);
-  covariance.block<3, 3>(StateBlock::position, StateBlock::position) =
-      fix.covariance_m2 + Eigen::Matrix3d::Identity() * (velocity_var * delay_s * delay_s + 0.01);
-  covariance.block<3, 3>(StateBlock::velocity, StateBlock::velocity) =
-      Eigen::Matrix3d::Identity() * velocity_var;
-  covariance.block<3, 3>(StateBlock::acceleration, StateBlock::acceleration) =
-      Eigen::Matrix3d::Identity() * std::pow(params.init_acceleration_std_mps2, 2);
+  StateVector mean;
+  StateCovariance covariance;
+  state_from_fix(fix, seed_centre, models[array].speed_of_sound_mps, mean, covariance);
 
   Track track;
   track.id = next_id++;
@@ -883,6 +908,8 @@ bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index
   if (!track.filter->initialise_from_bearing(*locus)) return false;
   ++next_id;
   track.one_array = true;
+  track.origin_array = array;
+  track.origin_noise = seed.noise;
   track.time_s = time_s;
   track.last_update_s = time_s;
   track.heard_by_array_s.fill(kNeverS);
@@ -895,8 +922,47 @@ bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index
   return true;
 }
 
+bool FusionEngine::Impl::hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
+                                                    const DoaMeasurementModel& model,
+                                                    double time_s) {
+  if (model.kind != MeasurementKind::azel) return false;  // a cone or a mirror pair: no one ray
+  const Eigen::Vector3d origin = last_centre_m[static_cast<std::size_t>(track.origin_array)];
+  const Eigen::Vector3d along = position_of(track.filter->mean()) - origin;
+  if (!(along.norm() > 1.0)) return false;
+  // The mixture's mean lies on the bearing (its hypotheses spread along it, not across).
+  const std::array<Ray, 2> pair{Ray{origin, along.normalized(), track.origin_noise},
+                                Ray{model.centre_m, m.direction, noise_of(m)}};
+  const auto fix = triangulate(pair, params.triangulation);
+  if (!fix || !fix->in_front || below_ground(*fix)) return false;
+  // The rays must meet (two rays, three unknowns: one dof left), where the track says the source
+  // may be: a DOA of another source that the wide mixture happened to gate is no hand-over.
+  if (fix->chi_square > chi_square_quantile(params.gate_probability, 1)) return false;
+  const Eigen::Vector3d offset = fix->position_m - position_of(track.filter->mean());
+  const Eigen::Matrix3d spread =
+      track.filter->covariance().topLeftCorner<3, 3>() + fix->covariance_m2;
+  if (offset.dot(spread.ldlt().solve(offset)) > chi_square_quantile(params.gate_probability, 3))
+    return false;
+  StateVector mean;
+  StateCovariance covariance;
+  state_from_fix(*fix, model.centre_m, model.speed_of_sound_mps, mean, covariance);
+  FilterSettings settings = filter_settings;
+  settings.random_seed = static_cast<std::uint64_t>(track.id);
+  auto filter = make_track_filter(params.filter, settings);
+  filter->initialise(mean, covariance);
+  track.filter = std::move(filter);
+  track.time_s = time_s;
+  track.one_array = false;
+  return true;
+}
+
 void FusionEngine::Impl::hand_over(Track& track) {
-  if (track.filter->hypothesis_count() != 1 || recent_arrays(track) < 2) return;
+  // Only a narrow Gaussian: a wide one (hypotheses merged while the range diffused) would be
+  // linearised far from the truth by the next bearing.
+  const double max_variance = params.max_position_std_m * params.max_position_std_m;
+  if (track.filter->hypothesis_count() != 1 || recent_arrays(track) < 2 ||
+      !(track.filter->covariance().diagonal().segment<3>(StateBlock::position).maxCoeff() <=
+        max_variance))
+    return;
   // A second array now resolves the range: the default filter (and motion model) takes the
   // collapsed Gaussian.
   FilterSettings settings = filter_settings;

@@ -569,19 +569,25 @@ TEST(FusionEngineOneArray, MovingTwoMicArrayLocalisesThreeSources) {
 
 // A fixed 3-D array alone starts a drone's track (a Gaussian sum along its ray); when a second
 // array's DOAs arrive the hypotheses collapse to one and the default filter takes over.
-TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) {
+struct OneThenTwo {
+  const char* name;
+  testing::Trajectory drone;
+  double second_array_from_s;
+  double duration_s;
+  double spacing_m;
+  int per_side;
+  double max_range_m;
+};
+
+void one_array_then_two(const OneThenTwo& scene) {
   const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A1", {0, 0, 2}),
                                                testing::tetrahedron("A2", {200, 0, 2})};
-  const testing::Trajectory drone = [](double t) {
-    return Eigen::Vector3d(100.0 + 3.0 * t, 300.0 - 2.0 * t, 40.0);
-  };
   constexpr double kAirSpeed = 343.0;
-  constexpr double kSecondArrayFromS = 10.0;
   FusionParams params;
   params.single_array_start = true;
-  params.single_array.hypothesis_spacing_m = 40.0;
-  params.single_array.hypotheses_per_side = 10;
-  params.single_array.max_range_m = 500.0;
+  params.single_array.hypothesis_spacing_m = scene.spacing_m;
+  params.single_array.hypotheses_per_side = scene.per_side;
+  params.single_array.max_range_m = scene.max_range_m;
   FusionEngine engine(params, arrays, kAirSpeed);
   std::mt19937_64 random(3);
   std::vector<TrackReport> reports;
@@ -592,11 +598,14 @@ TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) 
   double error_at_end_m = 1e9;
   double handed_over_s = -1.0;
   double widest_one_array_std_m = 0.0;
-  for (int step = 0; step <= 400; ++step) {
+  double worst_angle_deg = 0.0;
+  const int steps = static_cast<int>(std::lround(scene.duration_s / 0.05));
+  for (int step = 0; step <= steps; ++step) {
     const double t = 0.05 * step;
     for (int a = 0; a < 2; ++a) {
-      if (a == 1 && t < kSecondArrayFromS) continue;
-      const auto m = testing::ideal_doa(drone, arrays[a], a, t, kAirSpeed, {0.5, true}, random);
+      if (a == 1 && t < scene.second_array_from_s) continue;
+      const auto m =
+          testing::ideal_doa(scene.drone, arrays[a], a, t, kAirSpeed, {0.5, true}, random);
       ASSERT_EQ(engine.add(m), DoaVerdict::accepted);
     }
     engine.advance_to(t);
@@ -608,33 +617,34 @@ TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) 
         first_track_id = track.id;
         first_track_s = report_s;
       }
-      if (report_s < kSecondArrayFromS) {
+      if (report_s < scene.second_array_from_s) {
         // One array: says so, carries hypotheses along the ray, and points along it.
         EXPECT_TRUE(track.one_array);
         EXPECT_EQ(track.contributing_arrays, 1u);
         const Eigen::Vector3d to_track = track.position_m - arrays[0].centre_site_m();
-        const Eigen::Vector3d to_drone = drone(report_s) - arrays[0].centre_site_m();
-        EXPECT_LT(doa::angle_between_deg(to_track, to_drone), 3.0) << report_s;
+        const Eigen::Vector3d to_drone = scene.drone(report_s) - arrays[0].centre_site_m();
+        worst_angle_deg = std::max(worst_angle_deg, doa::angle_between_deg(to_track, to_drone));
         one_array_seen = one_array_seen || track.hypotheses > 1;
         widest_one_array_std_m =
             std::max(widest_one_array_std_m, track.position_std_m().maxCoeff());
       }
       if (!track.one_array && handed_over_s < 0.0) handed_over_s = report_s;
-      error_at_end_m = (track.position_m - drone(report_s)).norm();
+      error_at_end_m = (track.position_m - scene.drone(report_s)).norm();
     }
   }
   ASSERT_EQ(reports.size(), 1u);
   std::printf(
-      "    engine, 3-D array alone: first track at %.2f s, range open (hypotheses > 1): "
-      "%s, position std up to %.0f m; handed over %.2f s after the second array; 10 s "
-      "after it: error %.2f m, %d hypothesis, one_array %d\n",
-      first_track_s, one_array_seen ? "yes" : "no", widest_one_array_std_m,
-      handed_over_s - kSecondArrayFromS, error_at_end_m, reports[0].hypotheses,
-      reports[0].one_array ? 1 : 0);
-  EXPECT_LT(first_track_s, 1.0);  // the pairing window (0.3 s) and the reorder window (0.3 s)
+      "    engine, 3-D array alone (%s): first track at %.2f s, hypotheses > 1: %s, position std "
+      "up to %.0f m, direction within %.2f deg; handed over %.2f s after the second array; "
+      "%.0f s after it: error %.2f m\n",
+      scene.name, first_track_s, one_array_seen ? "yes" : "no", widest_one_array_std_m,
+      worst_angle_deg, handed_over_s - scene.second_array_from_s,
+      scene.duration_s - scene.second_array_from_s, error_at_end_m);
+  EXPECT_LT(first_track_s, 1.0);    // the pairing window (0.3 s) and the reorder window (0.3 s)
+  EXPECT_LT(worst_angle_deg, 3.0);  // the mixture points along the ray
   EXPECT_GT(widest_one_array_std_m, 20.0);  // the covariance says the range is open
-  EXPECT_GE(handed_over_s, kSecondArrayFromS);
-  EXPECT_LT(handed_over_s, kSecondArrayFromS + 3.0);
+  EXPECT_GE(handed_over_s, scene.second_array_from_s);
+  EXPECT_LT(handed_over_s, scene.second_array_from_s + 3.0);
   EXPECT_TRUE(one_array_seen);
   EXPECT_EQ(reports[0].id, first_track_id);  // the same track, handed over
   EXPECT_FALSE(reports[0].one_array);
@@ -642,6 +652,21 @@ TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) 
   EXPECT_EQ(reports[0].contributing_arrays, 3u);
   EXPECT_LT(error_at_end_m, 5.0);
   EXPECT_EQ(most_tracks, 1u);
+}
+
+TEST(FusionEngineOneArray, ThreeDimensionalArrayAloneStartsATrackThatCollapses) {
+  one_array_then_two(
+      {"crossing at 320 m",
+       [](double t) { return Eigen::Vector3d(100.0 + 3.0 * t, 300.0 - 2.0 * t, 40.0); }, 10.0, 20.0,
+       40.0, 10, 500.0});
+}
+
+// Issue 15's far approach: a drone from 500 m at 10 m/s heard by one array for its first 20 s.
+TEST(FusionEngineOneArray, FarApproachIsTrackedFromOneArray) {
+  one_array_then_two(
+      {"approach from 500 m",
+       [](double t) { return Eigen::Vector3d(350.0 - 6.4 * t, 350.0 - 7.7 * t, 50.0); }, 20.0, 30.0,
+       50.0, 10, 600.0});
 }
 
 // Two planar arrays (wall-mounted, normals +y and +x) each report the image of the drone on
