@@ -277,9 +277,18 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
                                       std::to_string(document["arrays"].size()));
       throw ConfigError(std::move(diagnostics.errors));
     }
+    // One array is enough when the fusion may start tracks from one array (issue 15).
+    const auto single_array_start = [&document] {
+      if (!document.contains("fusion") || !document["fusion"].is_object()) return false;
+      const nlohmann::json& fusion = document["fusion"];
+      return fusion.contains("single_array_start") && fusion["single_array_start"].is_boolean() &&
+             fusion["single_array_start"].get<bool>();
+    };
     if (options.for_fusion && document.is_object() && document.contains("arrays") &&
-        document["arrays"].is_array() && document["arrays"].size() == 1) {
-      diagnostics.error("arrays", "the fusion needs at least 2 arrays (it triangulates), got 1");
+        document["arrays"].is_array() && document["arrays"].size() == 1 && !single_array_start()) {
+      diagnostics.error("arrays",
+                        "the fusion needs at least 2 arrays (it triangulates), got 1 (or "
+                        "fusion.single_array_start: true)");
     }
     root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
       ArrayConfig array = parse_array(node, path, base_dir, diagnostics);
