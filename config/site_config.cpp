@@ -18,6 +18,11 @@ constexpr const char* kSiteExtentReason =
     "a coordinate beyond 100 km of the site origin (acoustic range is a few km; metres?)";
 // A mic belongs to its array: the far-field model holds over a few metres, not a kilometre.
 constexpr double kMaxMicOffset_m = 100.0;
+// A calibration's corrections: a channel later than 0.1 s or 40 dB off is a broken channel, and a
+// node clock an hour off is a wrong time zone, not a drift.
+constexpr double kMaxChannelDelay_s = 0.1;
+constexpr double kMaxChannelGain_db = 40.0;
+constexpr double kMaxClockOffset_s = 3600.0;
 // A zone smaller than this cannot be entered by a track with metre-level error.
 constexpr double kMinZoneArea_m2 = 1.0;
 
@@ -96,6 +101,28 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
   } else {
     parse_mics(node.at("mics_m"), reader.path_of("mics_m"), diagnostics, array.geometry.mics_m);
   }
+  // A site calibration's results (docs/calibration.md): one value per mic, each within a bound.
+  const auto per_mic = [&](const std::string& key, double bound, std::vector<double>& target) {
+    const auto values = reader.numbers(key, 0, false);
+    if (!values) return;
+    const std::size_t mics = array.geometry.mics_m.size();
+    if (mics > 0 && values->size() != mics) {
+      diagnostics.error(reader.path_of(key), "has " + std::to_string(values->size()) +
+                                                 " entries for " + std::to_string(mics) + " mics");
+      return;
+    }
+    for (std::size_t i = 0; i < values->size(); ++i) {
+      if (std::abs((*values)[i]) > bound)
+        diagnostics.error(
+            reader.path_of(key) + "[" + std::to_string(i) + "]",
+            "must be within +-" + format_number(bound) + ", got " + format_number((*values)[i]));
+    }
+    target = *values;
+  };
+  per_mic("channel_delay_s", kMaxChannelDelay_s, array.geometry.channel_delay_s);
+  per_mic("channel_gain_db", kMaxChannelGain_db, array.geometry.channel_gain_db);
+  array.geometry.clock_offset_s =
+      reader.number("clock_offset_s", 0.0, -kMaxClockOffset_s, kMaxClockOffset_s);
   const std::string recording = reader.string("recording", "");
   if (!recording.empty()) {
     const std::filesystem::path recording_path(recording);

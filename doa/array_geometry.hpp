@@ -17,6 +17,12 @@ struct ArrayGeometry {
   std::vector<Eigen::Vector3d> mics_m;  // array frame, one per channel after channel_map
   // 1-sigma uncertainty of each mic coordinate; feeds the DOA's measurement noise.
   double mic_position_std_m = 0.0;
+  // What a site calibration measured (docs/calibration.md). Per mic (empty: none): how late its
+  // channel hears (s) and how loud (dB), both undone on its spectrum before the correlations;
+  // and how far the node's clock runs ahead of the site's (s), taken off every DOA's time.
+  std::vector<double> channel_delay_s;
+  std::vector<double> channel_gain_db;
+  double clock_offset_s = 0.0;
 
   Eigen::Matrix3d array_to_site() const;              // rotation only
   Eigen::Vector3d mic_site_m(std::size_t mic) const;  // absolute site position of a mic

@@ -152,6 +152,12 @@ struct NodePipeline::Impl {
              params.hop_s),
         band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())),
         health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)) {
+    if (!geometry.channel_delay_s.empty() || !geometry.channel_gain_db.empty()) {
+      std::vector<double> delay_samples;
+      for (double delay_s : geometry.channel_delay_s)
+        delay_samples.push_back(delay_s * sample_rate_hz);
+      fft.set_channel_corrections(delay_samples, geometry.channel_gain_db);
+    }
     TdoaTrackerSettings tracker_settings;
     tracker_settings.hop_s = static_cast<double>(hop) / sample_rate_hz;
     tracker_settings.max_angular_rate_dps = params.max_angular_rate_dps;
@@ -328,7 +334,7 @@ bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int 
   DoaMeasurement measurement;
   measurement.array_id = geometry.id;
   measurement.array_index = array_index;
-  measurement.time_s = time_s;
+  measurement.time_s = time_s - geometry.clock_offset_s;  // on the site's clock
   measurement.direction = solution.direction_site;
   measurement.azel_covariance_rad2 = solution.azel_covariance_rad2;
   measurement.quality = solution.quality;

@@ -358,6 +358,27 @@ void MultichannelFft::process(const FrameView& frame) {
     // The tail beyond frame_length stays zero from construction.
     fftw_execute_dft_r2c(plan_->plan, plan_->input,
                          plan_->output + static_cast<std::ptrdiff_t>(c) * stride_);
+    if (corrections_.empty()) continue;
+    auto* bins = reinterpret_cast<std::complex<double>*>(plan_->output +
+                                                         static_cast<std::ptrdiff_t>(c) * stride_);
+    const std::complex<double>* correction =
+        corrections_.data() + static_cast<std::ptrdiff_t>(c) * bin_count();
+    for (int k = 0; k < bin_count(); ++k) bins[k] *= correction[k];
+  }
+}
+
+void MultichannelFft::set_channel_corrections(const std::vector<double>& delay_samples,
+                                              const std::vector<double>& gain_db) {
+  corrections_.clear();
+  if (delay_samples.empty() && gain_db.empty()) return;
+  corrections_.resize(static_cast<std::size_t>(channels_) * static_cast<std::size_t>(bin_count()));
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    const double delay = index < delay_samples.size() ? delay_samples[index] : 0.0;
+    const double scale = index < gain_db.size() ? std::pow(10.0, -gain_db[index] / 20.0) : 1.0;
+    for (int k = 0; k < bin_count(); ++k)
+      corrections_[index * static_cast<std::size_t>(bin_count()) + static_cast<std::size_t>(k)] =
+          std::polar(scale, 2.0 * std::numbers::pi * k * delay / fft_size_);
   }
 }
 

@@ -99,6 +99,11 @@ class MultichannelFft {
   MultichannelFft& operator=(const MultichannelFft&) = delete;
 
   void process(const FrameView& frame);
+  // From then on each channel's spectrum has its delay (samples, may be fractional) and gain
+  // (dB) undone: X_c(k) * 10^(-gain/20) * exp(+j 2 pi k delay / fft_size). One entry per
+  // channel; both empty: none.
+  void set_channel_corrections(const std::vector<double>& delay_samples,
+                               const std::vector<double>& gain_db);
   const std::complex<double>* spectrum(int channel) const;
   int fft_size() const { return fft_size_; }
   int bin_count() const { return fft_size_ / 2 + 1; }
@@ -120,6 +125,7 @@ class MultichannelFft {
   int stride_;
   double window_energy_ = 0.0;
   std::vector<double> window_;
+  std::vector<std::complex<double>> corrections_;  // channels x bins; empty: none
   std::unique_ptr<Plan> plan_;
 };
 

@@ -444,3 +444,30 @@ TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
 }
 
 }  // namespace dronetrack::config
+
+namespace dronetrack::config {
+namespace {
+
+// A site calibration's keys (docs/calibration.md): read per mic, bounded, named when wrong.
+TEST(SiteConfig, CalibrationKeys) {
+  json site = two_array_site();
+  site["arrays"][1]["channel_delay_s"] = {0.0, 1e-4, -2e-5, 3e-5};
+  site["arrays"][1]["channel_gain_db"] = {0.0, 0.8, -1.1, 0.2};
+  site["arrays"][1]["clock_offset_s"] = 0.005;
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_TRUE(parsed.arrays[0].geometry.channel_delay_s.empty());
+  EXPECT_EQ(parsed.arrays[1].geometry.channel_delay_s,
+            (std::vector<double>{0.0, 1e-4, -2e-5, 3e-5}));
+  EXPECT_EQ(parsed.arrays[1].geometry.channel_gain_db, (std::vector<double>{0.0, 0.8, -1.1, 0.2}));
+  EXPECT_DOUBLE_EQ(parsed.arrays[1].geometry.clock_offset_s, 0.005);
+
+  site["arrays"][1]["channel_delay_s"] = {0.0, 1e-4};
+  expect_problem(site, "arrays[1].channel_delay_s: has 2 entries for 4 mics");
+  site["arrays"][1]["channel_delay_s"] = {0.0, 0.0, 0.0, 0.5};
+  expect_problem(site, "arrays[1].channel_delay_s[3]: must be within +-0.1, got 0.5");
+}
+
+}  // namespace
+}  // namespace dronetrack::config
