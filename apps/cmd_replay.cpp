@@ -41,6 +41,9 @@ void register_replay(CLI::App& root, CommandTable& table) {
                       "Write tracks as JSON lines here ('-' for stdout; default stdout)");
   command->add_option("--doa-out", arguments->session.doa_out,
                       "Write every array's DOAs as JSON lines here");
+  command->add_option("--tdoa-out", arguments->session.tdoa_out,
+                      "Write every full-rank DOA's pair delays as JSON lines here (for "
+                      "calibrate --tdoa; docs/calibration.md)");
   command->add_option("--alerts-out", arguments->session.alerts_out,
                       "Write zone alerts and track class changes as JSON lines here");
   auto* realtime =

@@ -136,6 +136,28 @@ void AlertLinesWriter::on_zone_event(const fusion::ZoneEvent& event) {
   write_formatted(out_, buffer_, sizeof buffer_, format_alert_line(event, buffer_, sizeof buffer_));
 }
 
+std::string format_tdoa_line(const doa::DoaMeasurement& doa) {
+  char buffer[160];
+  std::string text;
+  std::snprintf(buffer, sizeof buffer, R"({"t":%.6f,"array":")", doa.time_s);
+  text += buffer;
+  text += doa.array_id;
+  std::snprintf(buffer, sizeof buffer, R"(","source":%d,"direction":[%.9f,%.9f,%.9f],"tdoa_s":[)",
+                doa.source_index, doa.direction.x(), doa.direction.y(), doa.direction.z());
+  text += buffer;
+  for (int p = 0; p < doa.pair_count; ++p) {
+    std::snprintf(buffer, sizeof buffer, p == 0 ? "%.9e" : ",%.9e",
+                  doa.tdoa_s[static_cast<std::size_t>(p)]);
+    text += buffer;
+  }
+  return text + "]}";
+}
+
+void TdoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {
+  // A cone or a mirror's pair delays hold no direction to check them against.
+  if (doa.ambiguity == doa::DoaAmbiguity::none) out_.write(format_tdoa_line(doa));
+}
+
 void DoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {
   write_formatted(out_, buffer_, sizeof buffer_, format_doa_line(doa, buffer_, sizeof buffer_));
 }

@@ -44,6 +44,20 @@ class TrackLinesWriter : public FusionObserver {
   char buffer_[1024];
 };
 
+// {"t":..,"array":"A1","source":0,"direction":[..],"tdoa_s":[..]}: a full-rank DOA's pair
+// delays (mic pairs i < j, lexicographic), for `calibrate --tdoa` (docs/calibration.md).
+std::string format_tdoa_line(const doa::DoaMeasurement& doa);
+
+class TdoaLinesWriter : public FusionObserver {
+ public:
+  explicit TdoaLinesWriter(const std::filesystem::path& path) : out_(path) {}
+  OutputFile& output() { return out_; }
+  void on_doa(const doa::DoaMeasurement& doa) override;
+
+ private:
+  OutputFile out_;
+};
+
 // {"t":..,"zone":"..","track_id":..,"event":"entered|left|class_changed","class":"..",
 //  ["previous_class":"..",] "position_m":[..]}
 int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t size);

@@ -40,6 +40,7 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     std::vector<NamedPath> outputs;
     if (!tracks_out.empty()) outputs.push_back({"--tracks-out", tracks_out});
     if (!options.doa_out.empty()) outputs.push_back({"--doa-out", options.doa_out});
+    if (!options.tdoa_out.empty()) outputs.push_back({"--tdoa-out", options.tdoa_out});
     if (!options.alerts_out.empty()) outputs.push_back({"--alerts-out", options.alerts_out});
     check_output_paths(inputs, outputs);
   }
@@ -74,6 +75,7 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   }
 
   std::unique_ptr<DoaLinesWriter> doa_writer;
+  std::unique_ptr<TdoaLinesWriter> tdoa_writer;
   std::unique_ptr<AlertLinesWriter> alert_writer;
   std::unique_ptr<TrackLinesWriter> track_writer;
   RunOutputs outputs;
@@ -82,6 +84,11 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     doa_writer = std::make_unique<DoaLinesWriter>(options.doa_out);
     outputs.add(doa_writer->output());
     observers.push_back(doa_writer.get());
+  }
+  if (!options.tdoa_out.empty()) {
+    tdoa_writer = std::make_unique<TdoaLinesWriter>(options.tdoa_out);
+    outputs.add(tdoa_writer->output());
+    observers.push_back(tdoa_writer.get());
   }
   if (!options.alerts_out.empty()) {
     alert_writer = std::make_unique<AlertLinesWriter>(options.alerts_out);

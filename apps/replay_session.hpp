@@ -11,6 +11,7 @@ namespace dronetrack::apps {
 struct ReplaySessionOptions {
   std::string tracks_out;  // "" with doa_out also "": tracks to stdout
   std::string doa_out;
+  std::string tdoa_out;    // full-rank DOAs' pair delays as JSON lines, for calibrate; "" for none
   std::string alerts_out;  // zone alerts and class changes as JSON lines; "" for none
   std::string doa_in;      // DOA lines to run the fusion alone on, instead of the recordings
   sim::DoaOutlierSettings

@@ -380,6 +380,57 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
   return solve;
 }
 
+// How much the residuals of neighbouring frames share: per array and pair, the residual series
+// in time order, its autocorrelation summed over the lags while it stays significant
+// (above 2 / sqrt(n)); 1 + 2 * that sum, weighted over all series. Outliers (beyond the Huber
+// threshold) count as zero, as the fit all but leaves them out.
+double correlation_inflation(const std::vector<std::vector<double>>& residuals,
+                             const std::vector<PlacedFrame>& placed,
+                             const std::vector<TdoaFrame>& frames, double tdoa_std_s,
+                             double huber_threshold) {
+  constexpr std::size_t kMaxLag = 40;
+  std::vector<std::size_t> order(placed.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  const auto array_of = [&](std::size_t k) { return frames[placed[k].frame].array; };
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+    if (array_of(x) != array_of(y)) return array_of(x) < array_of(y);
+    return frames[placed[x].frame].time_s < frames[placed[y].frame].time_s;
+  });
+  double weighted = 0.0, weights = 0.0;
+  for (std::size_t begin = 0, end = 0; begin < order.size(); begin = end) {
+    end = begin;
+    while (end < order.size() && array_of(order[end]) == array_of(order[begin])) ++end;
+    for (std::size_t p = 0; p < residuals[order[begin]].size(); ++p) {
+      std::vector<double> series;
+      for (std::size_t k = begin; k < end; ++k) {
+        const double value = residuals[order[k]][p];
+        series.push_back(std::abs(value) <= huber_threshold * tdoa_std_s ? value : 0.0);
+      }
+      if (series.size() < 10) continue;
+      const auto n = static_cast<double>(series.size());
+      double mean = 0.0;
+      for (double value : series) mean += value / n;
+      double variance = 0.0;
+      for (double& value : series) {
+        value -= mean;
+        variance += value * value;
+      }
+      if (!(variance > 0.0)) continue;
+      double sum = 0.0;
+      for (std::size_t lag = 1; lag <= kMaxLag && lag < series.size(); ++lag) {
+        double covariance = 0.0;
+        for (std::size_t k = lag; k < series.size(); ++k) covariance += series[k] * series[k - lag];
+        const double rho = covariance / variance;
+        if (rho < 2.0 / std::sqrt(n)) break;
+        sum += rho;
+      }
+      weighted += n * (1.0 + 2.0 * sum);
+      weights += n;
+    }
+  }
+  return weights > 0.0 ? std::max(1.0, weighted / weights) : 1.0;
+}
+
 // Free scalars the TDOA residuals see: the arrays' unknowns and the reference positions.
 int free_parameters(const Solve& solve, const std::vector<ArrayNominal>& arrays,
                     std::vector<ArrayUnknowns>& unknowns, std::vector<Eigen::Vector3d>& positions) {
@@ -485,6 +536,20 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
       tdoa_std_s = std::max(1e-9, kMadToStd * stats.median_abs_s * dof_factor);
     }
   }
+  // Correlated frames carry less than their count: weigh them as fewer independent ones
+  // (the priors keep their full weight, so no std can exceed its prior's).
+  {
+    const auto residuals =
+        frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+    result.correlation_inflation =
+        correlation_inflation(residuals, placed, frames, tdoa_std_s, settings.huber_threshold);
+    if (result.correlation_inflation > 1.05) {
+      placed =
+          place_frames(arrays, frames, unknowns, reference, positions, settings.speed_of_sound_mps);
+      solve = solve_once(arrays, frames, placed, unknowns, reference, positions, settings,
+                         tdoa_std_s * std::sqrt(result.correlation_inflation));
+    }
+  }
   result.tdoa_std_s = tdoa_std_s;
   result.tdoa_std_estimated = estimate_std;
   result.solver_report = solve.report;
@@ -509,6 +574,8 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     throw CalibrationError(
         "the calibration's covariance could not be computed (a parameter no data or prior "
         "constrains)");
+  const auto after =
+      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
   const auto variances = [&](const double* block, int size) {
     Eigen::MatrixXd out = Eigen::MatrixXd::Zero(size, size);
     if (!solve.problem->IsParameterBlockConstant(const_cast<double*>(block)))
@@ -516,8 +583,6 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     return out.diagonal().eval();
   };
 
-  const auto after =
-      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
   result.after = stats_of(after, placed, frames, -1);
   std::vector<bool> used(positions.size(), false);
   for (const auto& place : placed)
@@ -563,12 +628,15 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
                           offsets(static_cast<Eigen::Index>(k)), nominal.mic_position_std_m, ratio);
       }
       out.mic_position_m.push_back(mic);
+      const double applied_s =
+          i < nominal.channel_delay_s.size() ? nominal.channel_delay_s[i] : 0.0;
       out.channel_delay_s.push_back(
-          make_estimate(0.0, u.delays_s[i], delays(static_cast<Eigen::Index>(i)),
+          make_estimate(applied_s, applied_s + u.delays_s[i], delays(static_cast<Eigen::Index>(i)),
                         i == 0 ? 0.0 : priors.channel_delay_std_s, ratio));
     }
-    out.clock_offset_s = make_estimate(0.0, u.clock_s, variances(&u.clock_s, 1)(0),
-                                       priors.clock_offset_std_s, ratio);
+    out.clock_offset_s =
+        make_estimate(nominal.clock_offset_s, nominal.clock_offset_s + u.clock_s,
+                      variances(&u.clock_s, 1)(0), priors.clock_offset_std_s, ratio);
     out.frames = 0;
     for (const auto& place : placed) out.frames += frames[place.frame].array == static_cast<int>(a);
     out.distinct_directions =

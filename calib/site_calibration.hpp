@@ -30,6 +30,10 @@ struct ArrayNominal {
   double roll_deg = 0.0;
   std::vector<Eigen::Vector3d> mics_m;  // array frame
   double mic_position_std_m = 0.0;      // prior std of each mic coordinate; 0 holds them fixed
+  // Corrections the nodes already applied to the frames (an earlier calibration): the estimates
+  // add to them.
+  std::vector<double> channel_delay_s;  // per mic; empty: none
+  double clock_offset_s = 0.0;
 };
 
 // One analysis frame's pair delays from one array.
@@ -98,6 +102,10 @@ struct CalibrationResult {
   std::vector<ArrayCalibration> arrays;
   double tdoa_std_s = 0.0;  // used for the weights (given or estimated)
   bool tdoa_std_estimated = false;
+  // A node's TDOAs are smoothed over neighbouring frames, so their errors are not independent:
+  // 1 + 2 sum of the residuals' significant autocorrelations (1: independent frames). The
+  // final solve weighs the TDOAs by tdoa_std * sqrt(this).
+  double correlation_inflation = 1.0;
   int frames_used = 0;
   int frames_off_reference = 0;  // emission time outside the reference track (or in a gap)
   int reference_samples_used = 0;

@@ -20,7 +20,7 @@ struct Outcome {
 
 // A plane wave whose channels are late by `delay_s` (per mic) and louder by `gain_db`.
 Outcome run(const ArrayGeometry& configured, const std::vector<double>& delay_s,
-        const std::vector<double>& gain_db) {
+            const std::vector<double>& gain_db) {
   const ArrayGeometry truth = testing::tetrahedron(20.0);
   const Eigen::Vector3d direction = direction_from_azel_deg(70.0, 20.0);
   const auto frames = static_cast<std::size_t>(3.0 * kRate);

@@ -1,0 +1,188 @@
+// `dronetrack calibrate SITE.json --reference REF.jsonl --out SITE_CAL.json [--tdoa T.jsonl]`:
+// a calibration flight's pair delays against its known positions -> a calibrated site config
+// (docs/calibration.md). The solver is calib/; this file reads, reports and writes.
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <optional>
+
+#include "apps/calibrated_site.hpp"
+#include "apps/calibration_inputs.hpp"
+#include "apps/cli_checks.hpp"
+#include "apps/commands.hpp"
+#include "apps/fusion_observer.hpp"
+#include "apps/replay_runner.hpp"
+#include "apps/run_outputs.hpp"
+#include "apps/signals.hpp"
+#include "calib/site_calibration.hpp"
+#include "common/log.hpp"
+#include "common/output_file.hpp"
+#include "config/config_reader.hpp"
+#include "config/site_config.hpp"
+
+namespace dronetrack::apps {
+namespace {
+
+struct CalibrateArguments {
+  std::string site;
+  std::string reference;
+  std::string out;
+  std::string tdoa;
+  std::optional<double> reference_std_m;
+  std::optional<double> mic_position_std_m;
+  calib::CalibrationSettings settings;
+  double direction_gate_deg = 10.0;
+  double max_duration_s = 0.0;
+};
+
+// Every full-rank DOA's pair delays, as the nodes measured them.
+class TdoaCollector : public FusionObserver {
+ public:
+  void on_doa(const doa::DoaMeasurement& doa) override {
+    if (doa.ambiguity == doa::DoaAmbiguity::none) lines.push_back(tdoa_line_of(doa));
+  }
+  std::vector<TdoaLine> lines;
+};
+
+std::vector<TdoaLine> measure_tdoas(const config::SiteConfig& site, double max_duration_s) {
+  TdoaCollector collector;
+  ReplayOptions options;
+  options.max_duration_s = max_duration_s;
+  const ReplaySummary summary = run_replay(site, {&collector}, options, &install_stop_handlers());
+  if (stop_requested()) throw UserError("interrupted before the calibration ran; nothing written");
+  if (!summary.cut_short.empty()) throw UserError(summary.cut_short);
+  log::info("calibrate: ", collector.lines.size(), " full-rank DOAs over ", summary.stream_s,
+            " s of recordings");
+  return std::move(collector.lines);
+}
+
+int run(const CalibrateArguments& arguments) {
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  load_options.check_recordings = arguments.tdoa.empty();
+  const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
+  for (const auto& warning : warnings) log::warn(warning);
+  {
+    std::vector<NamedPath> inputs = site_inputs(site, arguments.tdoa.empty());
+    inputs.push_back({"--reference", arguments.reference});
+    if (!arguments.tdoa.empty()) inputs.push_back({"--tdoa", arguments.tdoa});
+    check_output_paths(inputs, {{"--out", arguments.out}});
+  }
+  const ReferenceLog log = read_reference_log(arguments.reference);
+  const calib::ReferenceTrack reference(log.samples, arguments.settings.reference_max_gap_s);
+  calib::CalibrationSettings settings = arguments.settings;
+  settings.speed_of_sound_mps = site.speed_of_sound_mps;
+  settings.reference_position_std_m =
+      arguments.reference_std_m.value_or(log.position_std_m.value_or(1.0));
+
+  const std::vector<TdoaLine> lines = arguments.tdoa.empty()
+                                          ? measure_tdoas(site, arguments.max_duration_s)
+                                          : read_tdoa_lines(arguments.tdoa, site);
+  const std::string data_name = arguments.tdoa.empty() ? site.file.string() : arguments.tdoa;
+  if (lines.empty())
+    throw UserError(data_name +
+                    ": no full-rank DOA with pair delays (is the calibration source "
+                    "audible, are the arrays solid?)");
+  const std::vector<calib::ArrayNominal> arrays =
+      nominal_arrays(site, arguments.mic_position_std_m);
+  int dropped = 0;
+  const std::vector<calib::TdoaFrame> frames = frames_towards_reference(
+      lines, arrays, reference, site.speed_of_sound_mps, arguments.direction_gate_deg, dropped);
+  log::info("calibrate: ", frames.size(), " frames towards the reference, ", dropped,
+            " pointing elsewhere (beyond ", arguments.direction_gate_deg, " deg) dropped");
+
+  calib::CalibrationResult result;
+  try {
+    result = calib::calibrate_site(arrays, frames, reference, settings);
+  } catch (const calib::CalibrationError& error) {
+    throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
+  }
+  std::fputs(calibration_table(result).c_str(), stdout);
+
+  const nlohmann::json original = nlohmann::json::parse(
+      config::read_text_file(arguments.site, config::kMaxConfigBytes, "site config"));
+  const std::filesystem::path out_path(arguments.out);
+  const nlohmann::json calibrated = calibrated_site_document(
+      original, site, result, std::filesystem::path(arguments.site).parent_path(),
+      out_path.parent_path());
+  OutputFile out(out_path);
+  out.write(calibrated.dump(2));
+  RunOutputs outputs;
+  outputs.add(out);
+  const int code = outputs.finish("calibrate");
+  if (code == 0) log::info("calibrate: wrote ", arguments.out);
+  return code;
+}
+
+}  // namespace
+
+void register_calibrate(CLI::App& root, CommandTable& table) {
+  auto arguments = std::make_shared<CalibrateArguments>();
+  auto* command = root.add_subcommand(
+      "calibrate",
+      "Calibrate the site from a flight with known positions: array attitude and position, mic "
+      "positions, channel delays, node clocks (docs/calibration.md)");
+  command->add_option("site", arguments->site, "Site config (JSON, SPEC 3.1) of the flight")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command
+      ->add_option("--reference", arguments->reference,
+                   "The flight's known positions: JSON lines {\"t\": s, \"position_m\": [x,y,z]} "
+                   "on the recordings' clock")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--out", arguments->out, "Write the calibrated site config here")->required();
+  command
+      ->add_option("--tdoa", arguments->tdoa,
+                   "Pair delays from `replay --tdoa-out` (default: run the nodes over the site's "
+                   "recordings)")
+      ->check(CLI::ExistingFile);
+  command
+      ->add_option("--reference-std-m", arguments->reference_std_m,
+                   "Position std of the reference, m (default: the lines' position_std_m, else 1)")
+      ->check(finite_in(0.0, 1000.0));
+  command
+      ->add_option("--mic-position-std-m", arguments->mic_position_std_m,
+                   "Prior std of each mic coordinate, m (default: each array's "
+                   "mic_position_std_m; 0 holds the mics)")
+      ->check(finite_in(0.0, 1.0));
+  calib::CalibrationPriors& priors = arguments->settings.priors;
+  command
+      ->add_option("--attitude-std-deg", priors.attitude_std_deg,
+                   "Prior std of each array's yaw, pitch and roll, degrees")
+      ->capture_default_str()
+      ->check(finite_in(0.0, 90.0));
+  command
+      ->add_option("--array-position-std-m", priors.array_position_std_m,
+                   "Prior std of each array's position, m")
+      ->capture_default_str()
+      ->check(finite_in(0.0, 100.0));
+  command
+      ->add_option("--channel-delay-std-s", priors.channel_delay_std_s,
+                   "Prior std of each channel's delay relative to channel 0, s")
+      ->capture_default_str()
+      ->check(finite_in(0.0, 0.1));
+  command
+      ->add_option("--clock-offset-std-s", priors.clock_offset_std_s,
+                   "Prior std of each node's clock offset, s")
+      ->capture_default_str()
+      ->check(finite_in(0.0, 3600.0));
+  command
+      ->add_option("--tdoa-std-s", arguments->settings.tdoa_std_s,
+                   "TDOA noise std, s (0: estimated from the residuals)")
+      ->capture_default_str()
+      ->check(finite_in(0.0, 0.1));
+  command
+      ->add_option("--direction-gate-deg", arguments->direction_gate_deg,
+                   "Use a DOA only within this angle of the direction to the reference")
+      ->capture_default_str()
+      ->check(finite_in(0.1, 180.0));
+  command
+      ->add_option("--max-duration-s", arguments->max_duration_s,
+                   "Stop reading the recordings after this many seconds")
+      ->check(finite_in(0.0, kMaxDuration_s))
+      ->excludes("--tdoa");
+  table.add(command, [arguments]() { return run(*arguments); });
+}
+
+}  // namespace dronetrack::apps
