@@ -34,7 +34,7 @@ void for_each_json_line(const std::filesystem::path& file, const std::string& wh
     try {
       node = nlohmann::json::parse(line);
     } catch (const nlohmann::json::exception&) {
-      throw UserError(where + ": not a JSON object (" + what + ")");
+      throw UserError(where + ": not valid JSON (" + what + "; NaN is not a JSON number)");
     }
     each(node, where);
   }

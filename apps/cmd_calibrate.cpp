@@ -88,8 +88,6 @@ int run(const CalibrateArguments& arguments) {
   int dropped = 0;
   const std::vector<calib::TdoaFrame> frames = frames_towards_reference(
       lines, arrays, reference, site.speed_of_sound_mps, arguments.direction_gate_deg, dropped);
-  log::info("calibrate: ", frames.size(), " frames towards the reference, ", dropped,
-            " pointing elsewhere (beyond ", arguments.direction_gate_deg, " deg) dropped");
 
   calib::CalibrationResult result;
   try {
@@ -97,6 +95,10 @@ int run(const CalibrateArguments& arguments) {
   } catch (const calib::CalibrationError& error) {
     throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
   }
+  std::printf(
+      "calibrate: %d DOAs pointed beyond %g deg of the reference (another source, an "
+      "echo): left out\n",
+      dropped, arguments.direction_gate_deg);
   std::fputs(calibration_table(result).c_str(), stdout);
 
   const nlohmann::json original = nlohmann::json::parse(
@@ -106,7 +108,7 @@ int run(const CalibrateArguments& arguments) {
       original, site, result, std::filesystem::path(arguments.site).parent_path(),
       out_path.parent_path());
   OutputFile out(out_path);
-  out.write(calibrated.dump(2));
+  out.write(calibrated.dump(2) + "\n");
   RunOutputs outputs;
   outputs.add(out);
   const int code = outputs.finish("calibrate");

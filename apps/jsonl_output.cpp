@@ -155,7 +155,10 @@ std::string format_tdoa_line(const doa::DoaMeasurement& doa) {
 
 void TdoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {
   // A cone or a mirror's pair delays hold no direction to check them against.
-  if (doa.ambiguity == doa::DoaAmbiguity::none) out_.write(format_tdoa_line(doa));
+  if (doa.ambiguity == doa::DoaAmbiguity::none) {
+    const std::string line = format_tdoa_line(doa);
+    out_.write_line(line.data(), line.size());
+  }
 }
 
 void DoaLinesWriter::on_doa(const doa::DoaMeasurement& doa) {

@@ -480,11 +480,12 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     }
     std::ostringstream out;
     out << "no TDOA frame falls on the reference track (reference t = " << reference.start_s()
-        << ".." << reference.end_s() << " s; "
-        << (frames.empty()
-                ? std::string("no TDOA frames at all")
-                : "TDOA frames t = " + std::to_string(first) + ".." + std::to_string(last) + " s")
-        << ")";
+        << ".." << reference.end_s() << " s; ";
+    if (frames.empty()) {
+      out << "no TDOA frames at all)";
+    } else {
+      out << "TDOA frames t = " << first << ".." << last << " s)";
+    }
     throw CalibrationError(out.str());
   }
   for (std::size_t a = 0; a < arrays.size(); ++a) {
@@ -495,9 +496,8 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
       std::ostringstream out;
       out << "array " << arrays[a].id << ": the reference is heard from " << directions
           << " distinct direction" << (directions == 1 ? "" : "s") << "; at least "
-          << settings.min_distinct_directions << " at least "
-          << settings.min_direction_separation_deg
-          << " degrees apart are needed (fly around the array)";
+          << settings.min_distinct_directions << ", each " << settings.min_direction_separation_deg
+          << " degrees from the others, are needed (fly around the array)";
       throw CalibrationError(out.str());
     }
   }
