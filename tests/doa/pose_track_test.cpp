@@ -1,0 +1,221 @@
+// Arrays that move (issue 15): pose interpolation at and between lines, slerp across the
+// heading's +-180 deg wrap, the frame rotation of known vectors by known yaw/pitch/roll (hand
+// computed), refusal outside the span, the live ring, and a DOA turned to the attitude at its
+// time (direction, covariance, mirror image).
+#include "doa/pose_track.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "doa/ls_doa_solver.hpp"
+#include "tests/doa/synthetic_audio.hpp"
+
+namespace dronetrack::doa {
+namespace {
+
+PoseSample pose(double time_s, Eigen::Vector3d position_m, double yaw_deg, double pitch_deg = 0.0,
+                double roll_deg = 0.0) {
+  return {time_s, position_m, yaw_deg, pitch_deg, roll_deg};
+}
+
+// Angle of the rotation between two attitudes, degrees.
+double attitude_error_deg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return a.angularDistance(b) * 180.0 / std::numbers::pi;
+}
+
+// An array whose mic centroid is off its origin, so centre_m shows the attitude too.
+ArrayGeometry offset_pair() {
+  // centroid (2, 0, 0)
+  return ArrayGeometry{.id = std::string(1, 'P'), .mics_m = {{1.0, 0.0, 0.0}, {3.0, 0.0, 0.0}}};
+}
+
+TEST(ArrayAttitude, RotatesKnownVectorsByYawPitchRoll) {
+  // Yaw 90: array +x is site +y.
+  EXPECT_TRUE(attitude_to_site(90, 0, 0).col(0).isApprox(Eigen::Vector3d(0, 1, 0), 1e-12));
+  // Pitch 30 about +y turns +x to (cos 30, 0, -sin 30); then yaw 90 to (0, cos 30, -sin 30).
+  EXPECT_TRUE((attitude_to_site(90, 30, 0) * Eigen::Vector3d::UnitX())
+                  .isApprox(Eigen::Vector3d(0, std::sqrt(3.0) / 2.0, -0.5), 1e-12));
+  // Roll 90 about +x turns +y to +z.
+  EXPECT_TRUE((attitude_to_site(0, 0, 90) * Eigen::Vector3d::UnitY())
+                  .isApprox(Eigen::Vector3d(0, 0, 1), 1e-12));
+  // All three on +y: roll 60 -> (0, 1/2, sqrt3/2); pitch 30 -> (sqrt3/4, 1/2, 3/4);
+  // yaw 90 -> (-1/2, sqrt3/4, 3/4).
+  EXPECT_TRUE((attitude_to_site(90, 30, 60) * Eigen::Vector3d::UnitY())
+                  .isApprox(Eigen::Vector3d(-0.5, std::sqrt(3.0) / 4.0, 0.75), 1e-12));
+  ArrayGeometry geometry = offset_pair();
+  geometry.position_m = {10, 20, 2};
+  geometry.yaw_deg = 90;
+  geometry.pitch_deg = 30;
+  geometry.roll_deg = 60;
+  // Mic 0 at array (1, 0, 0): site (10, 20, 2) + (0, cos 30, -sin 30).
+  EXPECT_TRUE(
+      geometry.mic_site_m(0).isApprox(Eigen::Vector3d(10, 20 + std::sqrt(3.0) / 2.0, 1.5), 1e-12));
+  const PoseStamp fixed = fixed_stamp(geometry);
+  EXPECT_FALSE(fixed.moving);
+  EXPECT_TRUE(fixed.centre_m.isApprox(geometry.centre_site_m(), 1e-12));
+  EXPECT_TRUE(fixed.array_to_site.toRotationMatrix().isApprox(geometry.array_to_site(), 1e-12));
+}
+
+// Every user of array_to_site(): the LS solver's site-frame answer from a tilted array's
+// physical TDOAs (mic site positions) is the true direction.
+TEST(ArrayAttitude, SolverOfTiltedArrayReturnsSiteDirection) {
+  ArrayGeometry geometry = testing::tetrahedron(-150.0);
+  geometry.pitch_deg = 12.0;
+  geometry.roll_deg = -25.0;
+  const LsDoaSolver solver(geometry, LsDoaSettings{});
+  for (const auto& [azimuth, elevation] : {std::pair{10.0, 20.0}, {170.0, 50.0}, {-95.0, 5.0}}) {
+    const Eigen::Vector3d truth = direction_from_azel_deg(azimuth, elevation);
+    const std::vector<double> arrival = testing::plane_wave_delays(geometry, truth, 343.0);
+    std::vector<PairTdoa> tdoas;
+    for (int p = 0; p < solver.pair_count(); ++p)
+      tdoas.push_back({arrival[static_cast<std::size_t>(solver.pair_mic_i(p))] -
+                           arrival[static_cast<std::size_t>(solver.pair_mic_j(p))],
+                       1e-12, 0.9});
+    const DoaSolution solution = solver.solve(tdoas);
+    ASSERT_TRUE(solution.accepted);
+    EXPECT_LT(angle_between_deg(solution.direction_site, truth), 1e-6) << azimuth;
+  }
+}
+
+TEST(PoseTrack, AtEachLineIsThatLine) {
+  const ArrayGeometry geometry = offset_pair();
+  const PoseTrack track(
+      {pose(0.0, {0, 0, 1}, 0), pose(1.0, {10, 0, 1}, 90, 10, -5), pose(2.5, {10, 15, 2}, 120)});
+  for (const PoseSample& line : track.samples()) {
+    const auto stamp = track.stamp(line.time_s, geometry);
+    ASSERT_TRUE(stamp);
+    EXPECT_TRUE(stamp->moving);
+    const Eigen::Matrix3d rotation = attitude_to_site(line.yaw_deg, line.pitch_deg, line.roll_deg);
+    EXPECT_LT(attitude_error_deg(stamp->array_to_site, Eigen::Quaterniond(rotation)), 1e-9);
+    EXPECT_TRUE(
+        stamp->centre_m.isApprox(line.position_m + rotation * Eigen::Vector3d(2, 0, 0), 1e-12))
+        << line.time_s;
+  }
+}
+
+TEST(PoseTrack, BetweenLinesPositionIsLinearAndHeadingTurnsEvenly) {
+  const ArrayGeometry geometry = offset_pair();
+  const PoseTrack track({pose(0.0, {0, 0, 1}, 10), pose(2.0, {8, -4, 3}, 40)});
+  const auto quarter = track.stamp(0.5, geometry);
+  ASSERT_TRUE(quarter);
+  // A quarter of the way: origin (2, -1, 1.5), heading 17.5 deg, centroid 2 m along it.
+  const double heading = 17.5 * std::numbers::pi / 180.0;
+  EXPECT_TRUE(quarter->centre_m.isApprox(
+      Eigen::Vector3d(2 + 2 * std::cos(heading), -1 + 2 * std::sin(heading), 1.5), 1e-12));
+  EXPECT_LT(
+      attitude_error_deg(quarter->array_to_site, Eigen::Quaterniond(attitude_to_site(17.5, 0, 0))),
+      1e-9);
+}
+
+TEST(PoseTrack, HeadingAcrossTheWrapTurnsTheShortWay) {
+  const ArrayGeometry geometry = offset_pair();
+  // 170 -> -170 is a 20 deg turn through 180, not 340 deg back through 0.
+  const PoseTrack track({pose(0.0, {0, 0, 0}, 170), pose(1.0, {0, 0, 0}, -170)});
+  for (const auto& [time, expected_yaw] : {std::pair{0.5, 180.0}, {0.25, 175.0}, {0.75, -175.0}}) {
+    const auto stamp = track.stamp(time, geometry);
+    ASSERT_TRUE(stamp);
+    EXPECT_LT(attitude_error_deg(stamp->array_to_site,
+                                 Eigen::Quaterniond(attitude_to_site(expected_yaw, 0, 0))),
+              1e-9)
+        << time;
+  }
+  // Half way the array's +x points at site -x.
+  EXPECT_TRUE((track.stamp(0.5, geometry)->array_to_site * Eigen::Vector3d::UnitX())
+                  .isApprox(Eigen::Vector3d(-1, 0, 0), 1e-12));
+}
+
+TEST(PoseTrack, RefusesTimesOutsideItsSpan) {
+  const ArrayGeometry geometry = offset_pair();
+  const PoseTrack track({pose(5.0, {0, 0, 0}, 0), pose(6.0, {1, 0, 0}, 0)});
+  EXPECT_FALSE(track.stamp(4.999, geometry));
+  EXPECT_FALSE(track.stamp(6.001, geometry));
+  EXPECT_FALSE(track.stamp(std::nan(""), geometry));
+  EXPECT_TRUE(track.stamp(5.0, geometry));
+  EXPECT_TRUE(track.stamp(6.0, geometry));
+  EXPECT_THROW(PoseTrack({pose(0.0, {0, 0, 0}, 0)}), std::invalid_argument);
+  EXPECT_THROW(PoseTrack({pose(1.0, {0, 0, 0}, 0), pose(1.0, {0, 0, 0}, 0)}),
+               std::invalid_argument);
+}
+
+TEST(PoseRing, StampsBetweenArrivedSamplesOnly) {
+  PoseRing ring(0.5);
+  const Eigen::Vector3d centroid(2, 0, 0);
+  EXPECT_FALSE(ring.stamp(0.0, centroid));
+  EXPECT_TRUE(ring.push(pose(0.0, {0, 0, 0}, 0)));
+  EXPECT_TRUE(ring.push(pose(0.1, {1, 0, 0}, 0)));
+  EXPECT_FALSE(ring.push(pose(0.1, {1, 0, 0}, 0)));             // repeated time
+  EXPECT_FALSE(ring.push(pose(0.2, {std::nan(""), 0, 0}, 0)));  // non-finite
+  EXPECT_EQ(ring.refused(), 2);
+  const auto middle = ring.stamp(0.05, centroid);
+  ASSERT_TRUE(middle);
+  EXPECT_TRUE(middle->centre_m.isApprox(Eigen::Vector3d(2.5, 0, 0), 1e-12));
+  EXPECT_FALSE(ring.stamp(0.15, centroid));  // not yet arrived
+  EXPECT_TRUE(ring.push(pose(1.0, {2, 0, 0}, 0)));
+  EXPECT_FALSE(ring.stamp(0.5, centroid));  // across a 0.9 s gap
+  EXPECT_TRUE(ring.push(pose(1.1, {3, 0, 0}, 60)));
+  EXPECT_FALSE(ring.stamp(1.05, centroid));  // a 60 deg turn between lines
+  // Past its capacity the oldest go: still stamps the newest, no longer the first.
+  for (std::size_t i = 0; i < PoseRing::kCapacity; ++i)
+    ASSERT_TRUE(ring.push(pose(2.0 + 0.01 * static_cast<double>(i), {0, 0, 0}, 60)));
+  EXPECT_EQ(ring.size(), PoseRing::kCapacity);
+  EXPECT_FALSE(ring.stamp(0.05, centroid));
+  EXPECT_TRUE(ring.stamp(ring.newest_s() - 0.005, centroid));
+}
+
+TEST(Restamp, TurnsDirectionAndCovarianceToTheAttitudeAtTheFrame) {
+  DoaMeasurement measurement;
+  measurement.direction = Eigen::Vector3d::UnitX();
+  measurement.azel_covariance_rad2 << 1e-4, 0.0, 0.0, 4e-4;
+  // Solved with the config's level array; at this frame the array was rolled 90 deg, so the
+  // array's horizontal (the azimuth direction, +y) is now vertical: the variances swap.
+  PoseStamp stamp;
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(0, 0, 90));
+  stamp.moving = true;
+  restamp(measurement, stamp, Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(measurement.direction.isApprox(Eigen::Vector3d::UnitX(), 1e-12));
+  EXPECT_NEAR(measurement.azel_covariance_rad2(0, 0), 4e-4, 1e-12);
+  EXPECT_NEAR(measurement.azel_covariance_rad2(1, 1), 1e-4, 1e-12);
+  EXPECT_NEAR(measurement.azel_covariance_rad2(0, 1), 0.0, 1e-12);
+  EXPECT_TRUE(measurement.pose.moving);
+
+  // Solved with a yaw of 30 (direction at azimuth 50 in that frame); the array had turned to
+  // yaw 100: the direction is at azimuth 120, elevation unchanged, variances unchanged.
+  DoaMeasurement turned;
+  turned.direction = direction_from_azel_deg(50, 20);
+  turned.azel_covariance_rad2 << 2e-4, 1e-5, 1e-5, 3e-4;
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(100, 0, 0));
+  restamp(turned, stamp, attitude_to_site(30, 0, 0));
+  EXPECT_NEAR(azimuth_deg(turned.direction), 120.0, 1e-9);
+  EXPECT_NEAR(elevation_deg(turned.direction), 20.0, 1e-9);
+  EXPECT_TRUE(turned.azel_covariance_rad2.isApprox(
+      (Eigen::Matrix2d() << 2e-4, 1e-5, 1e-5, 3e-4).finished(), 1e-9));
+}
+
+TEST(Restamp, MirrorPairKeepsTheImageAboveTheArrayPlane) {
+  // A planar array turned upside down (roll 180): its normal points down, so the image above
+  // the plane is the mirror of the turned direction, i.e. the original one.
+  DoaMeasurement measurement;
+  measurement.ambiguity = DoaAmbiguity::mirror_up_down;
+  measurement.direction = direction_from_azel_deg(0, 30);
+  measurement.ambiguity_axis = Eigen::Vector3d::UnitZ();
+  PoseStamp stamp;
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(0, 0, 180));
+  restamp(measurement, stamp, Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(measurement.ambiguity_axis.isApprox(Eigen::Vector3d::UnitZ(), 1e-12));
+  EXPECT_TRUE(measurement.direction.isApprox(direction_from_azel_deg(0, 30), 1e-12));
+  // A cone's axis follows the array (yaw 90: mic axis +x becomes +y).
+  DoaMeasurement cone;
+  cone.ambiguity = DoaAmbiguity::cone;
+  cone.ambiguity_axis = Eigen::Vector3d::UnitX();
+  cone.cone_angle_rad = 0.7;
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(90, 0, 0));
+  restamp(cone, stamp, Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(cone.ambiguity_axis.isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  EXPECT_DOUBLE_EQ(cone.cone_angle_rad, 0.7);
+}
+
+}  // namespace
+}  // namespace dronetrack::doa
