@@ -228,6 +228,8 @@ struct NodePipeline::Impl {
   double inband_power() const;
   bool publish(const Candidate& candidate, double time_s, int source_index,
                std::vector<DoaMeasurement>& out);
+  // The pose at the DOA's time, its site-frame vectors turned to it; false: no pose then.
+  bool stamp_pose(DoaMeasurement& measurement);
 
   ArrayGeometry geometry;
   int array_index;
@@ -277,6 +279,8 @@ struct NodePipeline::Impl {
   double null_time_s = 0.0;
   bool null_frame_clean = false;
   NodeDiagnostics diagnostics;
+  PoseStamp fixed_pose = fixed_stamp(geometry);
+  PoseTrack pose_track;  // empty: a fixed array
 };
 
 // The static null learns from plain PHAT peaks: a steady ground source is as steady in power as
@@ -332,8 +336,26 @@ bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int 
   for (int p = 0; p < solver.pair_count(); ++p)
     measurement.tdoa_s[static_cast<std::size_t>(p)] = used[static_cast<std::size_t>(p)].tdoa_s;
   if (acoustic && candidate.slot >= 0) measurement.acoustic = acoustic->features(candidate.slot);
+  if (!stamp_pose(measurement)) return false;
   out.push_back(std::move(measurement));
   ++diagnostics.doas_published;
+  return true;
+}
+
+// Everything before publishing works in the frame of the geometry's fixed attitude (the solver's
+// rotation, the ground echo, the horizon); a moving array's DOA is turned to the attitude at its
+// time here, and only here.
+bool NodePipeline::Impl::stamp_pose(DoaMeasurement& measurement) {
+  if (pose_track.empty()) {
+    measurement.pose = fixed_pose;
+    return true;
+  }
+  const std::optional<PoseStamp> stamp = pose_track.stamp(measurement.time_s, geometry);
+  if (!stamp) {
+    ++diagnostics.unposed_doas;
+    return false;
+  }
+  restamp(measurement, *stamp, solver.array_to_site());
   return true;
 }
 
@@ -677,6 +699,8 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
   impl.diagnostics.stream_gaps = counters.stream_gaps;
   impl.diagnostics.rejected_blocks = counters.rejected_blocks;
 }
+
+void NodePipeline::set_pose_track(PoseTrack track) { impl_->pose_track = std::move(track); }
 
 void NodePipeline::finish() { impl_->health.finish(); }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "doa/ls_doa_solver.hpp"
+#include "doa/node_pipeline.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
 namespace dronetrack::doa {
@@ -215,6 +216,98 @@ TEST(Restamp, MirrorPairKeepsTheImageAboveTheArrayPlane) {
   restamp(cone, stamp, Eigen::Matrix3d::Identity());
   EXPECT_TRUE(cone.ambiguity_axis.isApprox(Eigen::Vector3d::UnitY(), 1e-12));
   EXPECT_DOUBLE_EQ(cone.cone_angle_rad, 0.7);
+}
+
+constexpr double kRate = 48000.0;
+
+// A plane wave from `direction_site` at `geometry`, in light sensor noise.
+testing::Recording plane_wave(const ArrayGeometry& geometry, const Eigen::Vector3d& direction_site,
+                              double seconds) {
+  const auto frames = static_cast<std::size_t>(seconds * kRate);
+  testing::Recording recording = testing::silent_recording(4, frames);
+  const testing::BandNoise source(static_cast<int>(frames), kRate, 1000.0, 4000.0, 5);
+  testing::add_source(recording, geometry, direction_site, source, 0.05);
+  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.01, 77);
+  return recording;
+}
+
+std::vector<DoaMeasurement> run(NodePipeline& pipeline, const testing::Recording& recording) {
+  std::vector<DoaMeasurement> out;
+  constexpr std::size_t kBlock = 1024;
+  for (std::size_t first = 0; first < recording.frames(); first += kBlock)
+    pipeline.process(recording.view(first, std::min(kBlock, recording.frames() - first)), out);
+  return out;
+}
+
+// Each DOA from its own frame's audio only.
+void use_per_frame(DoaParams& params) {
+  params.tdoa_tracker = TdoaTracker::per_frame;
+  params.ground_echo = false;
+}
+
+// A pose file that holds still at a pose other than the config's gives the DOAs a config with
+// that fixed pose gives: same directions, covariances and acoustic centre.
+TEST(NodePipelinePose, ConstantPoseEqualsTheSameFixedPose) {
+  ArrayGeometry actual = testing::tetrahedron(70.0);
+  actual.position_m = {30.0, -12.0, 2.0};
+  actual.pitch_deg = 8.0;
+  actual.roll_deg = -5.0;
+  const Eigen::Vector3d truth = direction_from_azel_deg(-120.0, 30.0);
+  const testing::Recording recording = plane_wave(actual, truth, 2.0);
+  DoaParams params;
+  use_per_frame(params);
+
+  NodePipeline fixed(actual, 0, params, kRate, 343.0);
+  const std::vector<DoaMeasurement> expected = run(fixed, recording);
+
+  const ArrayGeometry nominal = testing::tetrahedron(0.0);  // the config: level, at the origin
+  NodePipeline moving(nominal, 0, params, kRate, 343.0);
+  moving.set_pose_track(PoseTrack({pose(0.0, actual.position_m, 70.0, 8.0, -5.0),
+                                   pose(1.0, actual.position_m, 70.0, 8.0, -5.0),
+                                   pose(2.0, actual.position_m, 70.0, 8.0, -5.0)}));
+  const std::vector<DoaMeasurement> got = run(moving, recording);
+
+  ASSERT_GE(expected.size(), 5U);
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_DOUBLE_EQ(got[i].time_s, expected[i].time_s);
+    EXPECT_LT(angle_between_deg(got[i].direction, expected[i].direction), 1e-6);
+    EXPECT_LT(angle_between_deg(got[i].direction, truth), 1.0);
+    EXPECT_TRUE(got[i].azel_covariance_rad2.isApprox(expected[i].azel_covariance_rad2, 1e-6));
+    EXPECT_TRUE(got[i].pose.moving);
+    EXPECT_FALSE(expected[i].pose.moving);
+    EXPECT_TRUE(got[i].pose.centre_m.isApprox(expected[i].pose.centre_m, 1e-12));
+    EXPECT_TRUE(got[i].pose.centre_m.isApprox(actual.centre_site_m(), 1e-12));
+  }
+}
+
+// A platform turning at 20 deg/s carries a source fixed in its own frame (on its deck): each
+// DOA is that array-frame direction turned by the heading at the DOA's own time, not at the
+// config's yaw or any other frame's. Frames outside the pose's span are dropped and counted.
+TEST(NodePipelinePose, DirectionFollowsTheHeadingAtEachFramesTime) {
+  const ArrayGeometry nominal = testing::tetrahedron(0.0);
+  const Eigen::Vector3d in_array_frame = direction_from_azel_deg(30.0, 20.0);
+  const testing::Recording recording = plane_wave(nominal, in_array_frame, 3.0);
+  std::vector<PoseSample> lines;
+  for (int i = 0; i <= 25; ++i)  // 0 .. 2.5 s at 10 Hz: the recording's last frames are outside
+    lines.push_back(pose(0.1 * i, {0.1 * i, 0.0, 1.5}, -170.0 + 2.0 * i));
+  DoaParams params;
+  use_per_frame(params);
+  NodePipeline pipeline(nominal, 0, params, kRate, 343.0);
+  pipeline.set_pose_track(PoseTrack(lines));
+  const std::vector<DoaMeasurement> doas = run(pipeline, recording);
+  ASSERT_GE(doas.size(), 10U);
+  for (const DoaMeasurement& doa : doas) {
+    ASSERT_LE(doa.time_s, 2.5);
+    const double heading_deg = -170.0 + 20.0 * doa.time_s;
+    const Eigen::Vector3d expected = attitude_to_site(heading_deg, 0, 0) * in_array_frame;
+    EXPECT_LT(angle_between_deg(doa.direction, expected), 1.0) << doa.time_s;
+    EXPECT_NEAR(doa.pose.centre_m.x(), doa.time_s + nominal.centre_site_m().x(), 1e-9);
+  }
+  // One frame's error would be ~0.1 deg; a 20 deg/s turn moves 4.8 deg per hop: a DOA turned by
+  // the wrong frame's heading would be off by that much.
+  EXPECT_GT(pipeline.diagnostics().unposed_doas, 0);
+  EXPECT_EQ(pipeline.diagnostics().doas_published, static_cast<std::int64_t>(doas.size()));
 }
 
 }  // namespace
