@@ -93,6 +93,11 @@ void register_eval(CLI::App& root, CommandTable& table) {
       ->capture_default_str()
       ->check(finite_in(1e-3, 1e5));
   command
+      ->add_option("--converge-m", arguments->options.converge_gate_m,
+                   "A source has converged once its track errors stay within this, metres")
+      ->capture_default_str()
+      ->check(finite_in(1e-3, 1e5));
+  command
       ->add_option("--tick-s", arguments->options.tick_s,
                    "Evaluation step, seconds (default: the tracks' output interval)")
       ->check(finite_in(0.0, 3600.0));

@@ -12,6 +12,7 @@
 #include "apps/fusion_driver.hpp"
 #include "common/log.hpp"
 #include "config/config_reader.hpp"
+#include "doa/pose_sample.hpp"
 #include "eval/readers.hpp"
 
 namespace dronetrack::apps {
@@ -21,6 +22,33 @@ doa::DoaAmbiguity ambiguity_of(const std::string& name) {
   if (name == "mirror_up_down") return doa::DoaAmbiguity::mirror_up_down;
   if (name == "cone") return doa::DoaAmbiguity::cone;
   return doa::DoaAmbiguity::none;
+}
+
+// The line's pose (a moving array), or the site's fixed one; the cone or mirror plane.
+void copy_geometry(const eval::DoaRecord& record, const doa::ArrayGeometry& geometry,
+                   doa::DoaMeasurement& doa) {
+  constexpr double kRadPerDeg = std::numbers::pi / 180.0;
+  if (record.pose) {
+    const Eigen::Vector3d& attitude = record.pose->attitude_deg;
+    doa.pose = {record.pose->centre_m,
+                doa::rotation_from_attitude_deg(attitude(0), attitude(1), attitude(2)), true};
+  } else {
+    doa.pose = {geometry.centre_site_m(), Eigen::Quaterniond(geometry.array_to_site()), false};
+  }
+  if (record.cone) {
+    doa.ambiguity_axis = record.cone->axis;
+    doa.cone_angle_rad = record.cone->angle_deg * kRadPerDeg;
+    const double std_rad = record.cone->angle_std_deg * kRadPerDeg;
+    doa.cone_angle_variance_rad2 = std_rad * std_rad;
+    doa.cone_peak_count = static_cast<int>(record.cone->peaks_deg.size());
+    for (int k = 0; k < doa.cone_peak_count; ++k) {
+      doa.cone_peak_angle_rad[static_cast<std::size_t>(k)] =
+          record.cone->peaks_deg[static_cast<std::size_t>(k)] * kRadPerDeg;
+      doa.cone_peak_weight[static_cast<std::size_t>(k)] =
+          record.cone->peak_weights[static_cast<std::size_t>(k)];
+    }
+  }
+  if (record.mirror_normal) doa.ambiguity_axis = *record.mirror_normal;
 }
 
 std::string site_array_ids(const config::SiteConfig& site) {
@@ -79,6 +107,7 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
     const double covariance = record.azel_correlation * std_rad(0) * std_rad(1);
     doa.azel_covariance_rad2 << std_rad(0) * std_rad(0), covariance, covariance,
         std_rad(1) * std_rad(1);
+    copy_geometry(record, site.arrays[static_cast<std::size_t>(doa.array_index)].geometry, doa);
     without_std += record.azel_std_deg ? 0 : 1;
     doas.push_back(std::move(doa));
   }

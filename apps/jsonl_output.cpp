@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "doa/array_geometry.hpp"
+#include "doa/pose_sample.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -14,6 +15,60 @@ void write_formatted(OutputFile& out, const char* buffer, std::size_t size, int 
     throw OutputError(out.name() + ": a line did not fit its " + std::to_string(size) +
                       "-byte buffer (an array id or zone name too long?)");
   out.write_line(buffer, static_cast<std::size_t>(length));
+}
+}  // namespace
+
+namespace {
+// Appends with snprintf at `length`; a negative or overflowing result is passed on for the
+// caller's check.
+template <class... Args>
+int append_formatted(char* buffer, std::size_t size, int length, const char* format, Args... args) {
+  if (length < 0 || static_cast<std::size_t>(length) >= size) return length;
+  const int tail =
+      std::snprintf(buffer + length, size - static_cast<std::size_t>(length), format, args...);
+  return tail < 0 ? tail : length + tail;
+}
+
+// The issue-15 blocks (docs/contract.md): "pose" for a moving array, "cone" or "mirror_normal"
+// for what a rank-deficient array measured. Each with a leading comma.
+int append_doa_geometry(const doa::DoaMeasurement& doa, char* buffer, std::size_t size,
+                        int length) {
+  constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+  if (doa.pose.moving) {
+    const Eigen::Vector3d& c = doa.pose.centre_m;
+    const Eigen::Vector3d attitude = doa::attitude_deg_of(doa.pose.array_to_site);
+    length =
+        append_formatted(buffer, size, length,
+                         R"(,"pose":{"centre_m":[%.4f,%.4f,%.4f],"attitude_deg":[%.4f,%.4f,%.4f]})",
+                         c.x(), c.y(), c.z(), attitude(0), attitude(1), attitude(2));
+  }
+  const Eigen::Vector3d& axis = doa.ambiguity_axis;
+  if (doa.ambiguity == doa::DoaAmbiguity::cone) {
+    length = append_formatted(
+        buffer, size, length,
+        R"(,"cone":{"axis":[%.9f,%.9f,%.9f],"angle_deg":%.5f,"angle_std_deg":%.6f)", axis.x(),
+        axis.y(), axis.z(), doa.cone_angle_rad * kDegPerRad,
+        std::sqrt(std::max(0.0, doa.cone_angle_variance_rad2)) * kDegPerRad);
+    const int peaks = std::clamp(doa.cone_peak_count, 0, doa::kMaxConePeaks);
+    if (peaks > 0) {
+      for (int pass = 0; pass < 2; ++pass) {
+        length = append_formatted(buffer, size, length,
+                                  pass == 0 ? R"(,"peaks_deg":[)" : R"(,"peak_weights":[)");
+        for (int k = 0; k < peaks; ++k) {
+          const auto index = static_cast<std::size_t>(k);
+          const double value =
+              pass == 0 ? doa.cone_peak_angle_rad[index] * kDegPerRad : doa.cone_peak_weight[index];
+          length = append_formatted(buffer, size, length, k == 0 ? "%.5f" : ",%.5f", value);
+        }
+        length = append_formatted(buffer, size, length, "]");
+      }
+    }
+    length = append_formatted(buffer, size, length, "}");
+  } else if (doa.ambiguity == doa::DoaAmbiguity::mirror_up_down) {
+    length = append_formatted(buffer, size, length, R"(,"mirror_normal":[%.9f,%.9f,%.9f])",
+                              axis.x(), axis.y(), axis.z());
+  }
+  return length;
 }
 }  // namespace
 
@@ -28,21 +83,23 @@ int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t si
       buffer, size,
       R"({"t":%.6f,"array":"%s","direction":[%.9f,%.9f,%.9f],"azimuth_deg":%.5f,)"
       R"("elevation_deg":%.5f,"quality":%.4f,"snr_db":%.2f,"source":%d,"ambiguity":"%s",)"
-      R"("azel_std_deg":[%.6f,%.6f],"azel_correlation":%.6f%s)",
+      R"("azel_std_deg":[%.6f,%.6f],"azel_correlation":%.6f)",
       doa.time_s, doa.array_id.c_str(), u.x(), u.y(), u.z(), doa::azimuth_deg(u),
       doa::elevation_deg(u), doa.quality, doa.snr_db, doa.source_index,
       doa::to_string(doa.ambiguity), azimuth_std_rad * 180.0 / std::numbers::pi,
-      elevation_std_rad * 180.0 / std::numbers::pi, correlation, doa.acoustic.valid ? "," : "}");
-  if (length <= 0 || !doa.acoustic.valid || static_cast<std::size_t>(length) >= size) return length;
-  const doa::AcousticFeatures& a = doa.acoustic;
-  const int tail =
-      std::snprintf(buffer + length, size - static_cast<std::size_t>(length),
-                    R"("acoustic":{"fundamental_hz":%.2f,"comb_strength":%.4f,"harmonics":%d,)"
-                    R"("broadband_share":%.4f,"comb_persistence":%.4f,"fundamental_spread":%.5f,)"
-                    R"("level_modulation_db":%.3f,"history_s":%.2f}})",
-                    a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share,
-                    a.comb_persistence, a.fundamental_spread, a.level_modulation_db, a.history_s);
-  return tail < 0 ? tail : length + tail;
+      elevation_std_rad * 180.0 / std::numbers::pi, correlation);
+  int total = append_doa_geometry(doa, buffer, size, length);
+  if (doa.acoustic.valid) {
+    const doa::AcousticFeatures& a = doa.acoustic;
+    total = append_formatted(
+        buffer, size, total,
+        R"(,"acoustic":{"fundamental_hz":%.2f,"comb_strength":%.4f,"harmonics":%d,)"
+        R"("broadband_share":%.4f,"comb_persistence":%.4f,"fundamental_spread":%.5f,)"
+        R"("level_modulation_db":%.3f,"history_s":%.2f})",
+        a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share, a.comb_persistence,
+        a.fundamental_spread, a.level_modulation_db, a.history_s);
+  }
+  return append_formatted(buffer, size, total, "}");
 }
 
 int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,

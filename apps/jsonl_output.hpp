@@ -28,7 +28,7 @@ class DoaLinesWriter : public FusionObserver {
 
  private:
   OutputFile out_;
-  char buffer_[1024];
+  char buffer_[2048];  // the longest line (cone peaks, pose, acoustic, 64-byte id) is ~1 kB
 };
 
 class TrackLinesWriter : public FusionObserver {

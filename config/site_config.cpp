@@ -14,9 +14,6 @@
 namespace dronetrack::config {
 namespace {
 
-// Bounds on the site's geometry (docs/contract.md). Acoustic range is a few km: coordinates past
-// 100 km are a unit or sign mistake, and past 1e15 m a double cannot hold a millimetre.
-constexpr double kMaxSiteCoordinate_m = 1e5;
 constexpr const char* kSiteExtentReason =
     "a coordinate beyond 100 km of the site origin (acoustic range is a few km; metres?)";
 // A mic belongs to its array: the far-field model holds over a few metres, not a kilometre.

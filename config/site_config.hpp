@@ -84,6 +84,9 @@ struct LoadOptions {
 inline constexpr std::size_t kMaxArrays = 64;        // the fusion's 64-bit array mask
 inline constexpr double kMinSampleRate_hz = 1000.0;  // as NodePipeline accepts
 inline constexpr double kMaxSampleRate_hz = 1e6;
+// Acoustic range is a few km: coordinates past 100 km are a unit or sign mistake, and past
+// 1e15 m a double cannot hold a millimetre.
+inline constexpr double kMaxSiteCoordinate_m = 1e5;
 
 // Reads and validates a site config file. Throws ConfigError (message prefixed with the file
 // name). Warnings (unknown keys) are appended to `warnings`.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <numbers>
 
 namespace dronetrack::dds {
 
@@ -12,6 +13,8 @@ constexpr std::size_t kArrayIdBound = sizeof(dronetrack_Doa{}.array_id);
 
 // A direction further than this from unit length is not a direction (the node normalises).
 constexpr double kUnitTolerance = 1e-3;
+// An array or pose beyond this from the site origin is a unit or sign mistake (as the site config).
+constexpr double kMaxPositionAbs_m = 1e5;
 
 bool finite(double value) { return std::isfinite(value); }
 template <std::size_t N>
@@ -36,6 +39,48 @@ int index_of(std::string_view id, const std::vector<std::string>& array_ids) {
 Eigen::Vector3d vector3(const double (&values)[3]) { return {values[0], values[1], values[2]}; }
 void put_vector3(const Eigen::Vector3d& vector, double (&values)[3]) {
   for (int i = 0; i < 3; ++i) values[i] = vector[i];
+}
+
+// The pose stamp, cone and mirror fields of a Doa sample: finite, a unit quaternion, a unit axis
+// where the ambiguity needs one, a cone angle in [0, pi] with a positive variance, matched peak
+// sequences within their bound.
+SampleProblem check_doa_geometry(const dronetrack_Doa& sample) {
+  if (!all_finite(sample.array_centre_m) || !all_finite(sample.array_orientation) ||
+      !all_finite(sample.ambiguity_axis) || !finite(sample.cone_angle_rad) ||
+      !finite(sample.cone_angle_variance_rad2)) {
+    return SampleProblem::non_finite;
+  }
+  const auto& angles = sample.cone_peak_angle_rad;
+  const auto& weights = sample.cone_peak_weight;
+  if (angles._length > static_cast<std::uint32_t>(doa::kMaxConePeaks) ||
+      weights._length != angles._length || (angles._length > 0 && angles._buffer == nullptr) ||
+      (weights._length > 0 && weights._buffer == nullptr)) {
+    return SampleProblem::oversized_sequence;
+  }
+  for (std::uint32_t k = 0; k < angles._length; ++k) {
+    if (!finite(angles._buffer[k]) || !finite(weights._buffer[k])) return SampleProblem::non_finite;
+    if (angles._buffer[k] < 0.0 || angles._buffer[k] > std::numbers::pi || weights._buffer[k] < 0.0)
+      return SampleProblem::bad_value;
+  }
+  const double quaternion_norm =
+      std::sqrt(sample.array_orientation[0] * sample.array_orientation[0] +
+                sample.array_orientation[1] * sample.array_orientation[1] +
+                sample.array_orientation[2] * sample.array_orientation[2] +
+                sample.array_orientation[3] * sample.array_orientation[3]);
+  if (std::abs(quaternion_norm - 1.0) > kUnitTolerance ||
+      vector3(sample.array_centre_m).cwiseAbs().maxCoeff() > kMaxPositionAbs_m) {
+    return SampleProblem::bad_value;
+  }
+  const bool needs_axis = sample.ambiguity != 0;
+  if (needs_axis && std::abs(vector3(sample.ambiguity_axis).norm() - 1.0) > kUnitTolerance)
+    return SampleProblem::bad_value;
+  const bool cone = sample.ambiguity == static_cast<std::uint8_t>(doa::DoaAmbiguity::cone);
+  if (cone && (sample.cone_angle_rad < 0.0 || sample.cone_angle_rad > std::numbers::pi ||
+               !(sample.cone_angle_variance_rad2 > 0.0))) {
+    return SampleProblem::bad_value;
+  }
+  if (!cone && angles._length > 0) return SampleProblem::bad_value;
+  return SampleProblem::none;
 }
 
 }  // namespace
@@ -101,6 +146,25 @@ void to_idl(const doa::DoaMeasurement& measurement, std::int64_t time_offset_ns,
   // dds_write only reads through this pointer; the cast drops const for the C struct's sake.
   sample.tdoa_s._buffer = const_cast<double*>(measurement.tdoa_s.data());
   sample.tdoa_s._release = false;
+  sample.array_moving = measurement.pose.moving;
+  put_vector3(measurement.pose.centre_m, sample.array_centre_m);
+  const Eigen::Quaterniond& q = measurement.pose.array_to_site;
+  sample.array_orientation[0] = q.w();
+  sample.array_orientation[1] = q.x();
+  sample.array_orientation[2] = q.y();
+  sample.array_orientation[3] = q.z();
+  put_vector3(measurement.ambiguity_axis, sample.ambiguity_axis);
+  sample.cone_angle_rad = measurement.cone_angle_rad;
+  sample.cone_angle_variance_rad2 = measurement.cone_angle_variance_rad2;
+  const auto peaks =
+      static_cast<std::uint32_t>(std::clamp(measurement.cone_peak_count, 0, doa::kMaxConePeaks));
+  for (auto* sequence : {&sample.cone_peak_angle_rad, &sample.cone_peak_weight}) {
+    sequence->_maximum = peaks;
+    sequence->_length = peaks;
+    sequence->_release = false;
+  }
+  sample.cone_peak_angle_rad._buffer = const_cast<double*>(measurement.cone_peak_angle_rad.data());
+  sample.cone_peak_weight._buffer = const_cast<double*>(measurement.cone_peak_weight.data());
 }
 
 SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::string>& array_ids,
@@ -122,6 +186,8 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
   for (std::uint32_t i = 0; i < sample.tdoa_s._length; ++i) {
     if (!finite(sample.tdoa_s._buffer[i])) return SampleProblem::non_finite;
   }
+  if (const SampleProblem problem = check_doa_geometry(sample); problem != SampleProblem::none)
+    return problem;
   const Eigen::Vector3d direction = vector3(sample.direction);
   const double var_az = sample.azel_covariance_rad2[0];
   const double cov_azel = sample.azel_covariance_rad2[1];
@@ -142,6 +208,20 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
   out.pair_count = static_cast<int>(sample.tdoa_s._length);
   out.tdoa_s.fill(0.0);
   std::copy_n(sample.tdoa_s._buffer, sample.tdoa_s._length, out.tdoa_s.begin());
+  out.pose.moving = sample.array_moving;
+  out.pose.centre_m = vector3(sample.array_centre_m);
+  out.pose.array_to_site =
+      Eigen::Quaterniond(sample.array_orientation[0], sample.array_orientation[1],
+                         sample.array_orientation[2], sample.array_orientation[3])
+          .normalized();
+  out.ambiguity_axis = vector3(sample.ambiguity_axis);
+  if (out.ambiguity != doa::DoaAmbiguity::none) out.ambiguity_axis.normalize();
+  out.cone_angle_rad = sample.cone_angle_rad;
+  out.cone_angle_variance_rad2 = sample.cone_angle_variance_rad2;
+  out.cone_peak_count = static_cast<int>(sample.cone_peak_angle_rad._length);
+  std::copy_n(sample.cone_peak_angle_rad._buffer, out.cone_peak_count,
+              out.cone_peak_angle_rad.begin());
+  std::copy_n(sample.cone_peak_weight._buffer, out.cone_peak_count, out.cone_peak_weight.begin());
   out.acoustic = doa::AcousticFeatures{};
   if (sample.acoustic_valid) {
     const double values[] = {sample.fundamental_hz,     sample.comb_strength,
@@ -165,6 +245,38 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
                       sample.acoustic_history_s};
     }
   }
+  return SampleProblem::none;
+}
+
+// ---- ArrayPose ----
+
+void to_idl(std::string_view array_id, const doa::PoseSample& pose, std::int64_t time_offset_ns,
+            dronetrack_ArrayPose& sample) {
+  copy_bounded(sample.array_id, array_id);
+  sample.time_ns = time_offset_ns + seconds_to_ns(pose.time_s);
+  put_vector3(pose.position_m, sample.position_m);
+  sample.yaw_deg = pose.yaw_deg;
+  sample.pitch_deg = pose.pitch_deg;
+  sample.roll_deg = pose.roll_deg;
+}
+
+SampleProblem from_idl(const dronetrack_ArrayPose& sample, std::string_view array_id,
+                       doa::PoseSample& out) {
+  const std::string_view id = bounded_view(sample.array_id);
+  if (id.empty()) return SampleProblem::empty_key;
+  if (id != array_id) return SampleProblem::unknown_array;
+  if (!all_finite(sample.position_m) || !finite(sample.yaw_deg) || !finite(sample.pitch_deg) ||
+      !finite(sample.roll_deg)) {
+    return SampleProblem::non_finite;
+  }
+  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  const Eigen::Vector3d position = vector3(sample.position_m);
+  if (position.cwiseAbs().maxCoeff() > kMaxPositionAbs_m || std::abs(sample.yaw_deg) > 360.0 ||
+      std::abs(sample.pitch_deg) > 90.0 || std::abs(sample.roll_deg) > 360.0) {
+    return SampleProblem::bad_value;
+  }
+  out = {ns_to_seconds(sample.time_ns), position, sample.yaw_deg, sample.pitch_deg,
+         sample.roll_deg};
   return SampleProblem::none;
 }
 

@@ -60,5 +60,12 @@ void alert_writer_qos(Qos& qos) {
 void alert_reader_qos(Qos& qos) {
   qos.reliable().keep_last(16).volatile_durability().liveliness_automatic(kWriterLease);
 }
+void pose_writer_qos(Qos& qos) {
+  common_writer(qos);
+  qos.keep_last(32).volatile_durability();
+}
+void pose_reader_qos(Qos& qos) {
+  qos.reliable().keep_last(32).volatile_durability().liveliness_automatic(kWriterLease);
+}
 
 }  // namespace dronetrack::dds

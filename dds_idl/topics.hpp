@@ -1,6 +1,6 @@
 #pragma once
-// The four topics of SPEC 3.4: names, types and the QoS every writer and reader uses.
-// docs/deployment.md explains each choice.
+// The topics of SPEC 3.4 (and ArrayPose, issue 15): names, types and the QoS every writer and
+// reader uses. docs/deployment.md explains each choice.
 #include <chrono>
 
 #include "dds_idl/dds.hpp"
@@ -29,6 +29,12 @@ struct TopicTraits<dronetrack_Alert> {
   static const char* name() { return "Alert"; }
 };
 
+template <>
+struct TopicTraits<dronetrack_ArrayPose> {
+  static const dds_topic_descriptor_t* descriptor() { return &dronetrack_ArrayPose_desc; }
+  static const char* name() { return "ArrayPose"; }
+};
+
 // How long a writer may stay silent before readers consider it gone. Cyclone asserts AUTOMATIC
 // liveliness itself, so this only expires when the process or the network dies.
 inline constexpr std::chrono::milliseconds kWriterLease{1000};
@@ -46,6 +52,10 @@ void track_reader_qos(Qos& qos);
 // Alert: volatile events, reliable, keep-last 16 per (zone, track).
 void alert_writer_qos(Qos& qos);
 void alert_reader_qos(Qos& qos);
+// ArrayPose: volatile, reliable, keep-last 32 per array (~1.5 s at 20 Hz): the node interpolates
+// between poses around each frame's time, so it needs a short history, not the newest alone.
+void pose_writer_qos(Qos& qos);
+void pose_reader_qos(Qos& qos);
 
 // Readers wake on liveliness changes of their writers with this status mask.
 inline constexpr std::uint32_t kLivelinessStatus =

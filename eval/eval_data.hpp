@@ -50,7 +50,23 @@ struct DoaRecord {
   std::optional<Eigen::Vector2d> azel_std_deg;  // absent: the reader of the file decides
   double azel_correlation = 0.0;                // of the azimuth and elevation errors
   doa::AcousticFeatures acoustic;               // "acoustic" object (valid when present)
-  int line = 0;                                 // in its file, for messages
+  // Issue 15, each present only when so measured: a moving array's pose at the frame's time
+  // ("pose"), what a two-mic array measured ("cone"), a planar array's plane ("mirror_normal").
+  struct Pose {
+    Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d attitude_deg = Eigen::Vector3d::Zero();  // yaw, pitch, roll
+  };
+  struct Cone {
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+    double angle_deg = 0.0;
+    double angle_std_deg = 0.0;
+    std::vector<double> peaks_deg;  // the GCC's strongest peaks as cone angles, strongest first
+    std::vector<double> peak_weights;
+  };
+  std::optional<Pose> pose;
+  std::optional<Cone> cone;
+  std::optional<Eigen::Vector3d> mirror_normal;
+  int line = 0;  // in its file, for messages
 };
 
 struct TrackRecord {
@@ -75,6 +91,9 @@ struct EvalOptions {
   double tick_s = 0.0;               // evaluation step; 0: the tracks' own output interval
   double skip_s = 0.0;               // ignore the first seconds (sound still in flight)
   bool include_tentative = false;    // tentative tracks count as tracks
+  // A source has converged once every later error of its associated tracks is within this
+  // (static and slow sources, issue 15: the papers' "time to converge").
+  double converge_gate_m = 3.0;
 };
 
 struct PositionMetrics {
@@ -105,6 +124,12 @@ struct SourceMetrics {
   double coverage = 0.0;  // covered / truth time
   int id_switches = 0;
   std::vector<int> track_ids;  // every track id associated with it
+  // Localisation of static and slow sources (issue 15): the error at the last tick a track
+  // followed it, and the time from its first tick in the window until its errors stayed within
+  // EvalOptions::converge_gate_m for good (-1: never tracked / never converged).
+  double final_error_m = -1.0;
+  double converged_after_s = -1.0;
+  double travelled_m = 0.0;  // path length of the truth in the window (0: a static source)
 };
 
 struct DoaArrayMetrics {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <set>
 
 #include "config/config_reader.hpp"
@@ -103,6 +104,37 @@ int nearest_other(const Truth& truth, const Eigen::Vector3d& position, double t,
   return best;
 }
 
+// Length of the truth's path between two times (its samples inside, plus the end points).
+double path_length(const TruthSource& source, double from_s, double to_s) {
+  if (!(to_s > from_s) || source.time_s.empty()) return 0.0;
+  double length = 0.0;
+  Eigen::Vector3d previous = source.position_at(from_s);
+  for (std::size_t i = 0; i < source.time_s.size(); ++i) {
+    if (source.time_s[i] <= from_s || source.time_s[i] >= to_s) continue;
+    length += (source.position_m[i] - previous).norm();
+    previous = source.position_m[i];
+  }
+  return length + (source.position_at(to_s) - previous).norm();
+}
+
+// A cone DOA's error is the error of the one angle it measured; any other's, the angle between
+// the directions.
+double doa_error_deg(const DoaRecord& doa, const Eigen::Vector3d& truth_direction) {
+  if (doa.cone) {
+    const double truth_angle_deg =
+        std::acos(std::clamp(doa.cone->axis.dot(truth_direction), -1.0, 1.0)) * 180.0 /
+        std::numbers::pi;
+    return std::abs(truth_angle_deg - doa.cone->angle_deg);
+  }
+  if (doa.mirror_normal) {
+    const Eigen::Vector3d& n = *doa.mirror_normal;
+    const Eigen::Vector3d mirrored = truth_direction - 2.0 * truth_direction.dot(n) * n;
+    return std::min(doa::angle_between_deg(truth_direction, doa.direction.normalized()),
+                    doa::angle_between_deg(mirrored, doa.direction.normalized()));
+  }
+  return doa::angle_between_deg(truth_direction, doa.direction.normalized());
+}
+
 bool counted(const TrackRecord& track, const EvalOptions& options) {
   return track.status != "tentative" || options.include_tentative;
 }
@@ -137,7 +169,7 @@ std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<Do
       if (!source.alive_at(doa.time_s)) continue;
       const auto direction = source.direction_at(doa.array, doa.time_s);
       if (!direction) continue;
-      best = std::min(best, doa::angle_between_deg(*direction, doa.direction.normalized()));
+      best = std::min(best, doa_error_deg(doa, *direction));
     }
     if (std::isfinite(best)) {
       errors[doa.array].push_back(best);
@@ -213,6 +245,9 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
   report.sources.resize(truth.sources.size());
   for (std::size_t s = 0; s < truth.sources.size(); ++s) report.sources[s].id = truth.sources[s].id;
   std::vector<int> last_track(truth.sources.size(), -1);
+  // Start of the current run of ticks within the convergence gate (-1: none), per source.
+  std::vector<double> within_gate_since(truth.sources.size(), -1.0);
+  std::vector<double> first_alive(truth.sources.size(), -1.0);
   std::set<int> counted_ids;
   fusion::Assignment assignment;
   std::vector<double> cost;
@@ -285,11 +320,17 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
           metrics.track_ids.end()) {
         metrics.track_ids.push_back(live[r]->id);
       }
-      if ((live[r]->position_m - truth_position).norm() <= options.coverage_gate_m) {
-        source_covered[s] = 1;
+      const double error_m = (live[r]->position_m - truth_position).norm();
+      if (error_m <= options.coverage_gate_m) source_covered[s] = 1;
+      metrics.final_error_m = error_m;
+      if (error_m > options.converge_gate_m) {
+        within_gate_since[s] = -1.0;
+      } else if (within_gate_since[s] < 0.0) {
+        within_gate_since[s] = t;
       }
     }
     for (std::size_t s : alive) {
+      if (first_alive[s] < 0.0) first_alive[s] = t;
       report.sources[s].truth_time_s += tick;
       if (source_covered[s]) report.sources[s].covered_time_s += tick;
     }
@@ -307,6 +348,9 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
     metrics.drone_class_share =
         metrics.tracked_time_s > 0.0 ? metrics.drone_class_time_s / metrics.tracked_time_s : 0.0;
     report.id_switches += metrics.id_switches;
+    if (within_gate_since[s] >= 0.0)
+      metrics.converged_after_s = within_gate_since[s] - first_alive[s];
+    metrics.travelled_m = path_length(truth.sources[s], start, end);
   }
   report.position = all.summarise();
   report.coverage = truth_time > 0.0 ? covered_time / truth_time : 0.0;

@@ -1,10 +1,12 @@
 #include "eval/readers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 
 #include "config/config_reader.hpp"
+#include "config/site_config.hpp"
 
 namespace dronetrack::eval {
 namespace {
@@ -259,6 +261,67 @@ void fill_alert(ObjectReader& reader, const nlohmann::json& node, Diagnostics&,
   for (const auto& item : node.items()) reader.accept(item.key());
 }
 
+// A unit vector within the writer's rounding, or an error at its key.
+std::optional<Eigen::Vector3d> unit_vector(ObjectReader& reader, const std::string& key) {
+  const auto vector = reader.vector3(key, true);
+  if (!vector) return std::nullopt;
+  if (std::abs(vector->norm() - 1.0) > 1e-3) {
+    reader.diagnostics().error(reader.path_of(key), "expected a unit vector");
+    return std::nullopt;
+  }
+  return vector->normalized();
+}
+
+// The issue-15 blocks of a DOA line: "pose", "cone", "mirror_normal" (docs/contract.md).
+void fill_doa_geometry(ObjectReader& reader, Diagnostics& diagnostics, DoaRecord& record) {
+  if (reader.has("pose")) {
+    ObjectReader pose = reader.object("pose");
+    DoaRecord::Pose value;
+    value.centre_m = pose.vector3("centre_m", true).value_or(Eigen::Vector3d::Zero());
+    if (const auto attitude = pose.numbers("attitude_deg", 3, true)) {
+      value.attitude_deg = Eigen::Vector3d((*attitude)[0], (*attitude)[1], (*attitude)[2]);
+      if (!(value.attitude_deg.cwiseAbs().maxCoeff() <= 360.0))
+        diagnostics.error(pose.path_of("attitude_deg"), "expected angles within +-360 deg");
+    }
+    if (!(value.centre_m.cwiseAbs().maxCoeff() <= config::kMaxSiteCoordinate_m))
+      diagnostics.error(pose.path_of("centre_m"), "beyond the site's coordinate bound");
+    record.pose = value;
+  }
+  if (reader.has("cone")) {
+    ObjectReader cone = reader.object("cone");
+    DoaRecord::Cone value;
+    value.axis = unit_vector(cone, "axis").value_or(Eigen::Vector3d::UnitX());
+    value.angle_deg = cone.required_number("angle_deg", 0.0, 180.0).value_or(0.0);
+    value.angle_std_deg = cone.required_number("angle_std_deg", 1e-9, 180.0).value_or(1.0);
+    if (cone.has("peaks_deg") || cone.has("peak_weights")) {
+      value.peaks_deg = cone.numbers("peaks_deg", 0, true).value_or(std::vector<double>{});
+      value.peak_weights = cone.numbers("peak_weights", 0, true).value_or(std::vector<double>{});
+      const bool sane = value.peaks_deg.size() == value.peak_weights.size() &&
+                        value.peaks_deg.size() <= static_cast<std::size_t>(doa::kMaxConePeaks) &&
+                        std::all_of(value.peaks_deg.begin(), value.peaks_deg.end(),
+                                    [](double angle) { return angle >= 0.0 && angle <= 180.0; }) &&
+                        std::all_of(value.peak_weights.begin(), value.peak_weights.end(),
+                                    [](double weight) { return weight >= 0.0; });
+      if (!sane) {
+        diagnostics.error(cone.path_of("peaks_deg"),
+                          "expected up to " + std::to_string(doa::kMaxConePeaks) +
+                              " angles in [0, 180] deg with as many weights >= 0");
+      }
+    }
+    record.cone = value;
+    if (record.ambiguity != "cone") diagnostics.error("cone", "only a cone DOA carries one");
+  } else if (record.ambiguity == "cone") {
+    diagnostics.error("cone",
+                      "a cone DOA must say what it measured (axis, angle_deg, "
+                      "angle_std_deg)");
+  }
+  if (reader.has("mirror_normal")) {
+    record.mirror_normal = unit_vector(reader, "mirror_normal");
+    if (record.ambiguity != "mirror_up_down")
+      diagnostics.error("mirror_normal", "only a mirror_up_down DOA carries one");
+  }
+}
+
 void fill_doa(ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
               DoaRecord& record) {
   record.time_s =
@@ -293,6 +356,7 @@ void fill_doa(ObjectReader& reader, const nlohmann::json& node, Diagnostics& dia
     a.level_modulation_db = acoustic.number("level_modulation_db", 0.0, 0.0, 1e3);
     a.history_s = acoustic.number("history_s", 0.0, 0.0, 1e6);
   }
+  fill_doa_geometry(reader, diagnostics, record);
   for (const auto& item : node.items()) reader.accept(item.key());
 }
 }  // namespace

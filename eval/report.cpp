@@ -55,6 +55,12 @@ std::string format_table(const EvalReport& r) {
                   source.id_switches, ids.empty() ? "-" : ids.c_str());
   }
   out += format("%-8s %7.2f%% %12d\n", "all", 100.0 * r.coverage, r.id_switches);
+  out += format("\nsource  travelled_m  final_error_m  converged_after_s  (within %.1f m)\n",
+                r.options.converge_gate_m);
+  for (const SourceMetrics& source : r.sources) {
+    out += format("%-8s %11.1f %14.3f %18.1f\n", source.id.c_str(), source.travelled_m,
+                  source.final_error_m, source.converged_after_s);
+  }
   out += format("\ntracks %d, track time %.1f s, false-track time %.1f s (%.2f%%)\n", r.tracks_seen,
                 r.track_time_s, r.false_track_time_s, 100.0 * r.false_track_fraction);
   out += "\nclass   tracked_s  said_drone  drone_share  classified_after_s\n";
@@ -96,7 +102,10 @@ nlohmann::json to_json(const EvalReport& r) {
                        {"track_ids", source.track_ids},
                        {"tracked_time_s", source.tracked_time_s},
                        {"drone_class_share", source.drone_class_share},
-                       {"classified_after_s", source.classified_after_s}});
+                       {"classified_after_s", source.classified_after_s},
+                       {"travelled_m", source.travelled_m},
+                       {"final_error_m", source.final_error_m},
+                       {"converged_after_s", source.converged_after_s}});
   }
   nlohmann::json others = nlohmann::json::array();
   for (const OtherSourceMetrics& other : r.others) {
@@ -117,6 +126,7 @@ nlohmann::json to_json(const EvalReport& r) {
           {"tick_s", r.tick_s},
           {"association_gate_m", r.options.association_gate_m},
           {"coverage_gate_m", r.options.coverage_gate_m},
+          {"converge_gate_m", r.options.converge_gate_m},
           {"array_centroid_m",
            {r.array_centroid_m.x(), r.array_centroid_m.y(), r.array_centroid_m.z()}},
           {"position", position_json(r.position)},

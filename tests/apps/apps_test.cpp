@@ -15,6 +15,8 @@
 #include "apps/fusion_driver.hpp"
 #include "apps/jsonl_output.hpp"
 #include "doa/array_geometry.hpp"
+#include "doa/pose_sample.hpp"
+#include "eval/readers.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -39,6 +41,54 @@ TEST(JsonLines, DoaLineCarriesTheSpecFields) {
   EXPECT_NEAR(Eigen::Vector3d(direction[0], direction[1], direction[2]).norm(), 1.0, 1e-8);
   EXPECT_NEAR(line.at("azel_std_deg")[1].get<double>(), 2e-3 * 180.0 / std::numbers::pi, 1e-4);
   EXPECT_DOUBLE_EQ(line.at("quality").get<double>(), 0.75);
+}
+
+// What a moving two-mic array measured survives the DOA line: written, then read back as
+// `replay --doa-in` reads it.
+TEST(JsonLines, ConeAndPoseBlocksRoundTripThroughTheReader) {
+  doa::DoaMeasurement doa;
+  doa.array_id = "H1";
+  doa.time_s = 4.25;
+  doa.ambiguity = doa::DoaAmbiguity::cone;
+  doa.ambiguity_axis = Eigen::Vector3d(0.6, 0.8, 0.0);
+  doa.cone_angle_rad = 1.2;
+  doa.cone_angle_variance_rad2 = 0.02 * 0.02;
+  doa.cone_peak_count = 3;
+  doa.cone_peak_angle_rad = {1.2, 0.4, 2.5, 0.0};
+  doa.cone_peak_weight = {0.9, 0.5, 0.25, 0.0};
+  doa.pose = {Eigen::Vector3d(10.0, -20.0, -5.0), doa::rotation_from_attitude_deg(35.0, 5.0, -3.0),
+              true};
+  doa.acoustic.valid = true;
+  doa.acoustic.fundamental_hz = 120.0;
+  char buffer[2048];
+  const int length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(length, 0);
+  const std::string text(buffer, static_cast<std::size_t>(length));
+  const auto records = eval::parse_doas(text + "\n", "D.jsonl");
+  ASSERT_EQ(records.size(), 1u);
+  const eval::DoaRecord& record = records[0];
+  ASSERT_TRUE(record.cone.has_value()) << text;
+  EXPECT_LT((record.cone->axis - doa.ambiguity_axis).norm(), 1e-8);
+  EXPECT_NEAR(record.cone->angle_deg, 1.2 * 180.0 / std::numbers::pi, 1e-4);
+  EXPECT_NEAR(record.cone->angle_std_deg, 0.02 * 180.0 / std::numbers::pi, 1e-5);
+  ASSERT_EQ(record.cone->peaks_deg.size(), 3u);
+  EXPECT_NEAR(record.cone->peaks_deg[2], 2.5 * 180.0 / std::numbers::pi, 1e-4);
+  EXPECT_NEAR(record.cone->peak_weights[1], 0.5, 1e-9);
+  ASSERT_TRUE(record.pose.has_value());
+  EXPECT_LT((record.pose->centre_m - doa.pose.centre_m).norm(), 1e-4);
+  EXPECT_LT((record.pose->attitude_deg - Eigen::Vector3d(35.0, 5.0, -3.0)).norm(), 1e-3);
+  EXPECT_FALSE(record.mirror_normal.has_value());
+  EXPECT_TRUE(record.acoustic.valid);
+
+  doa.ambiguity = doa::DoaAmbiguity::mirror_up_down;
+  doa.ambiguity_axis = Eigen::Vector3d::UnitZ();
+  doa.pose.moving = false;
+  const int mirror_length = format_doa_line(doa, buffer, sizeof buffer);
+  const auto mirror = eval::parse_doas(
+      std::string(buffer, static_cast<std::size_t>(mirror_length)) + "\n", "D.jsonl");
+  ASSERT_TRUE(mirror[0].mirror_normal.has_value());
+  EXPECT_FALSE(mirror[0].cone.has_value());
+  EXPECT_FALSE(mirror[0].pose.has_value());
 }
 
 TEST(JsonLines, TrackLineCarriesTheSpecFields) {

@@ -93,6 +93,95 @@ TEST(DdsConversions, EachKindOfDamagedDoaIsNamed) {
   }
 }
 
+// A moving two-mic array's DOA: pose stamp, cone and peaks cross the wire and are validated.
+TEST(DdsConversions, ConeAndPoseRoundTripAndAreValidated) {
+  doa::DoaMeasurement measurement;
+  measurement.array_id = "N2";
+  measurement.time_s = 2.0;
+  measurement.ambiguity = doa::DoaAmbiguity::cone;
+  measurement.ambiguity_axis = Eigen::Vector3d(0.0, 1.0, 0.0);
+  measurement.cone_angle_rad = 0.7;
+  measurement.cone_angle_variance_rad2 = 1e-3;
+  measurement.cone_peak_count = 2;
+  measurement.cone_peak_angle_rad = {0.7, 2.0, 0.0, 0.0};
+  measurement.cone_peak_weight = {0.8, 0.3, 0.0, 0.0};
+  measurement.pose = {Eigen::Vector3d(5.0, 6.0, -7.0),
+                      doa::rotation_from_attitude_deg(-120.0, 2.0, 1.0), true};
+  dronetrack_Doa sample{};
+  to_idl(measurement, 0, sample);
+  doa::DoaMeasurement out;
+  ASSERT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+  EXPECT_TRUE(out.pose.moving);
+  EXPECT_LT((out.pose.centre_m - measurement.pose.centre_m).norm(), 1e-12);
+  EXPECT_LT(out.pose.array_to_site.angularDistance(measurement.pose.array_to_site), 1e-12);
+  EXPECT_EQ(out.ambiguity, doa::DoaAmbiguity::cone);
+  EXPECT_DOUBLE_EQ(out.cone_angle_rad, 0.7);
+  EXPECT_DOUBLE_EQ(out.cone_angle_variance_rad2, 1e-3);
+  ASSERT_EQ(out.cone_peak_count, 2);
+  EXPECT_DOUBLE_EQ(out.cone_peak_angle_rad[1], 2.0);
+  EXPECT_DOUBLE_EQ(out.cone_peak_weight[1], 0.3);
+
+  struct Case {
+    const char* what;
+    void (*damage)(dronetrack_Doa&);
+    SampleProblem expected;
+  };
+  const Case cases[] = {
+      {"NaN pose",
+       [](dronetrack_Doa& s) { s.array_centre_m[2] = std::numeric_limits<double>::quiet_NaN(); },
+       SampleProblem::non_finite},
+      {"not a unit quaternion", [](dronetrack_Doa& s) { s.array_orientation[0] = 3.0; },
+       SampleProblem::bad_value},
+      {"pose 1000 km away", [](dronetrack_Doa& s) { s.array_centre_m[0] = 1e6; },
+       SampleProblem::bad_value},
+      {"axis not unit", [](dronetrack_Doa& s) { s.ambiguity_axis[1] = 0.5; },
+       SampleProblem::bad_value},
+      {"cone angle beyond pi", [](dronetrack_Doa& s) { s.cone_angle_rad = 4.0; },
+       SampleProblem::bad_value},
+      {"zero cone variance", [](dronetrack_Doa& s) { s.cone_angle_variance_rad2 = 0.0; },
+       SampleProblem::bad_value},
+      {"peak sequences of different lengths",
+       [](dronetrack_Doa& s) { s.cone_peak_weight._length = 1; },
+       SampleProblem::oversized_sequence},
+      {"negative peak weight", [](dronetrack_Doa& s) { s.cone_peak_weight._buffer[0] = -1.0; },
+       SampleProblem::bad_value},
+      {"peaks on a full-direction DOA", [](dronetrack_Doa& s) { s.ambiguity = 0; },
+       SampleProblem::bad_value},
+  };
+  for (const Case& test_case : cases) {
+    doa::DoaMeasurement copy = measurement;
+    dronetrack_Doa damaged{};
+    to_idl(copy, 0, damaged);
+    test_case.damage(damaged);
+    EXPECT_EQ(from_idl(damaged, kArrays, out), test_case.expected)
+        << test_case.what << ": got " << to_string(from_idl(damaged, kArrays, out));
+  }
+}
+
+TEST(DdsConversions, ArrayPoseRoundTripAndIsValidated) {
+  const doa::PoseSample pose{12.5, Eigen::Vector3d(100.0, -50.0, -3.0), 170.0, -4.0, 2.0};
+  dronetrack_ArrayPose sample{};
+  to_idl("H1", pose, 0, sample);
+  doa::PoseSample out;
+  ASSERT_EQ(from_idl(sample, "H1", out), SampleProblem::none);
+  EXPECT_DOUBLE_EQ(out.time_s, 12.5);
+  EXPECT_EQ(out.position_m, pose.position_m);
+  EXPECT_DOUBLE_EQ(out.yaw_deg, 170.0);
+  EXPECT_EQ(from_idl(sample, "H2", out), SampleProblem::unknown_array);
+  dronetrack_ArrayPose damaged = sample;
+  damaged.yaw_deg = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(from_idl(damaged, "H1", out), SampleProblem::non_finite);
+  damaged = sample;
+  damaged.pitch_deg = 120.0;
+  EXPECT_EQ(from_idl(damaged, "H1", out), SampleProblem::bad_value);
+  damaged = sample;
+  damaged.time_ns = -1;
+  EXPECT_EQ(from_idl(damaged, "H1", out), SampleProblem::absurd_time);
+  damaged = sample;
+  damaged.array_id[0] = '\0';
+  EXPECT_EQ(from_idl(damaged, "H1", out), SampleProblem::empty_key);
+}
+
 TEST(DdsConversions, NaNTdoaInsideTheSequenceIsCaught) {
   std::array<double, doa::kMaxPairs> tdoas{};
   dronetrack_Doa sample = valid_doa(tdoas);

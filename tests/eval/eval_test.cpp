@@ -144,6 +144,72 @@ TEST(EvalMetrics, DoaErrorAgainstTheNearestSource) {
   EXPECT_EQ(unmatched, 1);
 }
 
+// A static source whose track starts 8 m off and closes in at 1 m/s: converged once within the
+// gate for good (a later excursion resets it); the final error is the last tick's.
+TEST(EvalMetrics, FinalErrorAndTimeToConvergeOfAStaticSource) {
+  Truth truth;
+  truth.sources.push_back(moving_source("S1", {40, 10, -5}, {0, 0, 0}, 20.0));
+  std::vector<TrackRecord> tracks;
+  for (int k = 0; k <= 200; ++k) {
+    const double t = k * 0.1;
+    double error_m = std::max(0.5, 8.0 - t);  // within 3 m from t = 5 s
+    if (k == 80) error_m = 4.0;               // one excursion at 8 s: converged from 8.1 s
+    tracks.push_back(
+        {t, 1, truth.sources[0].position_at(t) + Eigen::Vector3d(0, error_m, 0), "confirmed"});
+  }
+  const EvalReport report = evaluate(truth, tracks, {}, EvalOptions{});
+  ASSERT_EQ(report.sources.size(), 1u);
+  EXPECT_NEAR(report.sources[0].final_error_m, 0.5, 1e-9);
+  EXPECT_NEAR(report.sources[0].converged_after_s, 8.1, 1e-9);
+  EXPECT_NEAR(report.sources[0].travelled_m, 0.0, 1e-9);
+  EvalOptions loose;
+  loose.converge_gate_m = 10.0;
+  EXPECT_NEAR(evaluate(truth, tracks, {}, loose).sources[0].converged_after_s, 0.0, 1e-9);
+  // Never within 0.1 m: never converged.
+  EvalOptions tight;
+  tight.converge_gate_m = 0.1;
+  EXPECT_EQ(evaluate(truth, tracks, {}, tight).sources[0].converged_after_s, -1.0);
+  // A moving source's path length is reported (20 s at 2 m/s).
+  Truth moving;
+  moving.sources.push_back(moving_source("D1", {10, 0, 20}, {2, 0, 0}, 20.0));
+  EXPECT_NEAR(evaluate(moving, follow(moving.sources[0], 1, {0, 0, 0}, 0.0, 20.0), {}, {})
+                  .sources[0]
+                  .travelled_m,
+              40.0, 1e-6);
+}
+
+// A cone DOA is judged on the one angle it measured; a mirror DOA against the nearer image.
+TEST(EvalMetrics, ConeAndMirrorDoaErrors) {
+  Truth truth;
+  truth.sources.push_back(moving_source("S1", {30, 40, 0}, {0, 0, 0}, 1.0));  // (0.6, 0.8, 0)
+  DoaRecord cone;
+  cone.time_s = 0.5;
+  cone.array = "A1";
+  cone.ambiguity = "cone";
+  cone.direction = {1, 0, 0};  // a display point of the cone, not the source
+  cone.cone = DoaRecord::Cone{};
+  cone.cone->axis = {1, 0, 0};
+  cone.cone->angle_deg = std::acos(0.6) * 180.0 / M_PI + 1.5;
+  DoaRecord mirror;
+  mirror.time_s = 0.5;
+  mirror.array = "A1";
+  mirror.ambiguity = "mirror_up_down";
+  mirror.mirror_normal = Eigen::Vector3d(0, 0, 1);
+  mirror.direction = Eigen::Vector3d(0.6, 0.8, 0.0);
+  const auto metrics = doa_errors(truth, {cone}, nullptr);
+  ASSERT_EQ(metrics.size(), 1u);
+  EXPECT_NEAR(metrics[0].mean_error_deg, 1.5, 1e-6);
+  EXPECT_NEAR(doa_errors(truth, {mirror}, nullptr)[0].mean_error_deg, 0.0, 1e-6);
+  // A source below the plane (z = -10 m at 50 m): the reported upper image is its mirror.
+  Truth below;
+  below.sources.push_back(moving_source("S2", {30, 40, -10}, {0, 0, 0}, 1.0));
+  mirror.direction = Eigen::Vector3d(30, 40, 10).normalized();
+  EXPECT_NEAR(doa_errors(below, {mirror}, nullptr)[0].mean_error_deg, 0.0, 1e-6);
+  DoaRecord plain = mirror;
+  plain.mirror_normal.reset();
+  EXPECT_GT(doa_errors(below, {plain}, nullptr)[0].mean_error_deg, 20.0);
+}
+
 std::string expect_input_error(const std::function<void()>& action) {
   try {
     action();
@@ -176,6 +242,43 @@ TEST(EvalReaders, ReadsTheDocumentedShapes) {
       "D.jsonl");
   ASSERT_EQ(doas.size(), 1u);
   EXPECT_EQ(doas[0].array, "A1");
+}
+
+// A cone DOA must say what it measured, and only a cone may carry a cone.
+TEST(EvalReaders, ConeAndMirrorBlocksAreChecked) {
+  const std::string head = R"({"t": 1, "array": "H1", "direction": [1,0,0], )";
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone"})", "D.jsonl");
+            }).find("D.jsonl:1: cone: a cone DOA must say what it measured"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,1,0], )"
+                                R"("angle_deg": 30, "angle_std_deg": 1}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.axis: expected a unit vector"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,0,0], )"
+                                R"("angle_deg": 30, "angle_std_deg": 1, "peaks_deg": [30, 40], )"
+                                R"("peak_weights": [1]}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.peaks_deg: expected up to 4 angles"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("ambiguity": "cone", "cone": {"axis": [1,0,0], )"
+                                R"("angle_deg": 190, "angle_std_deg": 1}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: cone.angle_deg"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("mirror_normal": [0,0,1]})", "D.jsonl");
+            }).find("D.jsonl:1: mirror_normal: only a mirror_up_down DOA carries one"),
+            std::string::npos);
+  EXPECT_NE(expect_input_error([&] {
+              parse_doas(head + R"("pose": {"centre_m": [1,2,3], "attitude_deg": [0, 0]}})",
+                         "D.jsonl");
+            }).find("D.jsonl:1: pose.attitude_deg: expected 3 numbers"),
+            std::string::npos);
 }
 
 TEST(EvalReaders, BadInputNamesFileLineAndKey) {
