@@ -46,8 +46,17 @@ struct NodeArguments {
   bool pose_topic = false;
 };
 
-// ThrottledWarnings kinds of the pose stream.
+// ThrottledWarnings kinds of the pose stream, and their texts (which must outlive the log).
 enum PoseWarning : int { kBadPose = 0, kRefusedPose = 1, kUnposedDoa = 2 };
+struct PoseWarningTexts {
+  explicit PoseWarningTexts(const std::string& array_id)
+      : bad("node " + array_id + ": ArrayPose samples not finite or out of bounds"),
+        refused("node " + array_id + ": ArrayPose samples not after the newest (out of order)"),
+        unposed("node " + array_id + ": DOAs without an ArrayPose around their time (dropped)") {}
+  std::string bad;
+  std::string refused;
+  std::string unposed;
+};
 
 // Skips, without processing, the part of a recording whose due time has long passed: a node
 // restarted with the same --epoch resumes where the other nodes are instead of replaying
@@ -78,7 +87,8 @@ class SkippingSource : public capture::AudioSource {
 // Every pose waiting on the reader into the stamper, moved to the node's stream clock (the wire
 // carries stream time + offset). Other arrays' poses are not this node's business.
 void take_poses(const dds::Reader<dronetrack_ArrayPose>& reader, const std::string& array_id,
-                double offset_s, LivePoseStamper& stamper, ThrottledWarnings& warnings) {
+                double offset_s, LivePoseStamper& stamper, ThrottledWarnings& warnings,
+                const PoseWarningTexts& texts) {
   for (;;) {
     dds::Samples<dronetrack_ArrayPose> samples = reader.take();
     if (samples.empty()) return;
@@ -88,12 +98,11 @@ void take_poses(const dds::Reader<dronetrack_ArrayPose>& reader, const std::stri
       const dds::SampleProblem problem = dds::from_idl(samples.data(i), array_id, pose);
       if (problem == dds::SampleProblem::unknown_array) continue;
       if (problem != dds::SampleProblem::none) {
-        warnings.count(kBadPose, "ArrayPose samples not finite or out of bounds");
+        warnings.count(kBadPose, texts.bad.c_str());
         continue;
       }
       pose.time_s -= offset_s;
-      if (!stamper.add_pose(pose))
-        warnings.count(kRefusedPose, "ArrayPose samples not after the newest (out of order)");
+      if (!stamper.add_pose(pose)) warnings.count(kRefusedPose, texts.refused.c_str());
     }
   }
 }
@@ -193,6 +202,7 @@ int run(const NodeArguments& arguments) {
         std::make_unique<dds::Reader<dronetrack_ArrayPose>>(participant, *pose_topic, pose_qos);
   }
   LivePoseStamper pose_stamper(array.geometry, array.pose_max_gap_s);
+  const PoseWarningTexts pose_texts(node.array_id());
   ThrottledWarnings pose_warnings;
 
   // A volatile sample written before a reader has matched is lost to it. Give discovery a
@@ -233,12 +243,12 @@ int run(const NodeArguments& arguments) {
     const std::int64_t offset_ns = time_offset_ns();
     if (pose_reader) {
       take_poses(*pose_reader, node.array_id(), dds::ns_to_seconds(offset_ns), pose_stamper,
-                 pose_warnings);
+                 pose_warnings, pose_texts);
       const std::int64_t dropped_before = pose_stamper.dropped();
       pose_stamper.add_doas(doas);
       pose_stamper.release(node.time_s(), doas);
       for (std::int64_t d = dropped_before; d < pose_stamper.dropped(); ++d)
-        pose_warnings.count(kUnposedDoa, "DOAs without an ArrayPose around their time (dropped)");
+        pose_warnings.count(kUnposedDoa, pose_texts.unposed.c_str());
     }
     for (const auto& measurement : doas) {
       dds::to_idl(measurement, offset_ns, doa_sample);
