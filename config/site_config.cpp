@@ -64,7 +64,8 @@ void parse_mics(const nlohmann::json& node, const std::string& path, Diagnostics
 }
 
 ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
-                        const std::filesystem::path& base_dir, Diagnostics& diagnostics) {
+                        const std::filesystem::path& base_dir, bool read_pose_files,
+                        Diagnostics& diagnostics) {
   ArrayConfig array;
   ObjectReader reader(node, path, diagnostics);
   array.geometry.id = reader.required_string("id").value_or("");
@@ -111,6 +112,8 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
   if (!pose_file.empty()) {
     const std::filesystem::path pose_path(pose_file);
     array.pose_file = pose_path.is_absolute() ? pose_path : base_dir / pose_path;
+  }
+  if (!array.pose_file.empty() && read_pose_files) {
     PoseFileLimits limits;
     limits.max_gap_s = array.pose_max_gap_s;
     limits.max_coordinate_m = kMaxSiteCoordinate_m;
@@ -302,7 +305,7 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       diagnostics.error("arrays", "the fusion needs at least 2 arrays (it triangulates), got 1");
     }
     root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
-      ArrayConfig array = parse_array(node, path, base_dir, diagnostics);
+      ArrayConfig array = parse_array(node, path, base_dir, options.read_pose_files, diagnostics);
       if (!array.geometry.id.empty() && !ids.insert(array.geometry.id).second) {
         diagnostics.error(path + ".id", "duplicate array id \"" + array.geometry.id + "\"");
       }

@@ -33,7 +33,7 @@ struct ArrayConfig {
   double pose_max_gap_s = 1.0;  // larger gaps between pose lines (or live samples) are unknown
   // Live: the node takes this array's pose from the ArrayPose DDS topic (a GPS/INS adapter).
   bool pose_topic = false;
-  bool moving() const { return !pose.empty() || pose_topic; }
+  bool moving() const { return !pose_file.empty() || pose_topic; }
 };
 
 struct DdsConfig {
@@ -78,6 +78,9 @@ struct LoadOptions {
   bool check_recordings = true;
   // The site feeds a fusion (replay, fusion): it needs at least 2 arrays.
   bool for_fusion = false;
+  // Read and check each array's pose_file into ArrayConfig::pose (off when the pose files are
+  // about to be written, e.g. by the simulator: pose_file is then only resolved).
+  bool read_pose_files = true;
 };
 
 // Input bounds checked while parsing (docs/contract.md).

@@ -172,6 +172,17 @@ TEST_F(PoseFileConfig, AbsurdCoordinatesTooFewAndTooLongLines) {
   EXPECT_EQ(problem(), "arrays[0].pose_file: " + file() + ": cannot open pose file");
 }
 
+TEST_F(PoseFileConfig, ASimulatorAboutToWriteThePoseFileOnlyResolvesItsPath) {
+  std::vector<std::string> warnings;
+  LoadOptions options;
+  options.check_recordings = false;
+  options.read_pose_files = false;
+  const SiteConfig config = parse_site_config(site().dump(), dir_, warnings, options);
+  EXPECT_EQ(config.arrays[0].pose_file, dir_ / "pose.jsonl");
+  EXPECT_TRUE(config.arrays[0].pose.empty());
+  EXPECT_TRUE(config.arrays[0].moving());
+}
+
 TEST_F(PoseFileConfig, AttitudeKeysAreBounded) {
   write(R"({"t": 0.0, "position_m": [0, 0, 0], "yaw_deg": 0}
 {"t": 0.1, "position_m": [0, 0, 0], "yaw_deg": 0, "pitch_deg": 95}
