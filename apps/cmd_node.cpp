@@ -12,6 +12,7 @@
 // waiting until the poses around its time have arrived (apps/live_pose_stamper.hpp).
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <thread>
@@ -218,9 +219,8 @@ int run(const NodeArguments& arguments) {
   }
   install_stop_handlers();
   std::vector<doa::DoaMeasurement> doas;
-  doas.reserve(64);
-  std::vector<doa::DoaMeasurement> posed;  // moving array: the DOAs whose pose has come
-  posed.reserve(LivePoseStamper::kMaxPending);
+  // A moving node may release a whole queue of DOAs at once.
+  doas.reserve(pose_reader ? LivePoseStamper::kMaxPending : 64);
   doa::NodeStatus status;
   dronetrack_Doa doa_sample{};
   dronetrack_NodeStatus status_sample{};
@@ -233,23 +233,17 @@ int run(const NodeArguments& arguments) {
   const auto wall_epoch = Clock::time_point(
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(epoch_unix_s)));
 
-  while (!stop_requested()) {
-    if (!node.step(doas)) break;
-    if (arguments.realtime && !live) {
-      // The block is due when its last sample would have been captured.
-      std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
-                                                     std::chrono::duration<double>(node.time_s())));
-    }
-    const std::int64_t offset_ns = time_offset_ns();
-    if (pose_reader) {
-      take_poses(*pose_reader, node.array_id(), dds::ns_to_seconds(offset_ns), pose_stamper,
-                 pose_warnings, pose_texts);
-      const std::int64_t dropped_before = pose_stamper.dropped();
-      pose_stamper.add_doas(doas);
-      pose_stamper.release(node.time_s(), doas);
-      for (std::int64_t d = dropped_before; d < pose_stamper.dropped(); ++d)
-        pose_warnings.count(kUnposedDoa, pose_texts.unposed.c_str());
-    }
+  // Pose-topic node: this step's DOAs wait for their poses; those whose pose came are published.
+  auto stamp_from_topic = [&](double now_s, std::int64_t offset_ns) {
+    take_poses(*pose_reader, node.array_id(), dds::ns_to_seconds(offset_ns), pose_stamper,
+               pose_warnings, pose_texts);
+    const std::int64_t dropped_before = pose_stamper.dropped();
+    pose_stamper.add_doas(doas);
+    pose_stamper.release(now_s, doas);
+    for (std::int64_t d = dropped_before; d < pose_stamper.dropped(); ++d)
+      pose_warnings.count(kUnposedDoa, pose_texts.unposed.c_str());
+  };
+  auto publish_doas = [&](std::int64_t offset_ns) {
     for (const auto& measurement : doas) {
       dds::to_idl(measurement, offset_ns, doa_sample);
       if (doa_writer.try_write(doa_sample) < 0) {
@@ -259,10 +253,38 @@ int run(const NodeArguments& arguments) {
       }
     }
     doas.clear();
+  };
+
+  while (!stop_requested()) {
+    if (!node.step(doas)) break;
+    if (arguments.realtime && !live) {
+      // The block is due when its last sample would have been captured.
+      std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
+                                                     std::chrono::duration<double>(node.time_s())));
+    }
+    const std::int64_t offset_ns = time_offset_ns();
+    if (pose_reader) stamp_from_topic(node.time_s(), offset_ns);
+    publish_doas(offset_ns);
     if (node.status_due(status)) {
       dds::to_idl(status, offset_ns + dds::seconds_to_ns(status.time_s), status_sample);
       if (status_writer.try_write(status_sample) < 0) ++write_failures;
     }
+  }
+  if (pose_reader) {
+    // The stream ended: the last DOAs' poses may still be on their way (as long as a DOA may
+    // wait for them); then whatever is left has no pose and is counted.
+    const auto give_up =
+        std::chrono::steady_clock::now() +
+        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(array.pose_max_gap_s + LivePoseStamper::kWaitMargin_s));
+    while (pose_stamper.pending() > 0 && !stop_requested() &&
+           std::chrono::steady_clock::now() < give_up) {
+      pose_reader->wait(std::chrono::milliseconds(50));
+      stamp_from_topic(node.time_s(), time_offset_ns());
+      publish_doas(time_offset_ns());
+    }
+    stamp_from_topic(std::numeric_limits<double>::infinity(), time_offset_ns());
+    publish_doas(time_offset_ns());
   }
   if (live_source) live_source->request_stop();
   pose_warnings.flush();
@@ -277,7 +299,11 @@ int run(const NodeArguments& arguments) {
   doa_writer.wait_for_acks(std::chrono::milliseconds(500));
   log::info("node ", node.array_id(), ": ", node.time_s(), " s of audio, ", published,
             " DOAs published", write_failures ? ", " : "",
-            write_failures ? std::to_string(write_failures) + " writes failed" : "");
+            write_failures ? std::to_string(write_failures) + " writes failed" : "",
+            pose_reader
+                ? ", " + std::to_string(pose_stamper.dropped()) + " dropped without a pose (" +
+                      std::to_string(pose_stamper.refused_poses()) + " poses refused)"
+                : "");
   if (stop_requested()) return interrupted_exit_code();
   if (node.source().cut_short()) {
     log::error("node ", node.array_id(), ": ", node.source().describe(),
