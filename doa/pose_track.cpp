@@ -152,6 +152,23 @@ void restamp(DoaMeasurement& measurement, const PoseStamp& stamp,
     covariance = mirror * covariance * mirror.transpose();
     axis = -axis;
   }
+  if (measurement.ambiguity == DoaAmbiguity::cone) {
+    // The cone's display point is its horizontal one (as the solver reports it): turn the
+    // turned point about the turned axis to there; the covariance, symmetric about the axis up
+    // to that turn, goes with it.
+    const Eigen::Vector3d unit_axis = axis.normalized();
+    const Eigen::Vector3d across = Eigen::Vector3d::UnitZ().cross(unit_axis);
+    if (across.norm() > 1e-9) {
+      const double cosine = std::clamp(turned.dot(unit_axis), -1.0, 1.0);
+      const Eigen::Vector3d target =
+          unit_axis * cosine + across.normalized() * std::sqrt(1.0 - cosine * cosine);
+      const double angle =
+          std::atan2(unit_axis.dot(turned.cross(target)), turned.dot(target) - cosine * cosine);
+      const Eigen::Matrix3d about_axis = Eigen::AngleAxisd(angle, unit_axis).toRotationMatrix();
+      turned = about_axis * turned;
+      covariance = about_axis * covariance * about_axis.transpose();
+    }
+  }
   measurement.direction = turned.normalized();
   measurement.azel_covariance_rad2 =
       azel_covariance_from_direction(measurement.direction, covariance);

@@ -212,10 +212,38 @@ TEST(Restamp, MirrorPairKeepsTheImageAboveTheArrayPlane) {
   cone.ambiguity = DoaAmbiguity::cone;
   cone.ambiguity_axis = Eigen::Vector3d::UnitX();
   cone.cone_angle_rad = 0.7;
+  cone.direction = {std::cos(0.7), std::sin(0.7), 0.0};  // the cone's horizontal point
   stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(90, 0, 0));
   restamp(cone, stamp, Eigen::Matrix3d::Identity());
   EXPECT_TRUE(cone.ambiguity_axis.isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  EXPECT_TRUE(cone.direction.isApprox(Eigen::Vector3d(-std::sin(0.7), std::cos(0.7), 0), 1e-12));
   EXPECT_DOUBLE_EQ(cone.cone_angle_rad, 0.7);
+}
+
+TEST(Restamp, ConeKeepsItsHorizontalDisplayPoint) {
+  // A two-mic array along +x rolled 40 deg about its own axis: the axis stays +x, the point
+  // solved in the level frame would tilt by 40 deg; the cone's horizontal point is reported.
+  DoaMeasurement cone;
+  cone.ambiguity = DoaAmbiguity::cone;
+  cone.ambiguity_axis = Eigen::Vector3d::UnitX();
+  cone.cone_angle_rad = 0.7;
+  cone.direction = {std::cos(0.7), std::sin(0.7), 0.0};
+  cone.azel_covariance_rad2 << 1e-4, 0.0, 0.0, 2.4;  // the free angle around the axis: vertical
+  PoseStamp stamp;
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(0, 0, 40));
+  restamp(cone, stamp, Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(cone.ambiguity_axis.isApprox(Eigen::Vector3d::UnitX(), 1e-12));
+  EXPECT_TRUE(cone.direction.isApprox(Eigen::Vector3d(std::cos(0.7), std::sin(0.7), 0), 1e-12));
+  EXPECT_NEAR(cone.azel_covariance_rad2(0, 0), 1e-4, 1e-12);
+  EXPECT_NEAR(cone.azel_covariance_rad2(1, 1), 2.4, 1e-9);
+  // Tilted 30 deg in pitch, the axis leaves the horizontal; the point is on the cone, level.
+  stamp.array_to_site = Eigen::Quaterniond(attitude_to_site(20, 30, 0));
+  restamp(cone, stamp, Eigen::Matrix3d::Identity());
+  const Eigen::Vector3d axis = attitude_to_site(20, 30, 0).col(0);
+  EXPECT_TRUE(cone.ambiguity_axis.isApprox(axis, 1e-12));
+  EXPECT_NEAR(std::acos(cone.direction.dot(axis)), 0.7, 1e-12);
+  EXPECT_NEAR(cone.direction.z(), std::cos(0.7) * axis.z(), 1e-12);  // along the axis only
+  EXPECT_NEAR(cone.direction.norm(), 1.0, 1e-12);
 }
 
 constexpr double kRate = 48000.0;
