@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "doa/pose_sample.hpp"
+
 namespace dronetrack::http_api {
 namespace {
 
@@ -50,10 +52,29 @@ json track_json(const fusion::TrackReport& track, const SiteLayout& layout) {
   };
 }
 
+json pose_json(double time_s, const doa::PoseStamp& pose) {
+  return json{{"t", time_s},
+              {"centre_m", vec3(pose.centre_m)},
+              {"attitude_deg", vec3(doa::attitude_deg_of(pose.array_to_site))}};
+}
+
+// What a moving or rank-deficient array measured, as on the DOA line (docs/contract.md).
+void add_doa_geometry(const doa::DoaMeasurement& doa, json& out) {
+  if (doa.pose.moving) out["pose"] = pose_json(doa.time_s, doa.pose);
+  if (doa.ambiguity == doa::DoaAmbiguity::cone) {
+    out["cone"] =
+        json{{"axis", vec3(doa.ambiguity_axis)},
+             {"angle_deg", doa.cone_angle_rad * kRadToDeg},
+             {"angle_std_deg", std::sqrt(std::max(0.0, doa.cone_angle_variance_rad2)) * kRadToDeg}};
+  } else if (doa.ambiguity == doa::DoaAmbiguity::mirror_up_down) {
+    out["mirror_normal"] = vec3(doa.ambiguity_axis);
+  }
+}
+
 json doa_json(const doa::DoaMeasurement& doa) {
   const double az_std = std::sqrt(std::max(0.0, doa.azel_covariance_rad2(0, 0))) * kRadToDeg;
   const double el_std = std::sqrt(std::max(0.0, doa.azel_covariance_rad2(1, 1))) * kRadToDeg;
-  return json{
+  json out{
       {"t", doa.time_s},
       {"array", doa.array_id},
       {"array_index", doa.array_index},
@@ -66,6 +87,8 @@ json doa_json(const doa::DoaMeasurement& doa) {
       {"snr_db", doa.snr_db},
       {"ambiguity", doa::to_string(doa.ambiguity)},
   };
+  add_doa_geometry(doa, out);
+  return out;
 }
 
 // Problem flags as names ("non_finite", "silent", ...), in bit order.
@@ -193,6 +216,13 @@ struct LiveState::State {
   std::map<std::string, doa::NodeStatus> nodes;                     // by array id
   std::map<std::pair<std::string, int>, doa::DoaMeasurement> doas;  // (array, source_index)
   std::deque<fusion::ZoneEvent> alerts;
+  // Moving arrays (issue 15): the latest pose stamp and the path so far, by array id.
+  struct PathPoint {
+    double time_s = 0.0;
+    Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
+  };
+  std::map<std::string, std::pair<double, doa::PoseStamp>> poses;
+  std::map<std::string, std::deque<PathPoint>> paths;
 
   void advance(double t) {
     if (std::isfinite(t)) time_s = std::max(time_s, t);
@@ -236,8 +266,27 @@ void LiveState::publish_doa(const doa::DoaMeasurement& doa) {
     std::lock_guard lock(mutex_);
     state_->advance(doa.time_s);
     state_->doas[{doa.array_id, doa.source_index}] = doa;
+    if (doa.pose.moving) record_pose(doa);
   }
   if (subscriber_count() > 0) broadcast("doa", dump(doa_json(doa)));
+}
+
+void LiveState::record_pose(const doa::DoaMeasurement& doa) {
+  State& s = *state_;
+  auto& latest = s.poses[doa.array_id];
+  if (doa.time_s >= latest.first) latest = {doa.time_s, doa.pose};
+  // A point per path_point_spacing_m moved or path_point_interval_s, bounded and aged like the
+  // track history: the page draws the path, not every frame's pose.
+  auto& path = s.paths[doa.array_id];
+  const bool due =
+      path.empty() ||
+      (doa.time_s > path.back().time_s &&
+       ((doa.pose.centre_m - path.back().centre_m).norm() >= limits_.path_point_spacing_m ||
+        doa.time_s - path.back().time_s >= limits_.path_point_interval_s));
+  if (due) path.push_back({doa.time_s, doa.pose.centre_m});
+  while (path.size() > limits_.path_points_per_array) path.pop_front();
+  const double horizon = s.now() - limits_.history_window_s;
+  while (!path.empty() && path.front().time_s < horizon) path.pop_front();
 }
 
 void LiveState::publish_node(const doa::NodeStatus& status) {
@@ -348,11 +397,15 @@ std::string LiveState::nodes_json() const {
   double now = 0.0;
   std::map<std::string, doa::NodeStatus> nodes;
   std::map<std::pair<std::string, int>, doa::DoaMeasurement> doas;
+  std::map<std::string, std::pair<double, doa::PoseStamp>> poses;
+  std::map<std::string, std::deque<State::PathPoint>> paths;
   {
     std::lock_guard lock(mutex_);
     now = state_->now();
     nodes = state_->nodes;
     doas = state_->doas;
+    poses = state_->poses;
+    paths = state_->paths;
   }
   // Every array of the layout, then any node the layout does not know (a misconfigured node
   // should be visible, not hidden).
@@ -389,6 +442,17 @@ std::string LiveState::nodes_json() const {
       latest.push_back(doa_json(d->second));
     }
     entry["doa"] = std::move(latest);
+    const auto pose = poses.find(id);
+    entry["pose"] =
+        pose == poses.end() ? json(nullptr) : pose_json(pose->second.first, pose->second.second);
+    json path = json::array();
+    if (const auto found = paths.find(id); found != paths.end()) {
+      for (const auto& point : found->second) {
+        path.push_back(json::array(
+            {point.time_s, point.centre_m.x(), point.centre_m.y(), point.centre_m.z()}));
+      }
+    }
+    entry["path"] = std::move(path);
     list.push_back(std::move(entry));
   }
   return dump(

@@ -35,6 +35,11 @@ struct LiveStateLimits {
   std::size_t max_alerts = 1000;                // the oldest alerts go first
   std::size_t stream_queue_events = 512;        // per streaming client; full: client dropped
   double stale_after_s = 3.0;                   // stream time without a NodeStatus: "stale"
+  // A moving array's path (issue 15): a point each time it has moved this far or this long
+  // since the last one; at most this many points (aged out with history_window_s).
+  double path_point_spacing_m = 2.0;
+  double path_point_interval_s = 5.0;
+  std::size_t path_points_per_array = 600;
 };
 
 // One Server-Sent Event: "event: NAME\ndata: DATA\n\n" (DATA must be one line of JSON).
@@ -96,6 +101,7 @@ class LiveState {
  private:
   struct State;
   void broadcast(const std::string& event_name, std::string data);
+  void record_pose(const doa::DoaMeasurement& doa);  // with mutex_ held
 
   const SiteLayout layout_;
   const LiveStateLimits limits_;

@@ -171,6 +171,20 @@
     const n = state.nodes.find((x) => x.array === arrayId);
     return n ? n.state : 'unknown';
   }
+  // Unit horizontal directions to draw for a DOA: its own, or a cone's two horizontal lines.
+  function horizontalRays(d) {
+    if (d.cone) {
+      const [ax, ay] = d.cone.axis;
+      const h = Math.hypot(ax, ay);
+      const c = Math.cos(d.cone.angle_deg * Math.PI / 180) / Math.max(h, 1e-9);
+      if (h < 1e-3 || Math.abs(c) > 1) return [];
+      const psi = Math.atan2(ay, ax);
+      const spread = Math.acos(c);
+      return [psi + spread, psi - spread].map((phi) => [Math.cos(phi), Math.sin(phi)]);
+    }
+    const h = Math.hypot(d.direction[0], d.direction[1]);
+    return h < 1e-3 ? [] : [[d.direction[0] / h, d.direction[1] / h]];
+  }
   function drawPlan() {
     const r = plan.getBoundingClientRect();
     plan.replaceChildren();
@@ -192,7 +206,17 @@
       el('text', { x: sx, y: sy - 4, 'text-anchor': 'middle' }, zg).textContent = z.name;
     }
 
-    // DOA rays: the direction's horizontal part from the array centre, fading with age.
+    // A moving array's path so far (its node's pose stamps), under everything else.
+    const paths = el('g', { class: 'array-paths' }, g);
+    for (const n of state.nodes) {
+      if (!n.path || n.path.length < 2) continue;
+      el('polyline', { class: 'array-path', 'data-array-path': n.array,
+                       points: n.path.map((p) => toScreen(p[1], p[2]).join(',')).join(' ') }, paths);
+    }
+
+    // DOA rays: the direction's horizontal part from where the array was, fading with age. A
+    // cone (two mics) is drawn as what it is: the two horizontal directions at its angle from
+    // the mic axis, mirror images of each other.
     const reach = Math.hypot(r.width, r.height) / state.view.scale;
     const rays = el('g', { class: 'rays' }, g);
     for (const d of state.doas.values()) {
@@ -200,22 +224,27 @@
       if (age > DOA_FRESH_S) continue;
       const a = state.site.arrays.find((x) => x.id === d.array);
       if (!a) continue;
-      const h = Math.hypot(d.direction[0], d.direction[1]);
-      if (h < 1e-3) continue;
-      const [x0, y0] = toScreen(a.centre_m[0], a.centre_m[1]);
-      const [x1, y1] = toScreen(a.centre_m[0] + d.direction[0] / h * reach, a.centre_m[1] + d.direction[1] / h * reach);
+      const origin = d.pose ? d.pose.centre_m : a.centre_m;
       const opacity = Math.max(0.15, (0.3 + 0.7 * (d.quality || 0)) * (1 - age / DOA_FRESH_S));
-      el('line', { x1: x0, y1: y0, x2: x1, y2: y1, class: 'ray', 'data-doa-array': d.array,
-                   'stroke-opacity': opacity.toFixed(2) }, rays);
+      const [x0, y0] = toScreen(origin[0], origin[1]);
+      for (const u of horizontalRays(d)) {
+        const [x1, y1] = toScreen(origin[0] + u[0] * reach, origin[1] + u[1] * reach);
+        el('line', { x1: x0, y1: y0, x2: x1, y2: y1, class: 'ray' + (d.cone ? ' cone' : ''),
+                     'data-doa-array': d.array, 'stroke-opacity': opacity.toFixed(2) }, rays);
+      }
     }
 
     for (const a of state.site.arrays) {
       const stale = nodeState(a.id) === 'stale';
-      const ag = el('g', { class: 'array' + (stale ? ' stale' : ''), 'data-array-id': a.id,
-                           'data-node-state': nodeState(a.id) }, g);
-      const [sx, sy] = toScreen(a.position_m[0], a.position_m[1]);
+      const node = state.nodes.find((x) => x.array === a.id);
+      const pose = node && node.pose;  // a moving array: where it is now
+      const ag = el('g', { class: 'array' + (stale ? ' stale' : '') + (pose ? ' moving' : ''),
+                           'data-array-id': a.id, 'data-node-state': nodeState(a.id) }, g);
+      const where = pose ? pose.centre_m : a.position_m;
+      const yaw = pose ? pose.attitude_deg[0] : a.yaw_deg;
+      const [sx, sy] = toScreen(where[0], where[1]);
       el('rect', { class: 'body', x: sx - 6, y: sy - 6, width: 12, height: 12,
-                   transform: `rotate(${-a.yaw_deg} ${sx} ${sy})` }, ag);
+                   transform: `rotate(${-yaw} ${sx} ${sy})` }, ag);
       el('text', { x: sx + 10, y: sy + 16 }, ag).textContent = a.id + (stale ? ' (stale)' : '');
     }
 
@@ -227,8 +256,12 @@
     }
     for (const t of state.tracks.values()) {
       if (!shown(t)) continue;
-      const tg = el('g', { class: `track ${t.status} class-${t.class}` + (t.id === state.selected ? ' selected' : ''),
-                           'data-track-id': t.id }, g);
+      // A track resting on one array (range from its motion or its hypotheses, not from a
+      // second bearing) is drawn dashed and says so.
+      const oneArray = t.contributing_arrays.length === 1;
+      const tg = el('g', { class: `track ${t.status} class-${t.class}` + (oneArray ? ' one-array' : '') +
+                             (t.id === state.selected ? ' selected' : ''),
+                           'data-track-id': t.id, 'data-arrays': t.contributing_arrays.length }, g);
       const [sx, sy] = toScreen(t.position_m[0], t.position_m[1]);
       const e = ellipsePath(t);
       if (e) {
@@ -240,7 +273,8 @@
       const [vx, vy] = toScreen(t.position_m[0] + 5 * t.velocity_mps[0], t.position_m[1] + 5 * t.velocity_mps[1]);
       el('line', { class: 'velocity', x1: sx, y1: sy, x2: vx, y2: vy }, tg);
       el('circle', { class: 'dot', cx: sx, cy: sy, r: 7 }, tg);
-      el('text', { x: sx + 10, y: sy - 8 }, tg).textContent = `T${t.id} ${fmt(t.position_m[2], 0)} m`;
+      el('text', { x: sx + 10, y: sy - 8 }, tg).textContent =
+        `T${t.id} ${fmt(t.position_m[2], 0)} m` + (oneArray ? ` (${t.contributing_arrays[0]} only)` : '');
     }
     drawScaleAndNorth(g, r);
   }
@@ -298,7 +332,8 @@
     set('uncertainty', `x ${fmt(sd[0])} m, y ${fmt(sd[1])} m, z ${fmt(sd[2])} m`, Math.max(...sd));
     set('status', t.status);
     set('class', `${t.class} (${fmt(100 * t.class_confidence, 0)} %)`, t.class);
-    set('arrays', t.contributing_arrays.length ? t.contributing_arrays.join(', ') : 'none', t.contributing_arrays.join(','));
+    set('arrays', t.contributing_arrays.length === 1 ? `${t.contributing_arrays[0]} only (one-array track)`
+      : t.contributing_arrays.length ? t.contributing_arrays.join(', ') : 'none', t.contributing_arrays.join(','));
   }
   function shown(t) { return state.classFilter === 'all' || t.class === state.classFilter; }
   $('class-filter').addEventListener('change', (e) => { state.classFilter = e.target.value; render(); });

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "doa/pose_sample.hpp"
 #include "tests/http_api/test_support.hpp"
 
 namespace dronetrack::http_api {
@@ -207,6 +208,41 @@ TEST(LiveState, NodesAreStaleWithoutRecentStatusOrWhenNotAlive) {
   ASSERT_EQ(doc["nodes"].size(), 3u);
   EXPECT_EQ(doc["nodes"][2]["array"], "X9");
   EXPECT_EQ(doc["nodes"][2]["state"], "alive");
+}
+
+// A moving two-mic array (issue 15): its nodes entry carries the latest pose and a path thinned
+// to a point per 2 m (or 5 s), and its DOAs say what was measured (the cone).
+TEST(LiveState, MovingArrayHasAPoseAPathAndConeDoas) {
+  LiveState state(two_array_layout());
+  for (int k = 0; k <= 100; ++k) {  // 10 s at 10 Hz, 1.5 m/s east: 15 m
+    doa::DoaMeasurement doa;
+    doa.array_id = "A2";
+    doa.array_index = 1;
+    doa.time_s = 0.1 * k;
+    doa.ambiguity = doa::DoaAmbiguity::cone;
+    doa.ambiguity_axis = Eigen::Vector3d::UnitX();
+    doa.cone_angle_rad = 1.0;
+    doa.cone_angle_variance_rad2 = 1e-4;
+    doa.pose = {Eigen::Vector3d(40.0 + 0.15 * k, 0, -2), doa::rotation_from_attitude_deg(30, 0, 0),
+                true};
+    state.publish_doa(doa);
+  }
+  const json nodes = json::parse(state.nodes_json());
+  const json& a2 = nodes["nodes"][1];
+  ASSERT_EQ(a2["array"], "A2");
+  EXPECT_DOUBLE_EQ(a2["pose"]["t"].get<double>(), 10.0);
+  expect_vec3(a2["pose"]["centre_m"], {55, 0, -2});
+  EXPECT_NEAR(a2["pose"]["attitude_deg"][0].get<double>(), 30.0, 1e-9);
+  // Points at 0, 2.1, 4.2, ... 14.7 m (every 14th DOA: 0.15 m each, the first >= 2 m).
+  ASSERT_EQ(a2["path"].size(), 8u);
+  EXPECT_NEAR(a2["path"][1][1].get<double>(), 40.0 + 14 * 0.15, 1e-9);
+  const json& doa = a2["doa"][0];
+  EXPECT_NEAR(doa["cone"]["angle_deg"].get<double>(), 180.0 / M_PI, 1e-9);
+  expect_vec3(doa["cone"]["axis"], {1, 0, 0});
+  expect_vec3(doa["pose"]["centre_m"], {55, 0, -2});
+  // A fixed array has neither.
+  EXPECT_TRUE(nodes["nodes"][0]["pose"].is_null());
+  EXPECT_TRUE(nodes["nodes"][0]["path"].empty());
 }
 
 TEST(LiveState, TimeNeverGoesBackwards) {
