@@ -2,7 +2,9 @@
 // increasing, NaN, a gap, a turn too fast for its rate) or one that does not span the recording
 // exits 1 with one error line naming FILE:LINE (or the file and the time) and writes nothing.
 // A pose file that holds still at a pose other than the config's gives the DOAs a config with
-// that fixed pose gives, and they point at the known source.
+// that fixed pose gives, and they point at the known source. An array that drives and turns
+// past a static source (its audio rendered sample by sample from the exact path lengths) gives
+// DOAs that point at the source from the pose at their time.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -10,6 +12,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "doa/array_geometry.hpp"
+#include "doa/pose_track.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
 namespace {
@@ -218,6 +223,111 @@ TEST_F(PoseCli, ConstantPoseGivesTheDoasOfThatFixedPose) {
     // The DOA accuracy of a tetrahedron at this SNR: well under a degree.
     EXPECT_LT(dronetrack::doa::angle_between_deg(a, truth), 1.0) << i;
   }
+}
+
+// The moving platform: 2 m/s along +x, turning at 15 deg/s.
+dronetrack::doa::PoseSample platform_pose(double t) {
+  return {t, {-3.0 + 2.0 * t, 10.0, 2.0}, -30.0 + 15.0 * t, 0.0, 0.0};
+}
+
+// A static source of 400 random tones in 1-4 kHz, heard at each mic of the array as it moves:
+// every sample is the source's signal at the emission time t - |S - mic(t)| / c (exact
+// spherical propagation, fractional delays and all).
+void write_moving_wav(const fs::path& file, const ArrayGeometry& array) {
+  constexpr int kTones = 400;
+  std::mt19937 random(17);
+  std::uniform_real_distribution<double> frequency(1000.0, 4000.0);
+  std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<double> omega(kTones), phi(kTones);
+  for (int k = 0; k < kTones; ++k) {
+    omega[static_cast<std::size_t>(k)] = 2.0 * std::numbers::pi * frequency(random);
+    phi[static_cast<std::size_t>(k)] = phase(random);
+  }
+  const auto frames = static_cast<std::size_t>(kSeconds * kRate);
+  std::vector<float> samples(frames * 4);
+  for (std::size_t n = 0; n < frames; ++n) {
+    const double t = static_cast<double>(n) / kRate;
+    const dronetrack::doa::PoseSample pose = platform_pose(t);
+    const Eigen::Matrix3d rotation =
+        dronetrack::doa::attitude_to_site(pose.yaw_deg, pose.pitch_deg, pose.roll_deg);
+    for (std::size_t mic = 0; mic < 4; ++mic) {
+      const Eigen::Vector3d position = pose.position_m + rotation * array.mics_m[mic];
+      const double emitted = t - (kSource_m - position).norm() / 343.0;
+      double value = 0.0;
+      for (int k = 0; k < kTones; ++k)
+        value += std::cos(omega[static_cast<std::size_t>(k)] * emitted +
+                          phi[static_cast<std::size_t>(k)]);
+      samples[n * 4 + mic] =
+          static_cast<float>(0.05 * value / std::sqrt(kTones / 2.0) + noise(random));
+    }
+  }
+  SF_INFO info{};
+  info.samplerate = kRate;
+  info.channels = 4;
+  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+  SNDFILE* handle = sf_open(file.c_str(), SFM_WRITE, &info);
+  ASSERT_NE(handle, nullptr) << sf_strerror(nullptr);
+  sf_writef_float(handle, samples.data(), static_cast<sf_count_t>(frames));
+  sf_close(handle);
+}
+
+TEST_F(PoseCli, MovingArrayPointsAtAStaticSourceFromThePoseAtEachTime) {
+  write_moving_wav(dir_ / "M1.wav", nominal_);
+  {
+    std::ofstream pose(dir_ / "pose.jsonl");
+    for (int i = 0; i <= 30; ++i) {  // 10 Hz: 1.5 deg of turn and 0.2 m between lines
+      const dronetrack::doa::PoseSample line = platform_pose(0.1 * i);
+      ArrayGeometry at = nominal_;
+      at.position_m = line.position_m;
+      at.yaw_deg = line.yaw_deg;
+      pose << pose_line(line.time_s, at);
+    }
+  }
+  write_site("moving.json", true);
+  const CommandResult moving = replay("moving.json", "doas.jsonl");
+  ASSERT_EQ(moving.status, 0) << moving.err;
+  const std::vector<nlohmann::json> doas = doas_of_m1("doas.jsonl");
+  ASSERT_GE(doas.size(), 40U);
+  double worst_deg = 0.0;
+  for (const nlohmann::json& doa : doas) {
+    const double t = doa["t"].get<double>();
+    const Eigen::Vector3d direction(doa["direction"][0], doa["direction"][1], doa["direction"][2]);
+    ASSERT_TRUE(doa.contains("pose")) << doa.dump();
+    const Eigen::Vector3d centre(doa["pose"]["centre_m"][0], doa["pose"]["centre_m"][1],
+                                 doa["pose"]["centre_m"][2]);
+    const dronetrack::doa::PoseSample truth = platform_pose(t);
+    const Eigen::Vector3d true_centre =
+        truth.position_m + dronetrack::doa::attitude_to_site(truth.yaw_deg, 0, 0) *
+                               dronetrack::doa::mic_centroid_array_m(nominal_);
+    EXPECT_LT((centre - true_centre).norm(), 1e-3) << t;
+    worst_deg = std::max(worst_deg, dronetrack::doa::angle_between_deg(
+                                        direction, (kSource_m - true_centre).normalized()));
+  }
+  std::printf("moving array: %zu DOAs, worst %.3f deg from the source\n", doas.size(), worst_deg);
+  // Measured 0.72 deg, growing with the run from 0.04 deg: the LS solver's near-field refinement
+  // takes the Doppler scale of a moving array's TDOAs (|v|/c = 0.6 %, all pairs alike) for
+  // wavefront curvature. Its plane-wave fit on the same TDOAs is within 0.09 deg, a fixed array
+  // within 0.05 deg. A DOA turned by the wrong frame's heading would be degrees off.
+  EXPECT_LT(worst_deg, 1.0);
+
+  // The same audio taken as a fixed array at the platform's start: the turn (45 deg) and the
+  // drive put the DOAs tens of degrees off. The pose is what makes them right.
+  nlohmann::json site = nlohmann::json::parse(std::ifstream(dir_ / "moving.json"));
+  site["arrays"][1].erase("pose_file");
+  site["arrays"][1]["position_m"] = {-3.0, 10.0, 2.0};
+  site["arrays"][1]["yaw_deg"] = -30.0;
+  std::ofstream(dir_ / "fixed.json") << site.dump();
+  ASSERT_EQ(replay("fixed.json", "fixed_doas.jsonl").status, 0);
+  const std::vector<nlohmann::json> fixed = doas_of_m1("fixed_doas.jsonl");
+  ASSERT_FALSE(fixed.empty());
+  const nlohmann::json& last = fixed.back();
+  const Eigen::Vector3d last_direction(last["direction"][0], last["direction"][1],
+                                       last["direction"][2]);
+  const dronetrack::doa::PoseSample end = platform_pose(last["t"].get<double>());
+  EXPECT_GT(
+      dronetrack::doa::angle_between_deg(last_direction, (kSource_m - end.position_m).normalized()),
+      20.0);
 }
 
 }  // namespace
