@@ -51,6 +51,10 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
       const std::string problem =
           pose_span_problem(site, i, site.arrays[i].recording, options.max_duration_s);
       if (!problem.empty()) throw std::runtime_error(problem);
+      if (site.arrays[i].pose_topic && site.arrays[i].pose_file.empty())
+        log::warn("array ", site.arrays[i].geometry.id,
+                  " moves (pose_topic) but has no pose_file: replay takes its config pose as "
+                  "fixed");
     }
   }
   std::vector<doa::DoaMeasurement> recorded_doas;
