@@ -82,15 +82,27 @@ PoseTrack::PoseTrack(std::vector<PoseSample> samples) : samples_(std::move(sampl
   }
 }
 
-std::optional<PoseStamp> PoseTrack::stamp(double time_s, const ArrayGeometry& geometry) const {
-  if (!covers(time_s)) return std::nullopt;
+std::size_t PoseTrack::after(double time_s) const {
   // The first sample after time_s; time_s == end_s() takes the last interval.
-  auto after =
+  const auto found =
       std::upper_bound(samples_.begin(), samples_.end(), time_s,
                        [](double t, const PoseSample& sample) { return t < sample.time_s; });
-  if (after == samples_.end()) --after;
-  const auto before = std::prev(after);
-  return interpolate_pose(*before, *after, time_s, mic_centroid_array_m(geometry));
+  return std::min(static_cast<std::size_t>(found - samples_.begin()), samples_.size() - 1);
+}
+
+std::optional<PoseStamp> PoseTrack::stamp(double time_s, const ArrayGeometry& geometry) const {
+  if (!covers(time_s)) return std::nullopt;
+  const std::size_t next = after(time_s);
+  return interpolate_pose(samples_[next - 1], samples_[next], time_s,
+                          mic_centroid_array_m(geometry));
+}
+
+std::optional<Eigen::Vector3d> PoseTrack::velocity_mps(double time_s) const {
+  if (!covers(time_s)) return std::nullopt;
+  const std::size_t next = after(time_s);
+  const PoseSample& before = samples_[next - 1];
+  const PoseSample& later = samples_[next];
+  return Eigen::Vector3d((later.position_m - before.position_m) / (later.time_s - before.time_s));
 }
 
 bool PoseRing::push(const PoseSample& sample) {

@@ -55,8 +55,12 @@ class PoseTrack {
   // The pose of `geometry`'s mics at `time_s` (moving = true); nullopt outside the span.
   // No allocation: a binary search and one slerp.
   std::optional<PoseStamp> stamp(double time_s, const ArrayGeometry& geometry) const;
+  // The origin's velocity between the lines around `time_s`, site frame; nullopt outside the span.
+  std::optional<Eigen::Vector3d> velocity_mps(double time_s) const;
 
  private:
+  // The index of the line after `time_s` (time_s inside the span).
+  std::size_t after(double time_s) const;
   std::vector<PoseSample> samples_;
 };
 

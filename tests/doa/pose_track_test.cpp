@@ -128,6 +128,15 @@ TEST(PoseTrack, HeadingAcrossTheWrapTurnsTheShortWay) {
                   .isApprox(Eigen::Vector3d(-1, 0, 0), 1e-12));
 }
 
+TEST(PoseTrack, VelocityIsThatOfTheIntervalAroundTheTime) {
+  const PoseTrack track(
+      {pose(0.0, {0, 0, 1}, 0), pose(0.5, {1, 0, 1}, 0), pose(1.5, {1, 3, 0}, 0)});
+  EXPECT_TRUE(track.velocity_mps(0.2)->isApprox(Eigen::Vector3d(2, 0, 0), 1e-12));
+  EXPECT_TRUE(track.velocity_mps(1.0)->isApprox(Eigen::Vector3d(0, 3, -1), 1e-12));
+  EXPECT_TRUE(track.velocity_mps(1.5)->isApprox(Eigen::Vector3d(0, 3, -1), 1e-12));
+  EXPECT_FALSE(track.velocity_mps(1.6));
+}
+
 TEST(PoseTrack, RefusesTimesOutsideItsSpan) {
   const ArrayGeometry geometry = offset_pair();
   const PoseTrack track({pose(5.0, {0, 0, 0}, 0), pose(6.0, {1, 0, 0}, 0)});
