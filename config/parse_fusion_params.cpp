@@ -5,12 +5,48 @@
 namespace dronetrack::config {
 
 void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
-  const std::string filter =
-      section.choice("filter", "ukf", {"ukf", "ukf_seed002", "ekf", "particle"});
-  if (filter == "ukf") params.filter = fusion::FilterKind::ukf;
-  if (filter == "ukf_seed002") params.filter = fusion::FilterKind::ukf_seed002;
-  if (filter == "ekf") params.filter = fusion::FilterKind::ekf;
-  if (filter == "particle") params.filter = fusion::FilterKind::particle;
+  const auto filter_kind = [](const std::string& name) {
+    if (name == "ukf_seed002") return fusion::FilterKind::ukf_seed002;
+    if (name == "ekf") return fusion::FilterKind::ekf;
+    if (name == "particle") return fusion::FilterKind::particle;
+    if (name == "gaussian_sum") return fusion::FilterKind::gaussian_sum;
+    if (name == "ekf_range_init") return fusion::FilterKind::ekf_range_init;
+    if (name == "particle_multipeak") return fusion::FilterKind::particle_multipeak;
+    return fusion::FilterKind::ukf;
+  };
+  params.filter =
+      filter_kind(section.choice("filter", "ukf",
+                                 {"ukf", "ukf_seed002", "ekf", "particle", "gaussian_sum",
+                                  "ekf_range_init", "particle_multipeak"}));
+  // Issue 15: tracks from one array's DOAs alone, and the known source plane.
+  params.single_array_start = section.boolean("single_array_start", params.single_array_start);
+  params.single_array_filter =
+      filter_kind(section.choice("single_array_filter", "gaussian_sum",
+                                 {"gaussian_sum", "ekf_range_init", "particle_multipeak"}));
+  fusion::OneArrayParams& one = params.single_array;
+  if (section.has("source_plane_z_m"))
+    one.source_plane_z_m = section.number("source_plane_z_m", 0.0, -1e4, 1e4);
+  one.source_plane_std_m =
+      section.number("source_plane_std_m", one.source_plane_std_m, 1e-4, 100.0);
+  if (section.has("single_array")) {
+    // Keys, units and defaults: docs/fusion.md ("One array alone").
+    ObjectReader reader = section.object("single_array");
+    one.hypothesis_spacing_m =
+        reader.number("hypothesis_spacing_m", one.hypothesis_spacing_m, 0.1, 1e4);
+    one.hypotheses_per_side = reader.integer("hypotheses_per_side", one.hypotheses_per_side, 1, 64);
+    one.max_range_m = reader.number("max_range_m", one.max_range_m, 1.0, 1e5);
+    one.prune_gamma = reader.number("prune_gamma", one.prune_gamma, 1e-6, 0.999);
+    one.merge_d2 = reader.number("merge_d2", one.merge_d2, 0.0, 100.0);
+    one.range_init_m = reader.number("range_init_m", one.range_init_m, 0.1, 1e5);
+    one.range_init_std_m = reader.number("range_init_std_m", one.range_init_std_m, 0.01, 1e5);
+    one.bearing_init_std_deg =
+        reader.number("bearing_init_std_deg", one.bearing_init_std_deg, 0.01, 90.0);
+    one.jerk_std_mps3 = reader.number("jerk_std_mps3", one.jerk_std_mps3, 1e-6, 1e4);
+    one.velocity_std_mps = reader.number("velocity_std_mps", one.velocity_std_mps, 1e-3, 1000.0);
+    one.acceleration_std_mps2 =
+        reader.number("acceleration_std_mps2", one.acceleration_std_mps2, 1e-3, 1000.0);
+    one.particle_count = reader.integer("particle_count", one.particle_count, 10, 1000000);
+  }
   params.jerk_noise_std_mps3 =
       section.number("jerk_noise_std_mps3", params.jerk_noise_std_mps3, 1e-6, 1e4);
   params.output_rate_hz = section.number("output_rate_hz", params.output_rate_hz, 0.1, 1000.0);

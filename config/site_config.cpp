@@ -9,6 +9,7 @@
 #include "config/config_reader.hpp"
 #include "config/parse_sections.hpp"
 #include "config/pose_file.hpp"
+#include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
 
 namespace dronetrack::config {
@@ -300,9 +301,18 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
                                       std::to_string(document["arrays"].size()));
       throw ConfigError(std::move(diagnostics.errors));
     }
+    // One array is enough when the fusion may start tracks from one array (issue 15).
+    const auto single_array_start = [&document] {
+      if (!document.contains("fusion") || !document["fusion"].is_object()) return false;
+      const nlohmann::json& fusion = document["fusion"];
+      return fusion.contains("single_array_start") && fusion["single_array_start"].is_boolean() &&
+             fusion["single_array_start"].get<bool>();
+    };
     if (options.for_fusion && document.is_object() && document.contains("arrays") &&
-        document["arrays"].is_array() && document["arrays"].size() == 1) {
-      diagnostics.error("arrays", "the fusion needs at least 2 arrays (it triangulates), got 1");
+        document["arrays"].is_array() && document["arrays"].size() == 1 && !single_array_start()) {
+      diagnostics.error("arrays",
+                        "the fusion needs at least 2 arrays (it triangulates), got 1 (or "
+                        "fusion.single_array_start: true)");
     }
     root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
       ArrayConfig array = parse_array(node, path, base_dir, options.read_pose_files, diagnostics);
@@ -319,8 +329,11 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
       parse_doa_params(doa_section, site.doa);
     }
     if (site.doa.ground_echo) {
-      // The echo model mirrors each mic in the ground: a mic at or under it has no mirror.
+      // The echo model mirrors each mic in the ground: a mic at or under it has no mirror. Only
+      // solid (3-D) arrays model the echo (a pair or a planar array cannot tell it from the
+      // source), so a hydrophone pair under the surface is fine.
       for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+        if (doa::direction_rank(site.arrays[i].geometry.mics_m) < 3) continue;
         const std::string array_path = "arrays[" + std::to_string(i) + "]";
         const double ground_m = site.doa_params(i).ground_height_m;
         const std::string ground_key = site.arrays[i].ground_height_m

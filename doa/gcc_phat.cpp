@@ -1013,10 +1013,13 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
     if (!direct) inverse_grid(p, normalisation, grid_values);
 
     if (!refine_peaks) continue;
-    // Highest and second-highest local maxima on the grid.
+    // Highest and second-highest local maxima on the grid, and the peak_count_ highest.
     int best = -1;
     double best_value = -2.0;
     double second_value = -2.0;
+    std::array<int, kMaxGccPeaks> top_index{};
+    std::array<double, kMaxGccPeaks> top_value{};
+    int top_count = 0;
     for (int m = 0; m < 2 * half + 1; ++m) {
       const double value = grid_values[m];
       const bool left_ok = m == 0 || value >= grid_values[m - 1];
@@ -1028,6 +1031,21 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
         best = m;
       } else if (value > second_value) {
         second_value = value;
+      }
+      if (peak_count_ > 1 && value > 0.0) {
+        int position = top_count;
+        while (position > 0 && top_value[static_cast<std::size_t>(position - 1)] < value)
+          --position;
+        if (position >= peak_count_) continue;
+        for (int moved = std::min(top_count, peak_count_ - 1); moved > position; --moved) {
+          top_index[static_cast<std::size_t>(moved)] =
+              top_index[static_cast<std::size_t>(moved - 1)];
+          top_value[static_cast<std::size_t>(moved)] =
+              top_value[static_cast<std::size_t>(moved - 1)];
+        }
+        top_index[static_cast<std::size_t>(position)] = m;
+        top_value[static_cast<std::size_t>(position)] = value;
+        top_count = std::min(top_count + 1, peak_count_);
       }
     }
     result = PairCorrelation{};
@@ -1044,7 +1062,37 @@ void GccPhat::correlate(bool refine_peaks, bool weighted) {
                             : kMaxPeakRatio;
     result.coherence = result.peak.coherence;
     result.tdoa_variance_s2 = tdoa_variance_for_peak(result.peak.value);
+    result.peaks[0] = result.peak;
+    result.peak_count = 1;
+    // The further peaks (the first is `best`), refined without refine()'s one-per-pair cache,
+    // which keeps the main peak's answer for the trackers. Two grid maxima that refine to one
+    // peak count once.
+    for (int k = 1; k < top_count; ++k) {
+      const int m = top_index[static_cast<std::size_t>(k)];
+      GccPeak further;
+      const bool refined = interpolation_ == LagInterpolation::band_limited
+                               ? refine_band_limited(static_cast<int>(p), m, further)
+                               : refine_parabolic(static_cast<int>(p), m, further);
+      if (!refined) further = {(m - half) * lag_step_s_, top_value[static_cast<std::size_t>(k)]};
+      further.lag_s = std::clamp(further.lag_s, -limit, limit);
+      if (!(further.value > 0.0)) continue;
+      bool distinct = true;
+      for (int kept = 0; kept < result.peak_count; ++kept)
+        distinct = distinct && std::abs(result.peaks[static_cast<std::size_t>(kept)].lag_s -
+                                        further.lag_s) > 0.5 * lag_step_s_;
+      if (distinct) result.peaks[static_cast<std::size_t>(result.peak_count++)] = further;
+    }
+    // Refinement can reorder close values: highest first.
+    std::sort(result.peaks.begin() + 1, result.peaks.begin() + result.peak_count,
+              [](const GccPeak& a, const GccPeak& b) { return a.value > b.value; });
   }
+}
+
+void GccPhat::set_peak_count(int count) {
+  if (count < 1 || count > kMaxGccPeaks)
+    throw std::invalid_argument("peak count must be in [1, " + std::to_string(kMaxGccPeaks) +
+                                "], got " + std::to_string(count));
+  peak_count_ = count;
 }
 
 void GccPhat::direct_grids(double normalisation) {

@@ -14,6 +14,7 @@
 //
 // Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
 // of X_i X_j* peaks there.
+#include <array>
 #include <complex>
 #include <cstdint>
 #include <memory>
@@ -47,6 +48,9 @@ struct GccPeak {
   double coherence = 0.0;  // |G|-weighted correlation: the in-band power share coherent here
 };
 
+// Most refined peaks a pair keeps per frame (GccPhat::set_peak_count; seed 004's top K = 4).
+inline constexpr int kMaxGccPeaks = 4;
+
 // Per pair, per frame.
 struct PairCorrelation {
   GccPeak peak;                 // refined highest peak within the physical lag
@@ -54,6 +58,10 @@ struct PairCorrelation {
   double peak_ratio = 0.0;      // peak / second (capped at 100)
   double coherence = 0.0;       // |G|-weighted correlation at the peak: coherent power share
   double tdoa_variance_s2 = 0;  // from the phase noise implied by the peak value
+  // The strongest distinct local maxima, refined like `peak`, highest first (peaks[0] is
+  // `peak`); set_peak_count() of them at most.
+  std::array<GccPeak, kMaxGccPeaks> peaks{};
+  int peak_count = 0;
 };
 
 class GccPhat {
@@ -163,6 +171,11 @@ class GccPhat {
   // band-limited refinement only): within 1.5 grid steps of the start, else false. For a peak
   // known to have moved little (after prepare_phasors()).
   bool refine_from(int pair, double start_lag_s, GccPeak& out) const;
+  // How many of each pair's strongest local maxima correlate() refines into pair().peaks, in
+  // [1, kMaxGccPeaks]; 1 (the default) costs nothing beyond the main peak. Each further peak
+  // costs a refinement (a few passes over the band) per pair and correlate().
+  void set_peak_count(int count);
+  int peak_count() const { return peak_count_; }
   // Local maxima on the grid, highest first, at most out.size(); returns how many.
   int top_peaks(int pair, std::span<GccPeak> out) const;
   // |G|-weighted correlation at a lag: the share of the in-band power coherent at that lag.
@@ -214,6 +227,7 @@ class GccPhat {
   double taylor_bound_ = 0.0;              // w_top sum_kept w^4: bounds the fifth derivative of R
   double bin_correlation_ = 1.0;  // how many bins share one independent phase (window, padding)
   LagInterpolation interpolation_;
+  int peak_count_ = 1;
   std::vector<MicPairSpec> pairs_;
   std::vector<int> half_spans_;
   std::vector<PairCorrelation> results_;

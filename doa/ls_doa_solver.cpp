@@ -20,7 +20,25 @@ constexpr double kRankTolerance = 1e-4;
 constexpr double kMinLever = 0.05;
 // Variance given to a direction the geometry cannot resolve (the cone's free angle): (90 deg)^2.
 constexpr double kUnresolvedVariance = (std::numbers::pi / 2.0) * (std::numbers::pi / 2.0);
+
+int rank_of_scatter(const Eigen::Vector3d& ascending_eigenvalues) {
+  int rank = 0;
+  for (int axis = 0; axis < 3; ++axis)
+    rank += ascending_eigenvalues(axis) > kRankTolerance * ascending_eigenvalues(2) ? 1 : 0;
+  return rank;
+}
 }  // namespace
+
+int direction_rank(const std::vector<Eigen::Vector3d>& mics_m) {
+  // The scatter of the pair baselines, as the solver weighs them (the 1/c scale does not change
+  // the rank).
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < mics_m.size(); ++i)
+    for (std::size_t j = i + 1; j < mics_m.size(); ++j)
+      scatter += (mics_m[i] - mics_m[j]) * (mics_m[i] - mics_m[j]).transpose();
+  if (!(scatter.trace() > 0.0)) return 0;
+  return rank_of_scatter(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues());
+}
 
 Eigen::Matrix2d azel_covariance_from_direction(const Eigen::Vector3d& u,
                                                const Eigen::Matrix3d& covariance) {
@@ -89,10 +107,18 @@ LsDoaSolver::LsDoaSolver(const ArrayGeometry& geometry, const LsDoaSettings& set
   centroid /= mics;
   for (const Eigen::Vector3d& mic : geometry.mics_m) mics_centred_m_.push_back(mic - centroid);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
-  const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
-  rank_ = 0;
-  for (int axis = 0; axis < 3; ++axis) rank_ += values(axis) > kRankTolerance * values(2) ? 1 : 0;
+  rank_ = rank_of_scatter(eigen.eigenvalues());
   for (int axis = 0; axis < 3; ++axis) subspace_.col(axis) = eigen.eigenvectors().col(2 - axis);
+  if (rank_ == 1) {
+    // The published cone axis points from mic 0 towards mic 1 (eigenvectors have no sign), and
+    // the longest pair measures the finest angle.
+    if ((geometry.mics_m[1] - geometry.mics_m[0]).dot(subspace_.col(0)) < 0.0)
+      subspace_.col(0) = -subspace_.col(0);
+    for (int p = 1; p < pair_count(); ++p)
+      if (max_lags_s_[static_cast<std::size_t>(p)] >
+          max_lags_s_[static_cast<std::size_t>(cone_pair_)])
+        cone_pair_ = p;
+  }
   const double position_std_s = geometry.mic_position_std_m / settings.speed_of_sound_mps;
   position_variance_s2_ = 2.0 * position_std_s * position_std_s;
 }
@@ -100,6 +126,48 @@ LsDoaSolver::LsDoaSolver(const ArrayGeometry& geometry, const LsDoaSettings& set
 DoaAmbiguity LsDoaSolver::ambiguity() const {
   if (rank_ >= 3) return DoaAmbiguity::none;
   return rank_ == 2 ? DoaAmbiguity::mirror_up_down : DoaAmbiguity::cone;
+}
+
+double LsDoaSolver::cone_cosine_for_tdoa(int pair, double tdoa_s) const {
+  // tau_ij = -dp_ij . u, and dp_ij lies along the axis a: a . u = -tau / (dp_ij . a).
+  return -tdoa_s / pair_vectors_[static_cast<std::size_t>(pair)].dot(subspace_.col(0));
+}
+
+double cone_angle_variance_rad2(double measured_cosine, double cosine_variance) {
+  if (!(cosine_variance > 0.0) || !std::isfinite(cosine_variance) ||
+      !std::isfinite(measured_cosine))
+    return 0.0;
+  // Directions uniform on the sphere make cos(theta) uniform on [-1, 1], so given the measured
+  // cosine c^ the true one is a normal N(c^, s^2) truncated to [-1, 1], whose mode is the
+  // reported clamp(c^). The variance published is that posterior's mean squared distance of
+  // theta from the reported angle: calibrated by construction, the linearised s^2 / sin^2(theta)
+  // away from the axis, and on it (c^ = 1: 1 - c = s |z|, theta ~ sqrt(2 s |z|)) E[theta^2] =
+  // 2 s E|z| = 2 sqrt(2 / pi) s; a c^ beyond 1 says the source is nearer the axis still. The
+  // integral runs over theta (c = cos theta, dc = sin theta dtheta), where the integrand is
+  // smooth even at the axis.
+  const double sigma = std::sqrt(cosine_variance);
+  const double nearest = std::clamp(measured_cosine, -1.0, 1.0);
+  const double reported_rad = std::acos(nearest);
+  constexpr double kSpan = 8.0;  // standard deviations of the cosine each side
+  const double low = std::max(-1.0, nearest - kSpan * sigma);
+  const double high = std::min(1.0, nearest + kSpan * sigma);
+  const double first = std::acos(high);
+  const double last = std::acos(low);
+  constexpr int kIntervals = 96;  // even (Simpson)
+  const double step = (last - first) / kIntervals;
+  // A cosine noise below the doubles' resolution of the angle: the first-order answer.
+  if (!(step > 0.0)) return cosine_variance / std::max(1.0 - nearest * nearest, 1e-300);
+  double mass = 0.0;
+  double moment = 0.0;
+  for (int i = 0; i <= kIntervals; ++i) {
+    const double theta = first + step * i;
+    const double z = (std::cos(theta) - measured_cosine) / sigma;
+    const double simpson = i == 0 || i == kIntervals ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
+    const double density = simpson * std::exp(-0.5 * z * z) * std::sin(theta);
+    mass += density;
+    moment += density * (theta - reported_rad) * (theta - reported_rad);
+  }
+  return mass > 0.0 ? moment / mass : 0.0;
 }
 
 double LsDoaSolver::tdoa_for_direction(int pair, const Eigen::Vector3d& direction_array) const {
@@ -201,23 +269,32 @@ bool LsDoaSolver::refine_near_field(std::span<const PairTdoa> tdoas, int skip_pa
 }
 
 DoaSolution LsDoaSolver::solve(std::span<const PairTdoa> tdoas) const {
-  DoaSolution best = solve_once(tdoas, -1);
-  if (best.accepted) return best;
+  return solve(tdoas, array_to_site_);
+}
+
+DoaSolution LsDoaSolver::solve(std::span<const PairTdoa> tdoas,
+                               const Eigen::Matrix3d& array_to_site) const {
+  ArrayFit best = solve_once(tdoas, -1);
+  if (best.solution.accepted) return to_site(best, array_to_site);
   int usable = 0;
   for (std::size_t p = 0; p < pair_vectors_.size() && p < tdoas.size(); ++p)
     usable += pair_variance(tdoas[p]) > 0.0 ? 1 : 0;
-  if (usable < rank_ + 2) return best;  // leaving one out must still over-determine the fit
+  // Leaving one out must still over-determine the fit.
+  if (usable < rank_ + 2) return to_site(best, array_to_site);
   for (int skip = 0; skip < pair_count(); ++skip) {
     if (pair_variance(tdoas[static_cast<std::size_t>(skip)]) <= 0.0) continue;
-    DoaSolution candidate = solve_once(tdoas, skip);
-    if (candidate.accepted && (!best.accepted || candidate.chi2_per_dof < best.chi2_per_dof))
+    ArrayFit candidate = solve_once(tdoas, skip);
+    if (candidate.solution.accepted &&
+        (!best.solution.accepted || candidate.solution.chi2_per_dof < best.solution.chi2_per_dof))
       best = candidate;
   }
-  return best;
+  return to_site(best, array_to_site);
 }
 
-DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pair) const {
-  DoaSolution solution;
+LsDoaSolver::ArrayFit LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas,
+                                              int skip_pair) const {
+  ArrayFit fit;
+  DoaSolution& solution = fit.solution;
   solution.ambiguity = ambiguity();
   solution.dropped_pair = skip_pair;
   const int dimensions = rank_;
@@ -241,19 +318,19 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
     ++used;
   }
   solution.pairs_used = used;
-  if (used < dimensions) return solution;
+  if (used < dimensions) return fit;
   Eigen::Matrix3d inverse = Eigen::Matrix3d::Zero();
-  if (!invert_leading_block(normal, dimensions, inverse)) return solution;
+  if (!invert_leading_block(normal, dimensions, inverse)) return fit;
   const Eigen::Vector3d v = -inverse * rhs;  // subspace coordinates
   const double norm = v.norm();
   solution.norm = norm;
-  if (!std::isfinite(norm) || norm <= 0.0) return solution;
+  if (!std::isfinite(norm) || norm <= 0.0) return fit;
 
   Eigen::Vector3d direction_array;
-  Eigen::Matrix3d direction_covariance;  // array frame, before the chi^2 inflation
-  double near_field_chi2 = -1.0;         // set when the spherical-wavefront fit was used
+  Eigen::Matrix3d direction_covariance = Eigen::Matrix3d::Zero();  // before the chi^2 inflation
+  double near_field_chi2 = -1.0;  // set when the spherical-wavefront fit was used
   if (dimensions == 3) {
-    if (std::abs(norm - 1.0) > settings_.max_norm_error) return solution;
+    if (std::abs(norm - 1.0) > settings_.max_norm_error) return fit;
     const Eigen::Vector3d u = v / norm;
     direction_array = basis * u;
     const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - u * u.transpose();
@@ -268,33 +345,23 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
       }
     }
   } else if (dimensions == 2) {
-    if (norm > 1.0 + settings_.max_norm_error) return solution;
+    if (norm > 1.0 + settings_.max_norm_error) return fit;
     const Eigen::Vector2d in_plane = v.head<2>() / std::max(norm, 1.0);
     const double height = std::sqrt(std::max(0.0, 1.0 - in_plane.squaredNorm()));
-    Eigen::Vector3d normal_axis = basis.col(2);
-    // Report the mirror image above the array plane (as seen in the site frame).
-    if ((array_to_site_ * normal_axis).z() < 0.0) normal_axis = -normal_axis;
+    // The image on the +normal side; to_site() mirrors it when that side is down.
+    const Eigen::Vector3d normal_axis = basis.col(2);
     direction_array = basis.leftCols<2>() * in_plane + normal_axis * height;
     Eigen::Matrix<double, 3, 2> jacobian =
         basis.leftCols<2>() - normal_axis * in_plane.transpose() / std::max(height, kMinLever);
     direction_covariance = jacobian * inverse.topLeftCorner<2, 2>() * jacobian.transpose();
   } else {
-    if (norm > 1.0 + settings_.max_norm_error) return solution;
-    const double cosine = std::clamp(v(0), -1.0, 1.0);
-    const double sine = std::sqrt(std::max(0.0, 1.0 - cosine * cosine));
-    const Eigen::Vector3d axis_site = array_to_site_ * basis.col(0);
-    Eigen::Vector3d across_site = Eigen::Vector3d::UnitZ().cross(axis_site);
-    if (across_site.norm() < 1e-9) across_site = Eigen::Vector3d::UnitX();
-    across_site.normalize();
-    const Eigen::Vector3d across = array_to_site_.transpose() * across_site;
-    direction_array = basis.col(0) * cosine + across * sine;
-    const Eigen::Vector3d along_cone = -basis.col(0) * sine + across * cosine;
-    const Eigen::Vector3d around_axis = direction_array.cross(along_cone).normalized();
-    const double angle_variance = inverse(0, 0) / std::max(sine * sine, kMinLever * kMinLever);
-    direction_covariance = along_cone * along_cone.transpose() * angle_variance +
-                           around_axis * around_axis.transpose() * kUnresolvedVariance;
+    if (norm > 1.0 + settings_.max_norm_error) return fit;
+    fit.cone_cosine = v(0);
+    // The residual at the cosine clamped to the cone's edge: a cosine a few sigma beyond +-1 is a
+    // source near the axis plus noise, one far beyond is no plane wave (the gate below).
+    direction_array = basis.col(0) * std::clamp(v(0), -1.0, 1.0);
   }
-  direction_array.normalize();
+  if (dimensions >= 2) direction_array.normalize();
 
   double chi2 = 0.0;
   for (std::size_t p = 0; p < count && near_field_chi2 < 0.0; ++p) {
@@ -307,20 +374,68 @@ DoaSolution LsDoaSolver::solve_once(std::span<const PairTdoa> tdoas, int skip_pa
   if (near_field_chi2 >= 0.0) chi2 = near_field_chi2;
   const int dof = std::max(1, used - dimensions);
   solution.chi2_per_dof = chi2 / dof;
-  if (!(solution.chi2_per_dof <= settings_.max_chi2_per_dof)) return solution;
+  if (!(solution.chi2_per_dof <= settings_.max_chi2_per_dof)) return fit;
   // An honest covariance: when the residual says the TDOA noise was larger than modelled, the
   // direction is that much less certain.
   const double inflation = std::max(1.0, solution.chi2_per_dof);
-  solution.direction_site = array_to_site_ * direction_array;
-  const Eigen::Matrix3d covariance_site =
-      array_to_site_ * direction_covariance * array_to_site_.transpose() * inflation;
-  solution.azel_covariance_rad2 =
-      azel_covariance_from_direction(solution.direction_site, covariance_site);
+  if (dimensions == 1) {
+    // The cosine's variance is inflated by the fit's own misfit only (chi^2 is quadratic in the
+    // cosine: the clamp adds (clamp - c^)^2 / var): the posterior already reads the overshoot.
+    const double excess = std::clamp(fit.cone_cosine, -1.0, 1.0) - fit.cone_cosine;
+    const double fit_chi2 = std::max(0.0, chi2 - excess * excess / inverse(0, 0));
+    fit.cone_angle_rad = std::acos(std::clamp(fit.cone_cosine, -1.0, 1.0));
+    fit.cone_angle_variance_rad2 =
+        cone_angle_variance_rad2(fit.cone_cosine, inverse(0, 0) * std::max(1.0, fit_chi2 / dof));
+  } else {
+    fit.direction = direction_array;
+    fit.covariance = direction_covariance * inflation;
+  }
   const double peak_mean = used > 0 ? peak_sum / used : 0.0;
   solution.quality = std::clamp(peak_mean * std::exp(-std::max(0.0, solution.chi2_per_dof - 1.0) /
                                                      settings_.max_chi2_per_dof),
                                 0.0, 1.0);
   solution.accepted = true;
+  return fit;
+}
+
+DoaSolution LsDoaSolver::to_site(const ArrayFit& fit, const Eigen::Matrix3d& array_to_site) const {
+  DoaSolution solution = fit.solution;
+  if (!solution.accepted) return solution;
+  Eigen::Vector3d direction = array_to_site * fit.direction;
+  Eigen::Matrix3d covariance = array_to_site * fit.covariance * array_to_site.transpose();
+  if (rank_ == 2) {
+    // Report the image above the array plane (as seen in the site frame).
+    Eigen::Vector3d normal = array_to_site * subspace_.col(2);
+    if (normal.z() < 0.0) {
+      const Eigen::Matrix3d mirror =
+          Eigen::Matrix3d::Identity() - 2.0 * normal * normal.transpose();
+      direction = mirror * direction;
+      covariance = mirror * covariance * mirror;
+      normal = -normal;
+    }
+    solution.ambiguity_axis_site = normal;
+  } else if (rank_ == 1) {
+    // The cone's display point: the horizontal one (or, for a vertical axis, the one towards
+    // site +x). Only the angle to the axis is measured; the angle around it gets a variance
+    // that says so.
+    const Eigen::Vector3d axis = array_to_site * subspace_.col(0);
+    Eigen::Vector3d across = Eigen::Vector3d::UnitZ().cross(axis);
+    if (across.norm() < 1e-9) across = Eigen::Vector3d::UnitX();
+    across.normalize();
+    const double cosine = std::cos(fit.cone_angle_rad);
+    const double sine = std::sin(fit.cone_angle_rad);
+    direction = axis * cosine + across * sine;
+    const Eigen::Vector3d along_cone = -axis * sine + across * cosine;
+    const Eigen::Vector3d around_axis = direction.cross(along_cone).normalized();
+    covariance = along_cone * along_cone.transpose() * fit.cone_angle_variance_rad2 +
+                 around_axis * around_axis.transpose() * kUnresolvedVariance;
+    solution.ambiguity_axis_site = axis;
+    solution.cone_angle_rad = fit.cone_angle_rad;
+    solution.cone_angle_variance_rad2 = fit.cone_angle_variance_rad2;
+  }
+  solution.direction_site = direction.normalized();
+  solution.azel_covariance_rad2 =
+      azel_covariance_from_direction(solution.direction_site, covariance);
   return solution;
 }
 

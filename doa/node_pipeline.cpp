@@ -17,6 +17,7 @@
 #include "doa/acoustic_features.hpp"
 #include "doa/bin_snr_weight.hpp"
 #include "doa/channel_health.hpp"
+#include "doa/cone_peaks.hpp"
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ground_echo.hpp"
@@ -181,6 +182,11 @@ struct NodePipeline::Impl {
       acoustic = std::make_unique<AcousticFeatureExtractor>(
           geometry, fft.fft_size(), sample_rate_hz, speed_of_sound_mps, tracker_settings.hop_s,
           params.acoustic);
+    // A two-mic array publishes its GCC's strongest peaks as cone angles (seed 004).
+    if (solver.rank() == 1) {
+      gcc.set_peak_count(kMaxConePeaks);
+      cone_peaks = std::make_unique<ConePeakHistory>(solver, tracker_settings.hop_s);
+    }
     if (params.max_sources > 1 && solver.rank() >= 2) {
       srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
     }
@@ -263,6 +269,7 @@ struct NodePipeline::Impl {
   // by direction; empty for arrays that cannot tell the echo from the source.
   std::vector<GroundEcho> ground_echoes;
   std::unique_ptr<SourceTracks> source_tracks;
+  std::unique_ptr<ConePeakHistory> cone_peaks;  // rank 1 only
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};
   struct FrameDetection {
@@ -335,6 +342,10 @@ bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int 
   measurement.snr_db = gate.snr_db();
   measurement.source_index = source_index;
   measurement.ambiguity = solution.ambiguity;
+  measurement.ambiguity_axis = solution.ambiguity_axis_site;
+  measurement.cone_angle_rad = solution.cone_angle_rad;
+  measurement.cone_angle_variance_rad2 = solution.cone_angle_variance_rad2;
+  if (cone_peaks) cone_peaks->fill(time_s, measurement);
   measurement.pair_count = solver.pair_count();
   for (int p = 0; p < solver.pair_count(); ++p)
     measurement.tdoa_s[static_cast<std::size_t>(p)] = used[static_cast<std::size_t>(p)].tdoa_s;
@@ -648,6 +659,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   null_frame_clean = frame_clean;
   if (null_wanted) gcc.save_whitened();  // for null_own_look()
   gcc.correlate();
+  if (cone_peaks) cone_peaks->record(time_s, gcc);
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
   for (int p = 0; p < gcc.pair_count(); ++p) {

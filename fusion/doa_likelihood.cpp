@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
@@ -11,6 +12,33 @@
 namespace dronetrack::fusion {
 namespace {
 constexpr int kBisections = 30;  // the weight to 1e-9
+
+// Quantile of t^2 for a Student-t of `dof` degrees of freedom (d^2 of a 1-D innovation, which
+// follows F(1, dof)): P(|t| <= T) by Simpson's rule on the density, bisection on T. Once, at
+// construction.
+double student_t_square_quantile(double probability, double dof) {
+  const double log_norm = std::lgamma(0.5 * (dof + 1.0)) - std::lgamma(0.5 * dof) -
+                          0.5 * std::log(dof * std::numbers::pi);
+  const auto density = [&](double t) {
+    return std::exp(log_norm - 0.5 * (dof + 1.0) * std::log1p(t * t / dof));
+  };
+  const auto central = [&](double limit) {  // P(|t| <= limit)
+    constexpr int kIntervals = 4000;
+    const double h = limit / kIntervals;
+    double sum = density(0.0) + density(limit);
+    for (int i = 1; i < kIntervals; ++i) sum += (i % 2 == 1 ? 4.0 : 2.0) * density(i * h);
+    return 2.0 * sum * h / 3.0;
+  };
+  double low = 0.0;
+  double high = 1.0;
+  while (central(high) < probability && high < 1e6) high *= 2.0;
+  for (int i = 0; i < 60; ++i) {
+    const double middle = 0.5 * (low + high);
+    (central(middle) < probability ? low : high) = middle;
+  }
+  const double limit = 0.5 * (low + high);
+  return limit * limit;
+}
 }  // namespace
 
 DoaLikelihood::DoaLikelihood(LikelihoodKind kind, double dof, double gate_probability)
@@ -21,29 +49,38 @@ DoaLikelihood::DoaLikelihood(LikelihoodKind kind, double dof, double gate_probab
     throw std::invalid_argument("student_t_dof must be >= 1");
   if (kind_ == LikelihoodKind::gaussian) {
     gate_d2_ = chi_square_quantile(gate_probability, 2);
+    gate_d2_1d_ = chi_square_quantile(gate_probability, 1);
   } else {
     // P(d^2 / 2 <= x) = 1 - (1 + 2 x / dof)^(-dof / 2) for F(2, dof).
     gate_d2_ = dof_ * (std::pow(1.0 - gate_probability, -2.0 / dof_) - 1.0);
+    gate_d2_1d_ = student_t_square_quantile(gate_probability, dof_);
   }
 }
 
-double DoaLikelihood::assignment_cost(double d2, double log_det_covariance) const {
+double DoaLikelihood::assignment_cost(double d2, double log_det_covariance, int dimension) const {
   if (kind_ == LikelihoodKind::gaussian) return d2 + log_det_covariance;
-  return (dof_ + 2.0) * std::log1p(d2 / dof_) + log_det_covariance;
+  return (dof_ + dimension) * std::log1p(d2 / dof_) + log_det_covariance;
 }
 
 double DoaLikelihood::reweight(Innovation& innovation, const Measurement& z) const {
   if (kind_ == LikelihoodKind::gaussian) return 1.0;
   const MeasurementCovariance state_part = innovation.covariance - innovation.noise;
   const MeasurementCovariance noise = innovation.noise;
-  const Measurement residual = azel_residual(z, innovation.predicted);
-  // The weight solves w = (dof + 2) / (dof + d^2(w)), d^2(w) = r' (state_part + R / w)^-1 r.
+  const Measurement residual = innovation.residual(z);
+  const double p = innovation.dimension();
+  // The weight solves w = (dof + p) / (dof + d^2(w)), d^2(w) = r' (state_part + R / w)^-1 r.
   // d^2 grows with w, so w - (dof + 2) / (dof + d^2(w)) grows with w: bisection finds the one
   // root (plain iteration of the fixed point oscillates for large residuals).
+  // A cone's pad slot (state.hpp) keeps its unit variance.
+  const auto scaled_noise = [&](double weight) {
+    MeasurementCovariance scaled = noise / weight;
+    if (innovation.dimension() == 1) scaled(1, 1) = noise(1, 1);
+    return scaled;
+  };
   const auto excess = [&](double weight) {
-    const MeasurementCovariance covariance = state_part + noise / weight;
+    const MeasurementCovariance covariance = state_part + scaled_noise(weight);
     const double d2 = residual.dot(covariance.ldlt().solve(residual));
-    return weight - (dof_ + 2.0) / (dof_ + d2);
+    return weight - (dof_ + p) / (dof_ + d2);
   };
   const double at_one = excess(1.0);
   if (!std::isfinite(at_one) || at_one <= 0.0) return 1.0;  // an inlier: as the Gaussian
@@ -54,8 +91,8 @@ double DoaLikelihood::reweight(Innovation& innovation, const Measurement& z) con
     (excess(std::max(middle, 1e-12)) < 0.0 ? low : high) = middle;
   }
   const double weight = std::max(high, 1e-12);
-  innovation.covariance = state_part + noise / weight;
-  innovation.noise = noise / weight;
+  innovation.covariance = state_part + scaled_noise(weight);
+  innovation.noise = scaled_noise(weight);
   return weight;
 }
 

@@ -60,11 +60,29 @@ void check(bool ok, const char* parameter, const char* what) {
 // One recent DOA of one array, kept for initiation and ghost checks.
 struct RecentDoa {
   double time_s = 0.0;
-  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
-  Measurement azel = Measurement::Zero();
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();  // a cone's is for display only
+  DoaMeasurementModel model;                             // from its pose and ambiguity
+  Measurement z = Measurement::Zero();
   MeasurementCovariance noise = MeasurementCovariance::Identity();  // R incl. floor
   bool associated = false;                                          // went to a track
   bool used = false;                                                // started a track
+  // Rays a triangulation may use: the direction, and its mirror image for a planar array. A
+  // cone is no ray (its display direction is one point of a surface): 0.
+  int image_count() const {
+    switch (model.kind) {
+      case MeasurementKind::azel:
+        return 1;
+      case MeasurementKind::mirrored_azel:
+        return 2;
+      case MeasurementKind::cone:
+        return 0;
+    }
+    return 0;
+  }
+  Eigen::Vector3d image(int index) const {
+    return index == 0 ? direction
+                      : Eigen::Vector3d(direction - 2.0 * direction.dot(model.axis) * model.axis);
+  }
 };
 
 class RecentRing {
@@ -132,6 +150,11 @@ struct Track {
   double inflation = 1.0;  // of this frame's DOA covariance (correlated errors)
   TrackEvidence evidence;  // drone or not
   double confirmed_at_s = 0.0;
+  // Started from one array's DOAs (issue 15) and not yet handed to the default filter: its
+  // range rests on hypotheses or the platform's motion, not on a triangulation.
+  bool one_array = false;
+  int origin_array = -1;                                                   // its one array
+  MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
 };
 
 }  // namespace
@@ -143,7 +166,11 @@ struct FusionEngine::Impl {
   FilterSettings filter_settings;
   FusionCounters counters;
   std::optional<TrackClassifier> classifier;
-  double gate_chi2 = 0.0;  // 2 dof: initiation, and the Gaussian likelihood's track gate
+  double gate_chi2 = 0.0;             // 2 dof: initiation, and the Gaussian likelihood's track gate
+  double gate_chi2_1d = 0.0;          // the same for a cone's 1-D measurement
+  FilterSettings one_array_settings;  // the one-array localisers' (issue 15)
+  std::vector<Eigen::Vector3d> last_centre_m;  // each array's centre at its newest frame
+  DoaMeasurementModel frame_model;  // the current frame's (pose, ambiguity); innovations point here
   std::optional<DoaLikelihood> likelihood;  // the tracks' gate, assignment cost and update
   double floor_variance_rad2 = 0.0;
 
@@ -169,6 +196,86 @@ struct FusionEngine::Impl {
   // the rings, so the pairing can prefer the point more arrays agree with.
   void initiate_pending();
   std::vector<PendingSeed> pending_seeds;
+  // Issue 15: DOAs still unclaimed init_pair_window_s after their time (no second array paired
+  // them) start a track from their array alone.
+  std::vector<PendingSeed> pending_single_seeds;
+  bool try_start_one_array(int array, std::size_t recent_index, double time_s);
+  // A one-array track whose hypotheses have collapsed to one and that a second array now hears is
+  // handed to the default filter.
+  void hand_over(Track& track);
+  // A one-array track that a second array's DOA (a ray) now hears: the track's bearing from its
+  // first array and that ray are triangulated, and the default filter starts at the fix (same
+  // id). False when they do not cross in front of both.
+  bool hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
+                                  const DoaMeasurementModel& model, double time_s);
+  // The prior of a track started at a triangulated fix.
+  void state_from_fix(const Triangulation& fix, const Eigen::Vector3d& centre_m,
+                      double speed_of_sound_mps, StateVector& mean,
+                      StateCovariance& covariance) const {
+    // The fix is where the drone was when the sound left it, about r / c ago; an unknown velocity
+    // over that delay widens the position.
+    const double delay_s = (fix.position_m - centre_m).norm() / speed_of_sound_mps;
+    mean = StateVector::Zero();
+    mean.segment<3>(StateBlock::position) = fix.position_m;
+    covariance = StateCovariance::Zero();
+    const double velocity_var = std::pow(params.init_velocity_std_mps, 2);
+    covariance.block<3, 3>(StateBlock::position, StateBlock::position) =
+        fix.covariance_m2 + Eigen::Matrix3d::Identity() * (velocity_var * delay_s * delay_s + 0.01);
+    covariance.block<3, 3>(StateBlock::velocity, StateBlock::velocity) =
+        Eigen::Matrix3d::Identity() * velocity_var;
+    covariance.block<3, 3>(StateBlock::acceleration, StateBlock::acceleration) =
+        Eigen::Matrix3d::Identity() * std::pow(params.init_acceleration_std_mps2, 2);
+  }
+  double gate_for(int dimension) const { return dimension == 1 ? gate_chi2_1d : gate_chi2; }
+  // The measurement model of one DOA: its array's, moved to the pose stamp's centre for a moving
+  // array, of the kind its ambiguity says it measured.
+  DoaMeasurementModel model_of(const doa::DoaMeasurement& m) const {
+    DoaMeasurementModel model = models[static_cast<std::size_t>(m.array_index)];
+    if (m.pose.moving) model.centre_m = m.pose.centre_m;
+    switch (m.ambiguity) {
+      case doa::DoaAmbiguity::none:
+        break;
+      case doa::DoaAmbiguity::cone:
+        model.kind = MeasurementKind::cone;
+        model.axis = m.ambiguity_axis.normalized();
+        break;
+      case doa::DoaAmbiguity::mirror_up_down:
+        model.kind = MeasurementKind::mirrored_azel;
+        model.axis = m.ambiguity_axis.normalized();
+        model.mirror_side = m.direction.dot(model.axis) < 0.0 ? -1.0 : 1.0;
+        break;
+    }
+    return model;
+  }
+  static Measurement measured(const doa::DoaMeasurement& m) {
+    return m.ambiguity == doa::DoaAmbiguity::cone ? Measurement(m.cone_angle_rad, 0.0)
+                                                  : azel_of(m.direction);
+  }
+  // The DOA's own covariance (a cone's pad slot 0: its unit variance is in floor_of).
+  static MeasurementCovariance own_noise(const doa::DoaMeasurement& m) {
+    if (m.ambiguity != doa::DoaAmbiguity::cone) return m.azel_covariance_rad2;
+    MeasurementCovariance r = MeasurementCovariance::Zero();
+    r(0, 0) = m.cone_angle_variance_rad2;
+    return r;
+  }
+  // The noise floor times the correlation inflation, with a cone's unit pad (state.hpp).
+  MeasurementCovariance floor_of(const doa::DoaMeasurement& m, double inflation) const {
+    MeasurementCovariance floor =
+        (MeasurementCovariance::Identity() * floor_variance_rad2) * inflation;
+    if (m.ambiguity == doa::DoaAmbiguity::cone) floor(1, 1) = 1.0;
+    return floor;
+  }
+  static MeasurementPeaks peaks_of(const doa::DoaMeasurement& m) {
+    MeasurementPeaks peaks;
+    if (m.ambiguity != doa::DoaAmbiguity::cone) return peaks;
+    peaks.count = std::clamp(m.cone_peak_count, 0, doa::kMaxConePeaks);
+    for (int k = 0; k < peaks.count; ++k) {
+      peaks.value[static_cast<std::size_t>(k)] = {
+          m.cone_peak_angle_rad[static_cast<std::size_t>(k)], 0.0};
+      peaks.weight[static_cast<std::size_t>(k)] = m.cone_peak_weight[static_cast<std::size_t>(k)];
+    }
+    return peaks;
+  }
   // A ground-reflection image: more than 3 sigma under the ground.
   bool below_ground(const Triangulation& fix) const {
     const double z_std = std::sqrt(std::max(fix.covariance_m2(2, 2), 0.0));
@@ -189,6 +296,7 @@ struct FusionEngine::Impl {
     if (status == FilterStatus::failed) ++counters.filter_failures;
   }
   MeasurementCovariance noise_of(const doa::DoaMeasurement& m) const {
+    if (m.ambiguity == doa::DoaAmbiguity::cone) return own_noise(m) + floor_of(m, 1.0);
     return m.azel_covariance_rad2 + MeasurementCovariance::Identity() * floor_variance_rad2;
   }
   // Effective sample size: DOAs of one array closer together than the span their errors are
@@ -242,9 +350,29 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
     throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
   }
-  if (arrays.size() < 2 || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
-    throw std::invalid_argument("arrays: fusion needs 2 to 64 arrays, got " +
-                                std::to_string(arrays.size()));
+  const OneArrayParams& one = params.single_array;
+  check(one.hypothesis_spacing_m > 0.0, "single_array.hypothesis_spacing_m", "must be > 0");
+  check(one.hypotheses_per_side >= 1 && one.hypotheses_per_side <= 64,
+        "single_array.hypotheses_per_side", "must be in [1, 64]");
+  check(one.max_range_m > 0.0, "single_array.max_range_m", "must be > 0");
+  check(one.prune_gamma > 0.0 && one.prune_gamma < 1.0, "single_array.prune_gamma",
+        "must be in (0, 1)");
+  check(one.merge_d2 >= 0.0, "single_array.merge_d2", "must be >= 0");
+  check(one.range_init_m > 0.0, "single_array.range_init_m", "must be > 0");
+  check(one.range_init_std_m > 0.0, "single_array.range_init_std_m", "must be > 0");
+  check(one.bearing_init_std_deg > 0.0, "single_array.bearing_init_std_deg", "must be > 0");
+  check(one.jerk_std_mps3 > 0.0, "single_array.jerk_std_mps3", "must be > 0");
+  check(one.velocity_std_mps > 0.0, "single_array.velocity_std_mps", "must be > 0");
+  check(one.acceleration_std_mps2 > 0.0, "single_array.acceleration_std_mps2", "must be > 0");
+  check(one.particle_count >= 10, "single_array.particle_count", "must be >= 10");
+  check(!one.source_plane_z_m || std::isfinite(*one.source_plane_z_m), "source_plane_z_m",
+        "must be finite");
+  check(one.source_plane_std_m > 0.0, "source_plane_std_m", "must be > 0");
+  const std::size_t min_arrays = params.single_array_start ? 1 : 2;
+  if (arrays.size() < min_arrays || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
+    throw std::invalid_argument(
+        "arrays: fusion needs 2 to 64 arrays (1 with single_array_start), got " +
+        std::to_string(arrays.size()));
   }
   Impl& s = *impl_;
   s.params = params;
@@ -272,6 +400,17 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.imm_turn_jerk_std_mps3 = params.imm_turn_jerk_std_mps3;
   s.classifier.emplace(params.classifier, params.ground_altitude_m);
   s.gate_chi2 = chi_square_quantile(params.gate_probability, 2);
+  s.gate_chi2_1d = chi_square_quantile(params.gate_probability, 1);
+  // The one-array localisers run one constant-jerk model (static and slow sources) with their own
+  // prior, particle count and the source plane.
+  s.one_array_settings = s.filter_settings;
+  s.one_array_settings.imm_jerk_std_mps3.clear();
+  s.one_array_settings.imm_turn_rate_std_radps2.clear();
+  s.one_array_settings.motion_kind = MotionKind::constant_jerk;
+  s.one_array_settings.motion.jerk_variance_m2ps6 = one.jerk_std_mps3 * one.jerk_std_mps3;
+  s.one_array_settings.particle_count = one.particle_count;
+  s.one_array_settings.one_array = one;
+  for (const auto& model : s.models) s.last_centre_m.push_back(model.centre_m);
   s.likelihood.emplace(params.likelihood == DoaLikelihoodKind::student_t ? LikelihoodKind::student_t
                                                                          : LikelihoodKind::gaussian,
                        params.student_t_dof, params.gate_probability);
@@ -281,6 +420,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.recent.resize(s.arrays.size());
   s.queue.reserve(1024);
   s.pending_seeds.reserve(kMaxPendingSeeds);
+  s.pending_single_seeds.reserve(kMaxPendingSeeds);
   s.tracks.reserve(static_cast<std::size_t>(params.max_tracks));
 }
 
@@ -312,8 +452,14 @@ DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
     }
     return verdict;
   };
+  const bool cone = measurement.ambiguity == doa::DoaAmbiguity::cone;
   if (!std::isfinite(measurement.time_s) || !measurement.direction.allFinite() ||
-      !measurement.azel_covariance_rad2.allFinite()) {
+      (!cone && !measurement.azel_covariance_rad2.allFinite()) ||
+      (measurement.pose.moving && !measurement.pose.centre_m.allFinite()) ||
+      (measurement.ambiguity != doa::DoaAmbiguity::none &&
+       !measurement.ambiguity_axis.allFinite()) ||
+      (cone && !(std::isfinite(measurement.cone_angle_rad) &&
+                 std::isfinite(measurement.cone_angle_variance_rad2)))) {
     return reject(DoaVerdict::non_finite);
   }
   // The index is trusted only when it agrees with the id (or the id is absent).
@@ -332,10 +478,23 @@ DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
   if (std::abs(measurement.direction.norm() - 1.0) > kUnitTolerance) {
     return reject(DoaVerdict::bad_direction);
   }
-  const MeasurementCovariance& r = measurement.azel_covariance_rad2;
-  if (!(r(0, 0) > 0.0) || !(r.determinant() > 0.0) ||
-      std::abs(r(0, 1) - r(1, 0)) > 1e-12 * r.norm()) {
+  if (measurement.ambiguity != doa::DoaAmbiguity::none &&
+      std::abs(measurement.ambiguity_axis.norm() - 1.0) > kUnitTolerance) {
     return reject(DoaVerdict::bad_direction);
+  }
+  if (cone) {
+    // The cone is the measurement (its display direction is not): an angle in [0, pi] with a
+    // positive variance.
+    if (!(measurement.cone_angle_rad >= 0.0 && measurement.cone_angle_rad <= std::numbers::pi) ||
+        !(measurement.cone_angle_variance_rad2 > 0.0)) {
+      return reject(DoaVerdict::bad_direction);
+    }
+  } else {
+    const MeasurementCovariance& r = measurement.azel_covariance_rad2;
+    if (!(r(0, 0) > 0.0) || !(r.determinant() > 0.0) ||
+        std::abs(r(0, 1) - r(1, 0)) > 1e-12 * r.norm()) {
+      return reject(DoaVerdict::bad_direction);
+    }
   }
   if (measurement.source_index < 0 || measurement.source_index >= 64) {
     return reject(DoaVerdict::bad_direction);
@@ -395,8 +554,13 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   for (std::size_t i = begin; i < end; ++i) {
     last_fed_sources_by_array[array] |= std::uint64_t{1} << queue[i].source_index;
   }
-  const DoaMeasurementModel& model = models[array];
-  const MeasurementCovariance floor = MeasurementCovariance::Identity() * floor_variance_rad2;
+  // Every DOA of a frame shares its array's pose; a DOA of another ambiguity kind than the
+  // frame's first (not expected from one array) is kept out of the assignment.
+  frame_model = model_of(queue[begin]);
+  const DoaMeasurementModel& model = frame_model;
+  last_centre_m[static_cast<std::size_t>(array)] = model.centre_m;
+  const int dimension = model.dimension();
+  const doa::DoaAmbiguity frame_ambiguity = queue[begin].ambiguity;
 
   // Predict and gate: cost = d^2 + ln det S (the negative log-likelihood up to a constant), so a
   // vague track does not steal DOAs from a sharp one.
@@ -408,18 +572,19 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.time_s = time_s;
     track.inflation = correlation_inflation(track, array, time_s);
     const FilterStatus status =
-        track.filter->innovation(model, floor * track.inflation, track.innovation);
+        track.filter->innovation(model, floor_of(queue[begin], track.inflation), track.innovation);
     note(status);
     track.innovation_ok = status != FilterStatus::failed;
     if (!track.innovation_ok) continue;
     for (int j = 0; j < doa_count; ++j) {
       const doa::DoaMeasurement& m = queue[begin + j];
+      if (m.ambiguity != frame_ambiguity) continue;
       Innovation candidate = track.innovation;
-      candidate.covariance += track.inflation * m.azel_covariance_rad2;
-      const double d2 = candidate.mahalanobis2(azel_of(m.direction));
-      if (d2 <= likelihood->gate_d2()) {
-        cost[static_cast<std::size_t>(t) * doa_count + j] =
-            likelihood->assignment_cost(d2, std::log(candidate.covariance.determinant()));
+      candidate.covariance += track.inflation * own_noise(m);
+      const double d2 = candidate.mahalanobis2(measured(m));
+      if (d2 <= likelihood->gate_d2(dimension)) {
+        cost[static_cast<std::size_t>(t) * doa_count + j] = likelihood->assignment_cost(
+            d2, std::log(candidate.covariance.determinant()), dimension);
       }
     }
   }
@@ -432,13 +597,27 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     const int j = track_to_doa[t];
     if (j < 0) continue;
     const doa::DoaMeasurement& m = queue[begin + j];
+    if (track.one_array && array != track.origin_array &&
+        hand_over_by_triangulation(track, m, model, time_s)) {
+      doa_taken[j] = 1;
+      track.hits_by_array[array] |= 1u;
+      track.last_update_s = time_s;
+      track.heard_by_array_s[array] = time_s;
+      ++track.updates_by_array[array];
+      classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+      continue;
+    }
     Innovation innovation = track.innovation;
-    innovation.covariance += track.inflation * m.azel_covariance_rad2;
+    innovation.covariance += track.inflation * own_noise(m);
     innovation.noise = track.inflation * noise_of(m);
-    // The particle filter weighs its particles by the same Student-t itself (FilterSettings).
-    if (params.filter != FilterKind::particle)
-      likelihood->reweight(innovation, azel_of(m.direction));
-    const FilterStatus status = track.filter->update(innovation, azel_of(m.direction));
+    if (m.ambiguity == doa::DoaAmbiguity::cone) innovation.noise(1, 1) = 1.0;  // the pad
+    const Measurement z = measured(m);
+    // The particle filters weigh their particles by the same Student-t themselves
+    // (FilterSettings).
+    const FilterKind kind = track.one_array ? params.single_array_filter : params.filter;
+    if (kind != FilterKind::particle && kind != FilterKind::particle_multipeak)
+      likelihood->reweight(innovation, z);
+    const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
     if (status == FilterStatus::failed) continue;
@@ -447,6 +626,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
     classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+    if (track.one_array) hand_over(track);
   }
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
@@ -457,12 +637,16 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     RecentDoa entry;
     entry.time_s = time_s;
     entry.direction = m.direction;
-    entry.azel = azel_of(m.direction);
+    entry.model = model_of(m);
+    entry.z = measured(m);
     entry.noise = noise_of(m);
     entry.associated = doa_taken[j] != 0;
     const std::uint64_t sequence = ring.push(entry);
-    if (!entry.associated && pending_seeds.size() < kMaxPendingSeeds)
+    if (!entry.associated && entry.image_count() > 0 && pending_seeds.size() < kMaxPendingSeeds)
       pending_seeds.push_back({array, sequence, time_s});
+    if (!entry.associated && params.single_array_start &&
+        pending_single_seeds.size() < kMaxPendingSeeds)
+      pending_single_seeds.push_back({array, sequence, time_s});
   }
   initiate_pending();
 }
@@ -482,6 +666,19 @@ void FusionEngine::Impl::initiate_pending() {
     if (!doa.associated && !doa.used) try_initiate(seed.array, *index, seed.time_s);
   }
   pending_seeds.resize(kept);
+  // Only once no second array could still pair it: the window the pairing looks across.
+  kept = 0;
+  for (const PendingSeed& seed : pending_single_seeds) {
+    if (seed.time_s > fed_time_s - params.init_pair_window_s) {
+      pending_single_seeds[kept++] = seed;
+      continue;
+    }
+    const auto index = recent[seed.array].find(seed.sequence);
+    if (!index) continue;
+    const RecentDoa& doa = recent[seed.array][*index];
+    if (!doa.associated && !doa.used) try_start_one_array(seed.array, *index, seed.time_s);
+  }
+  pending_single_seeds.resize(kept);
 }
 
 bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, double time_s) {
@@ -491,19 +688,21 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   // Rays of different arrays at nearby reception times left the drone at different emission
   // times (t - r / c); it moves up to init_max_speed_mps in between. Widen each ray's angular
   // noise by that motion seen from its range, relative to the seed's emission time.
-  const auto chi2_against = [&](const RecentDoa& doa, int doa_array, const Eigen::Vector3d& point,
-                                double reference_emission_s) {
-    const Eigen::Vector3d to_point = point - models[doa_array].centre_m;
+  // A cone's 1-D residual leaves its pad slot at 0 (state.hpp): the same formula serves both.
+  const auto chi2_against = [&](const RecentDoa& doa, int /*doa_array*/,
+                                const Eigen::Vector3d& point, double reference_emission_s) {
+    const Eigen::Vector3d to_point = point - doa.model.centre_m;
     const double range = std::max(to_point.norm(), 1.0);
-    const double emission_s = doa.time_s - range / models[doa_array].speed_of_sound_mps;
+    const double emission_s = doa.time_s - range / doa.model.speed_of_sound_mps;
     const double motion_m = params.init_max_speed_mps * std::abs(emission_s - reference_emission_s);
     const MeasurementCovariance r =
         doa.noise + MeasurementCovariance::Identity() * std::pow(motion_m / range, 2);
-    const Measurement residual = azel_residual(doa.azel, azel_of(to_point));
+    const Measurement residual = doa.model.residual(doa.z, doa.model.predict_direction(to_point));
     return residual.dot(r.ldlt().solve(residual));
   };
+  const Eigen::Vector3d seed_centre = seed.model.centre_m;
   const auto emission_of = [&](const Eigen::Vector3d& point) {
-    return time_s - (point - models[array].centre_m).norm() / models[array].speed_of_sound_mps;
+    return time_s - (point - seed_centre).norm() / models[array].speed_of_sound_mps;
   };
 
   // How many arrays other than the pair have an unclaimed recent DOA within the gate of `point`.
@@ -515,7 +714,8 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
       for (std::size_t i = 0; i < ring.size(); ++i) {
         if (ring[i].used || ring[i].associated) continue;
         if (std::abs(time_s - ring[i].time_s) > params.init_pair_window_s) continue;
-        if (chi2_against(ring[i], other, point, emission_of(point)) <= gate_chi2) {
+        if (chi2_against(ring[i], other, point, emission_of(point)) <=
+            gate_for(ring[i].model.dimension())) {
           ++count;
           break;
         }
@@ -529,8 +729,12 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     std::size_t partner_index = 0;
     double score = std::numeric_limits<double>::infinity();
     int agreeing = -1;
+    int seed_image = 0;
+    int partner_image = 0;
   };
   Candidate best;
+  // A planar array's DOA is two rays (it and its mirror image): each pairing tries both; a cone
+  // is no ray and never pairs (its display direction is one point of a surface).
   for (int other = 0; other < array_count; ++other) {
     if (other == array) continue;
     RecentRing& ring = recent[other];
@@ -539,26 +743,32 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
       if (partner.used || partner.associated) continue;
       const double dt = std::abs(time_s - partner.time_s);
       if (dt > params.init_pair_window_s) continue;
-      std::array<Ray, 2> pair{Ray{models[array].centre_m, seed.direction, seed.noise},
-                              Ray{models[other].centre_m, partner.direction, partner.noise}};
-      const auto fix = triangulate(pair, params.triangulation);
-      if (!fix || !fix->in_front) continue;
-      const Eigen::Vector3d p = fix->position_m;
-      if ((p - models[array].centre_m).norm() > params.init_max_range_m) continue;
-      if (below_ground(*fix)) {
-        ++counters.below_ground_rejected;
-        continue;
+      for (int seed_image = 0; seed_image < seed.image_count(); ++seed_image) {
+        for (int partner_image = 0; partner_image < partner.image_count(); ++partner_image) {
+          std::array<Ray, 2> pair{
+              Ray{seed.model.centre_m, seed.image(seed_image), seed.noise},
+              Ray{partner.model.centre_m, partner.image(partner_image), partner.noise}};
+          const auto fix = triangulate(pair, params.triangulation);
+          if (!fix || !fix->in_front) continue;
+          const Eigen::Vector3d p = fix->position_m;
+          if ((p - seed.model.centre_m).norm() > params.init_max_range_m) continue;
+          if (below_ground(*fix)) {
+            ++counters.below_ground_rejected;
+            continue;
+          }
+          const double reference = emission_of(p);
+          const double chi2 =
+              chi2_against(seed, array, p, reference) + chi2_against(partner, other, p, reference);
+          // Two rays, three unknowns: one degree of freedom left to test consistency.
+          if (chi2 > chi_square_quantile(params.gate_probability, 1)) continue;
+          // Where two drones' rays cross, the crossing fits its two rays as well as either drone
+          // fits its own: prefer the point more of the other arrays agree with (issue 14's
+          // ghosts).
+          const int agreeing = agreeing_arrays(p, array, other);
+          if (agreeing > best.agreeing || (agreeing == best.agreeing && chi2 < best.score))
+            best = {*fix, other, i, chi2, agreeing, seed_image, partner_image};
+        }
       }
-      const double reference = emission_of(p);
-      const double chi2 =
-          chi2_against(seed, array, p, reference) + chi2_against(partner, other, p, reference);
-      // Two rays, three unknowns: one degree of freedom left to test consistency.
-      if (chi2 > chi_square_quantile(params.gate_probability, 1)) continue;
-      // Where two drones' rays cross, the crossing fits its two rays as well as either drone
-      // fits its own: prefer the point more of the other arrays agree with (issue 14's ghosts).
-      const int agreeing = agreeing_arrays(p, array, other);
-      if (agreeing > best.agreeing || (agreeing == best.agreeing && chi2 < best.score))
-        best = {*fix, other, i, chi2, agreeing};
     }
   }
   if (best.partner_array < 0) return false;
@@ -566,9 +776,9 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   // Other arrays' unclaimed DOAs that agree with the point sharpen the fix and count toward
   // the arrays that support the new track.
   rays.clear();
-  rays.push_back({models[array].centre_m, seed.direction, seed.noise});
+  rays.push_back({seed.model.centre_m, seed.image(best.seed_image), seed.noise});
   const RecentDoa& partner = recent[best.partner_array][best.partner_index];
-  rays.push_back({models[best.partner_array].centre_m, partner.direction, partner.noise});
+  rays.push_back({partner.model.centre_m, partner.image(best.partner_image), partner.noise});
   std::array<int, kMaxArrays> extra_index{};
   extra_index.fill(-1);
   for (int other = 0; other < array_count; ++other) {
@@ -589,13 +799,22 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     }
     // No agreement is not proof of a ghost: with one or two DOAs per frame, a louder drone can
     // mask this one at that array. Continuity decides (confirm_min_arrays).
-    if (!heard || best_chi2 > gate_chi2) {
+    if (!heard || extra_index[other] < 0 ||
+        best_chi2 >
+            gate_for(ring[static_cast<std::size_t>(extra_index[other])].model.dimension())) {
       extra_index[other] = -1;
       continue;
     }
     const RecentDoa& agreeing = ring[static_cast<std::size_t>(extra_index[other])];
     if (!agreeing.used && !agreeing.associated) {
-      rays.push_back({models[other].centre_m, agreeing.direction, agreeing.noise});
+      // A cone supports the point but is no ray; a planar array's image on the point's side is.
+      if (agreeing.image_count() > 0) {
+        const Eigen::Vector3d to_point = best.fix.position_m - agreeing.model.centre_m;
+        const bool mirrored =
+            agreeing.image_count() == 2 &&
+            to_point.dot(agreeing.model.axis) * agreeing.direction.dot(agreeing.model.axis) < 0.0;
+        rays.push_back({agreeing.model.centre_m, agreeing.image(mirrored ? 1 : 0), agreeing.noise});
+      }
     } else {
       extra_index[other] = -1;
     }
@@ -620,20 +839,9 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     }
   }
 
-  // The fix is where the drone was when the sound left it, about r / c ago; an unknown velocity
-  // over that delay widens the position.
-  const double delay_s =
-      (fix.position_m - models[array].centre_m).norm() / models[array].speed_of_sound_mps;
-  StateVector mean = StateVector::Zero();
-  mean.segment<3>(StateBlock::position) = fix.position_m;
-  StateCovariance covariance = StateCovariance::Zero();
-  const double velocity_var = std::pow(params.init_velocity_std_mps, 2);
-  covariance.block<3, 3>(StateBlock::position, StateBlock::position) =
-      fix.covariance_m2 + Eigen::Matrix3d::Identity() * (velocity_var * delay_s * delay_s + 0.01);
-  covariance.block<3, 3>(StateBlock::velocity, StateBlock::velocity) =
-      Eigen::Matrix3d::Identity() * velocity_var;
-  covariance.block<3, 3>(StateBlock::acceleration, StateBlock::acceleration) =
-      Eigen::Matrix3d::Identity() * std::pow(params.init_acceleration_std_mps2, 2);
+  StateVector mean;
+  StateCovariance covariance;
+  state_from_fix(fix, seed_centre, models[array].speed_of_sound_mps, mean, covariance);
 
   Track track;
   track.id = next_id++;
@@ -665,6 +873,104 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     }
   }
   return true;
+}
+
+bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index, double time_s) {
+  if (tracks.size() >= static_cast<std::size_t>(params.max_tracks)) return false;
+  RecentDoa& seed = recent[array][recent_index];
+  const DoaMeasurementModel& model = seed.model;
+  const double gate = gate_for(model.dimension());
+  // Not a new source if a track already explains the DOA: its predicted reading from this array,
+  // with its position spread seen from its range, fits.
+  for (const Track& track : tracks) {
+    const Eigen::Vector3d to_track = position_of(track.filter->mean()) - model.centre_m;
+    const double range_m = std::max(to_track.norm(), 1.0);
+    const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+    MeasurementCovariance r = seed.noise;
+    r(0, 0) += spread_m2 / (range_m * range_m);
+    if (model.dimension() == 2) r(1, 1) += spread_m2 / (range_m * range_m);
+    const Measurement residual = model.residual(seed.z, model.predict_direction(to_track));
+    if (residual.dot(r.ldlt().solve(residual)) <= gate) return false;
+  }
+  const double angle_std_rad =
+      std::sqrt(model.dimension() == 1 ? seed.noise(0, 0) : 0.5 * seed.noise.trace());
+  auto locus = bearing_locus(model, seed.z, angle_std_rad, seed.direction,
+                             params.single_array.source_plane_z_m);
+  if (!locus) return false;  // a cone with no source plane cannot start a track
+  // No hypothesis under the ground: a ground echo's ray (the image a node reports as a second
+  // source) then starts nothing.
+  if (!params.single_array.source_plane_z_m) locus->min_altitude_m = params.ground_altitude_m;
+  Track track;
+  track.id = next_id;
+  FilterSettings settings = one_array_settings;
+  settings.random_seed = static_cast<std::uint64_t>(track.id);
+  track.filter = make_track_filter(params.single_array_filter, settings);
+  if (!track.filter->initialise_from_bearing(*locus)) return false;
+  ++next_id;
+  track.one_array = true;
+  track.origin_array = array;
+  track.origin_noise = seed.noise;
+  track.time_s = time_s;
+  track.last_update_s = time_s;
+  track.heard_by_array_s.fill(kNeverS);
+  track.hits_by_array[array] = 1u;
+  track.heard_by_array_s[array] = time_s;
+  track.updates_by_array[array] = 1;
+  tracks.push_back(std::move(track));
+  ++counters.tracks_started;
+  seed.used = true;
+  return true;
+}
+
+bool FusionEngine::Impl::hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
+                                                    const DoaMeasurementModel& model,
+                                                    double time_s) {
+  if (model.kind != MeasurementKind::azel) return false;  // a cone or a mirror pair: no one ray
+  const Eigen::Vector3d origin = last_centre_m[static_cast<std::size_t>(track.origin_array)];
+  const Eigen::Vector3d along = position_of(track.filter->mean()) - origin;
+  if (!(along.norm() > 1.0)) return false;
+  // The mixture's mean lies on the bearing (its hypotheses spread along it, not across).
+  const std::array<Ray, 2> pair{Ray{origin, along.normalized(), track.origin_noise},
+                                Ray{model.centre_m, m.direction, noise_of(m)}};
+  const auto fix = triangulate(pair, params.triangulation);
+  if (!fix || !fix->in_front || below_ground(*fix)) return false;
+  // The rays must meet (two rays, three unknowns: one dof left), where the track says the source
+  // may be: a DOA of another source that the wide mixture happened to gate is no hand-over.
+  if (fix->chi_square > chi_square_quantile(params.gate_probability, 1)) return false;
+  const Eigen::Vector3d offset = fix->position_m - position_of(track.filter->mean());
+  const Eigen::Matrix3d spread =
+      track.filter->covariance().topLeftCorner<3, 3>() + fix->covariance_m2;
+  if (offset.dot(spread.ldlt().solve(offset)) > chi_square_quantile(params.gate_probability, 3))
+    return false;
+  StateVector mean;
+  StateCovariance covariance;
+  state_from_fix(*fix, model.centre_m, model.speed_of_sound_mps, mean, covariance);
+  FilterSettings settings = filter_settings;
+  settings.random_seed = static_cast<std::uint64_t>(track.id);
+  auto filter = make_track_filter(params.filter, settings);
+  filter->initialise(mean, covariance);
+  track.filter = std::move(filter);
+  track.time_s = time_s;
+  track.one_array = false;
+  return true;
+}
+
+void FusionEngine::Impl::hand_over(Track& track) {
+  // Only a narrow Gaussian: a wide one (hypotheses merged while the range diffused) would be
+  // linearised far from the truth by the next bearing.
+  const double max_variance = params.max_position_std_m * params.max_position_std_m;
+  if (track.filter->hypothesis_count() != 1 || recent_arrays(track) < 2 ||
+      !(track.filter->covariance().diagonal().segment<3>(StateBlock::position).maxCoeff() <=
+        max_variance))
+    return;
+  // A second array now resolves the range: the default filter (and motion model) takes the
+  // collapsed Gaussian.
+  FilterSettings settings = filter_settings;
+  settings.random_seed = static_cast<std::uint64_t>(track.id);
+  auto filter = make_track_filter(params.filter, settings);
+  filter->initialise(track.filter->mean(), track.filter->covariance());
+  track.filter = std::move(filter);
+  track.one_array = false;
 }
 
 bool FusionEngine::Impl::beneath_another_track(const Track& track) const {
@@ -700,7 +1006,7 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
   for (std::size_t a = 0; a < arrays.size(); ++a) {
     if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
     ++supporting;
-    const Eigen::Vector3d to_track = position - models[a].centre_m;
+    const Eigen::Vector3d to_track = position - last_centre_m[a];
     const double range_m = std::max(to_track.norm(), 1.0);
     bool explained = false;
     for (const Track& other : tracks) {
@@ -708,7 +1014,7 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
       // and the drone whose ray it shares explain each other from that array; the drone also
       // has the arrays the ghost lacks).
       if (&other == &track || !(other.confirmed || recent_arrays(other) > support)) continue;
-      const Eigen::Vector3d to_other = position_of(other.filter->mean()) - models[a].centre_m;
+      const Eigen::Vector3d to_other = position_of(other.filter->mean()) - last_centre_m[a];
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
       const double angle_rad =
@@ -746,8 +1052,9 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     // both arrays while the drones move. Both arrays must have updated it confirm_hits times.
     // The initiating pair agrees by construction, so two distinct arrays are no evidence: on a
     // two-array site (min_arrays clamped to 2) continuity decides, not the pair's first fix.
+    // A one-array track (issue 15) has only continuity: its array updated it confirm_hits times.
     const bool supported = (arrays_heard >= min_arrays && (arrays_heard > 2 || min_arrays <= 1)) ||
-                           arrays_repeating >= 2;
+                           arrays_repeating >= 2 || (track.one_array && arrays_repeating >= 1);
     // Nor is a track under the ground by more than its own uncertainty: where two drones' rays
     // (or a drone's and its ground image's) cross low, a ghost starts near the ground and sinks.
     const double altitude_m = track.filter->mean()(StateBlock::position + 2);
@@ -776,7 +1083,10 @@ void FusionEngine::Impl::life_cycle(double now_s) {
     if (unconfirmed_expired) ++counters.ghosts_rejected;
     const Eigen::Vector3d variance =
         track.filter->covariance().diagonal().segment<3>(StateBlock::position);
-    if (!(variance.maxCoeff() <= max_variance)) return true;
+    // A one-array track's spread along its bearing is what it knows, not a lost track; it ends
+    // by timeout.
+    if (!track.one_array && !(variance.maxCoeff() <= max_variance)) return true;
+    if (!variance.allFinite()) return true;
     const double unheard = now_s - track.last_update_s;
     return unheard > (track.confirmed ? params.coast_timeout_s : params.tentative_timeout_s);
   };
@@ -803,6 +1113,8 @@ void FusionEngine::tracks_at(double time_s, std::vector<TrackReport>& out) const
     report.track_class = track.evidence.track_class;
     report.class_confidence = track.evidence.confidence;
     report.confirmed_s = track.confirmed ? time_s - track.confirmed_at_s : -1.0;
+    report.one_array = track.one_array;
+    report.hypotheses = track.filter->hypothesis_count();
     if (!track.confirmed) {
       report.status = TrackStatus::tentative;
     } else if (time_s - track.last_update_s > s.params.coast_after_s) {

@@ -1,5 +1,6 @@
 #pragma once
 // Fusion parameters. Parsed and validated in config/ (parse_fusion_params.cpp).
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -9,7 +10,57 @@
 
 namespace dronetrack::fusion {
 
-enum class FilterKind { ukf, ukf_seed002, ekf, particle };
+// ukf, ukf_seed002, ekf, particle: track_filter.hpp. The one-array localisers (issue 15), which
+// can also start from a single DOA (TrackFilter::initialise_from_bearing):
+//   gaussian_sum        seed 003: EKF hypotheses at spaced ranges along the bearing's locus
+//   ekf_range_init      seed 000: one EKF at r_init along the bearing, covariance from sigma_r and
+//                       sigma_theta (eqs. 15-16)
+//   particle_multipeak  seed 004: particles spread over the region with no initial guess, weighed
+//                       by the GCC's top peaks (a mixture likelihood)
+enum class FilterKind {
+  ukf,
+  ukf_seed002,
+  ekf,
+  particle,
+  gaussian_sum,
+  ekf_range_init,
+  particle_multipeak
+};
+
+// How a track starts from one array's DOA alone, and how the one-array localisers run (issue 15;
+// seeds 000, 003, 004). Keys under fusion.single_array (docs/fusion.md).
+struct OneArrayParams {
+  // Seed 003: Gaussians every hypothesis_spacing_m along the bearing, hypotheses_per_side of them
+  // on each branch (a ray, or each mirror side), none beyond max_range_m. Each has a range std of
+  // half the spacing, so neighbours overlap and their sum is near flat in range.
+  double hypothesis_spacing_m = 15.0;
+  int hypotheses_per_side = 6;
+  // Seed 004's particle region: a disc of this radius on the source plane (a ball without one).
+  double max_range_m = 100.0;
+  // Seed 003 eq. 10: a hypothesis whose weight falls below gamma / N is pruned.
+  double prune_gamma = 0.1;
+  // Hypotheses closer than this squared Mahalanobis distance (position, summed covariances) are
+  // merged into one (moment-matched): the range has been resolved between them.
+  double merge_d2 = 1.0;
+  // Seed 000 eqs. 15-16: r_init, sigma_r, sigma_theta (paper: 50 m, 25 m, 10 deg).
+  double range_init_m = 50.0;
+  double range_init_std_m = 25.0;
+  double bearing_init_std_deg = 10.0;
+  // The motion the one-array localisers assume: a constant-jerk model at this jerk std (static and
+  // slow sources), and the prior's velocity and acceleration std.
+  double jerk_std_mps3 = 0.5;
+  double velocity_std_mps = 10.0;
+  double acceleration_std_mps2 = 3.0;
+  int particle_count = 2000;  // seed 004's simulation
+  // The known plane the sources lie on (site z, m), absent by default. A two-mic array's cone
+  // alone cannot fix height (the papers' problem is 2-D): with a plane, the cone cuts it in two
+  // branches, and the one-array localisers hold z = source_plane_z_m (std source_plane_std_m),
+  // v_z = a_z = 0 by a pseudo-measurement after every step. Without one, a cone cannot start a
+  // track.
+  std::optional<double> source_plane_z_m;
+  double source_plane_std_m = 0.1;
+};
+
 // The DOA likelihood of the Gaussian filters' updates, gates and assignment (doa_likelihood.hpp).
 enum class DoaLikelihoodKind { gaussian, student_t };
 // How a new track's first position is found (SPEC 4.4).
@@ -89,6 +140,11 @@ struct FusionParams {
   // ground-reflection image (a node reports the echo as a second source), never a drone: no track
   // starts there.
   double ground_altitude_m = 0.0;
+  // Issue 15: a track may start from ONE array's DOAs (no second array within init_pair_window_s),
+  // with single_array_filter; off by default (the default scenes are started by triangulation).
+  bool single_array_start = false;
+  FilterKind single_array_filter = FilterKind::gaussian_sum;
+  OneArrayParams single_array;
   // Drone or not (issue 14): docs/classification.md.
   ClassifierSettings classifier;
 };

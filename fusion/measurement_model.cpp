@@ -23,7 +23,28 @@ Eigen::Vector3d DoaMeasurementModel::emission_position_m(const StateVector& x,
 }
 
 Measurement DoaMeasurementModel::predict(const StateVector& x) const {
-  return azel_of(emission_position_m(x) - centre_m);
+  return predict_direction(emission_position_m(x) - centre_m);
+}
+
+Measurement DoaMeasurementModel::predict_direction(const Eigen::Vector3d& to_source) const {
+  switch (kind) {
+    case MeasurementKind::azel:
+      return azel_of(to_source);
+    case MeasurementKind::cone:
+      return cone_of(to_source, axis);
+    case MeasurementKind::mirrored_azel: {
+      const double along = to_source.dot(axis);
+      // Fold onto the reported side: the array cannot tell a direction from its mirror image.
+      return azel_of(along * mirror_side < 0.0 ? Eigen::Vector3d(to_source - 2.0 * along * axis)
+                                               : to_source);
+    }
+  }
+  return azel_of(to_source);
+}
+
+Measurement DoaMeasurementModel::residual(const Measurement& z, const Measurement& z_hat) const {
+  if (kind == MeasurementKind::cone) return {z(0) - z_hat(0), 0.0};
+  return azel_residual(z, z_hat);
 }
 
 Measurement azel_of(const Eigen::Vector3d& direction) {
@@ -33,6 +54,11 @@ Measurement azel_of(const Eigen::Vector3d& direction) {
 
 Measurement azel_residual(const Measurement& z, const Measurement& z_hat) {
   return {doa::wrap_rad_pi(z(0) - z_hat(0)), z(1) - z_hat(1)};
+}
+
+Measurement cone_of(const Eigen::Vector3d& direction, const Eigen::Vector3d& axis) {
+  // atan2 of (|a x d|, a . d): accurate at endfire, where acos of the dot product loses digits.
+  return {std::atan2(axis.cross(direction).norm(), axis.dot(direction)), 0.0};
 }
 
 }  // namespace dronetrack::fusion

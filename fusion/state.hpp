@@ -8,7 +8,13 @@
 namespace dronetrack::fusion {
 
 inline constexpr int kStateSize = 9;
-inline constexpr int kMeasurementSize = 2;  // (azimuth, elevation), radians
+// The largest measurement: (azimuth, elevation), radians. A 1-D measurement (a two-mic array's cone
+// angle) rides in the same fixed-size vector with 0 as its second component in z, in h(x) and in
+// every residual, and unit variance in that slot of R: its row of H is zero, so it adds nothing to
+// the gain, 0 to d^2 and ln 1 = 0 to ln det S. Gates and costs take the true dimension from the
+// model (DoaMeasurementModel::dimension). Fixed size keeps the per-measurement path free of
+// allocation and every existing 2-D path unchanged.
+inline constexpr int kMeasurementSize = 2;
 
 using StateVector = Eigen::Matrix<double, kStateSize, 1>;
 using StateCovariance = Eigen::Matrix<double, kStateSize, kStateSize>;

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <random>
 #include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+
+#include "fusion/gaussian_sum_filter.hpp"
 
 namespace dronetrack::fusion {
 namespace {
@@ -32,11 +35,29 @@ class GaussianFilter : public TrackFilter {
     mean_ = mean;
     covariance_ = covariance;
     symmetrise(covariance_);
+    hold_to_plane();
+  }
+  // Seed 000 eqs. 15-16: one Gaussian at r_init along the bearing (the branch the node's display
+  // direction points to), covariance J diag(sigma_r^2, sigma_theta^2) J^T.
+  bool initialise_from_bearing(const BearingLocus& locus) override {
+    if (!settings_.range_initialisation) return false;
+    const OneArrayParams& p = settings_.one_array;
+    const auto offset = locus.offset_at(locus.preferred_branch(p.range_init_m), p.range_init_m);
+    if (!offset) return false;
+    StateVector mean;
+    StateCovariance covariance;
+    state_at(locus.model.centre_m + *offset,
+             range_bearing_covariance(*offset, p.range_init_std_m,
+                                      p.bearing_init_std_deg * std::numbers::pi / 180.0),
+             p, mean, covariance);
+    initialise(mean, covariance);
+    return true;
   }
   void predict(double dt_s) override {
     if (dt_s == 0.0) return;
     if (settings_.motion_kind == MotionKind::constant_jerk) {
       settings_.motion.predict(mean_, covariance_, dt_s);
+      hold_to_plane();
       return;
     }
     predict_nonlinear(dt_s);
@@ -44,13 +65,14 @@ class GaussianFilter : public TrackFilter {
     // repair it here (eigenvalue clamp) so every mode hands the mixing a valid covariance.
     StateCovariance lower;
     robust_cholesky(covariance_, lower);
+    hold_to_plane();
   }
   FilterStatus update(const Innovation& innovation, const Measurement& z) override {
     if (!valid_innovation_covariance(innovation.covariance) || !z.allFinite()) {
       return FilterStatus::failed;
     }
     const CrossCovariance gain = innovation.cross * innovation.covariance.inverse();
-    const StateVector mean = mean_ + gain * azel_residual(z, innovation.predicted);
+    const StateVector mean = mean_ + gain * innovation.residual(z);
     StateCovariance covariance = covariance_ - gain * innovation.covariance * gain.transpose();
     symmetrise(covariance);
     if (!mean.allFinite() || !covariance.allFinite()) return FilterStatus::failed;
@@ -59,12 +81,20 @@ class GaussianFilter : public TrackFilter {
     if (status == FilterStatus::failed) return status;
     mean_ = mean;
     covariance_ = covariance;
+    hold_to_plane();
     return status;
   }
   const StateVector& mean() const override { return mean_; }
   const StateCovariance& covariance() const override { return covariance_; }
 
  protected:
+  // The known source plane (issue 15), when the settings carry one: a pseudo-measurement.
+  void hold_to_plane() {
+    const OneArrayParams& p = settings_.one_array;
+    if (p.source_plane_z_m)
+      constrain_to_plane(mean_, covariance_, *p.source_plane_z_m, p.source_plane_std_m);
+  }
+
   // Coordinated turn, linearised (EKF): F = numerical Jacobian at the mean.
   virtual void predict_nonlinear(double dt_s) {
     const StateCovariance f = settings_.turn.jacobian(mean_, dt_s);
@@ -114,14 +144,14 @@ class UnscentedFilter final : public GaussianFilter {
     // Mean of angles: average the wrapped offsets from the centre point, not the raw angles.
     Measurement offset = Measurement::Zero();
     for (int i = 1; i < kPoints; ++i) {
-      offset += weight_i_ * azel_residual(predicted.col(i), predicted.col(0));
+      offset += weight_i_ * model.residual(predicted.col(i), predicted.col(0));
     }
-    const Measurement z_hat = azel_residual(predicted.col(0) + offset, Measurement::Zero());
+    const Measurement z_hat = model.residual(predicted.col(0) + offset, Measurement::Zero());
     MeasurementCovariance s = noise;
     CrossCovariance cross = CrossCovariance::Zero();
     for (int i = 0; i < kPoints; ++i) {
       const double weight = i == 0 ? weight_cov0_ : weight_i_;
-      const Measurement dz = azel_residual(predicted.col(i), z_hat);
+      const Measurement dz = model.residual(predicted.col(i), z_hat);
       s += weight * dz * dz.transpose();
       cross += weight * (points.col(i) - mean_) * dz.transpose();
     }
@@ -185,7 +215,7 @@ class ExtendedFilter final : public GaussianFilter {
     const Eigen::Matrix<double, kMeasurementSize, kStateSize> jacobian =
         central_difference_jacobian<kMeasurementSize>(
             mean_, [&](const StateVector& state) { return model.predict(state); },
-            [](const Measurement& a, const Measurement& b) { return azel_residual(a, b); });
+            [&](const Measurement& a, const Measurement& b) { return model.residual(a, b); });
     const CrossCovariance cross = covariance_ * jacobian.transpose();
     MeasurementCovariance s = jacobian * cross + noise;
     s = 0.5 * (s + s.transpose()).eval();
@@ -217,6 +247,7 @@ class ParticleFilter final : public TrackFilter {
       particles_.col(i) = mean + lower * standard_normal_state();
     }
     weights_.setConstant(1.0 / static_cast<double>(weights_.size()));
+    hold_to_plane();
     refresh_moments();
   }
 
@@ -229,6 +260,7 @@ class ParticleFilter final : public TrackFilter {
       const Eigen::Vector3d jerk(normal_(random_), normal_(random_), normal_(random_));
       particles_.col(i) = f * particles_.col(i) + gain * (jerk_std * jerk);
     }
+    hold_to_plane();
     refresh_moments();
   }
 
@@ -238,13 +270,13 @@ class ParticleFilter final : public TrackFilter {
     Measurement offset = Measurement::Zero();
     for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
       predicted_.col(i) = model.predict(particles_.col(i));
-      offset += weights_(i) * azel_residual(predicted_.col(i), centre);
+      offset += weights_(i) * model.residual(predicted_.col(i), centre);
     }
-    const Measurement z_hat = azel_residual(centre + offset, Measurement::Zero());
+    const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
     MeasurementCovariance s = noise;
     CrossCovariance cross = CrossCovariance::Zero();
     for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
-      const Measurement dz = azel_residual(predicted_.col(i), z_hat);
+      const Measurement dz = model.residual(predicted_.col(i), z_hat);
       s += weights_(i) * dz * dz.transpose();
       cross += weights_(i) * (particles_.col(i) - mean_) * dz.transpose();
     }
@@ -254,19 +286,104 @@ class ParticleFilter final : public TrackFilter {
   }
 
   FilterStatus update(const Innovation& innovation, const Measurement& z) override {
-    if (!z.allFinite()) return FilterStatus::failed;
+    const std::array<Measurement, 1> readings{z};
+    const std::array<double, 1> weights{1.0};
+    return weigh(innovation, readings, weights, 1);
+  }
+
+  // Seed 004: the likelihood of a particle is the mixture over the GCC's top peaks, each a Gaussian
+  // about its peak weighted by the peak's GCC value (Fig. 6), so a particle on the true delay keeps
+  // its weight when a reflection's peak is the largest.
+  FilterStatus update_with_peaks(const Innovation& innovation, const Measurement& z,
+                                 const MeasurementPeaks& peaks) override {
+    if (!settings_.multipeak_likelihood || peaks.count <= 0) return update(innovation, z);
+    const int count = std::min<int>(peaks.count, doa::kMaxConePeaks);
+    return weigh(innovation, peaks.value, peaks.weight, count);
+  }
+
+  // Seed 004 Step 1: with no initial guess, particles spread uniformly over the region around the
+  // array: a disc of max_range_m on the source plane, or a ball without one. The DOA itself is
+  // not used: the first update weighs them.
+  bool initialise_from_bearing(const BearingLocus& locus) override {
+    const OneArrayParams& p = settings_.one_array;
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const Eigen::Vector3d centre = locus.model.centre_m;
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      Eigen::Vector3d position;
+      if (p.source_plane_z_m) {
+        const double radius = p.max_range_m * std::sqrt(unit(random_));
+        const double angle = 2.0 * std::numbers::pi * unit(random_);
+        position << centre.x() + radius * std::cos(angle), centre.y() + radius * std::sin(angle),
+            *p.source_plane_z_m;
+      } else {
+        // Uniform in the ball, above the ground (rejection: at most half the ball is lost).
+        for (int attempt = 0; attempt < 64; ++attempt) {
+          Eigen::Vector3d direction(normal_(random_), normal_(random_), normal_(random_));
+          direction.normalize();
+          position = centre + p.max_range_m * std::cbrt(unit(random_)) * direction;
+          if (position.z() >= locus.min_altitude_m) break;
+        }
+        position.z() = std::max(position.z(), locus.min_altitude_m);
+      }
+      StateVector particle = StateVector::Zero();
+      particle.segment<3>(StateBlock::position) = position;
+      for (int k = 0; k < 3; ++k) {
+        particle(StateBlock::velocity + k) = p.velocity_std_mps * normal_(random_);
+        particle(StateBlock::acceleration + k) = p.acceleration_std_mps2 * normal_(random_);
+      }
+      particles_.col(i) = particle;
+    }
+    weights_.setConstant(1.0 / static_cast<double>(weights_.size()));
+    hold_to_plane();
+    refresh_moments();
+    return true;
+  }
+
+  const StateVector& mean() const override { return mean_; }
+  const StateCovariance& covariance() const override { return covariance_; }
+
+ private:
+  static constexpr double kOutlierProbability = 0.05;
+
+  // Multiplies every particle's weight by the likelihood of the readings (a mixture with the
+  // given weights; one reading: the plain likelihood) and resamples when the cloud degenerates.
+  template <class Readings, class Weights>
+  FilterStatus weigh(const Innovation& innovation, const Readings& readings,
+                     const Weights& reading_weights, int count) {
+    double weight_sum = 0.0;
+    for (int k = 0; k < count; ++k) {
+      if (!readings[k].allFinite() || !(reading_weights[k] >= 0.0)) return FilterStatus::failed;
+      weight_sum += reading_weights[k];
+    }
+    if (!(weight_sum > 0.0)) return FilterStatus::failed;
     const MeasurementCovariance information = innovation.noise.inverse();
-    // Mixture (1 - e) N(z; h(x), R) + e / (4 pi) (a DOA from anywhere on the sphere), scaled by
-    // 2 pi sqrt(det R) so the Gaussian part is the plain exponential.
-    const double floor = kOutlierProbability * std::sqrt(innovation.noise.determinant()) / 2.0;
+    const int dimension = innovation.dimension();
+    if (innovation.model != nullptr) jitter_centre_m_ = innovation.model->centre_m;
+    jitter_angle_std_rad_ =
+        std::sqrt(dimension == 1 ? innovation.noise(0, 0) : 0.5 * innovation.noise.trace());
+    // Mixture (1 - e) N(z; h(x), R) + e U (a DOA from anywhere: U = 1 / (4 pi) over the sphere for
+    // a direction, 1 / pi over [0, pi] for a cone angle), scaled by (2 pi)^(d/2) sqrt(det R) so
+    // the Gaussian part is the plain exponential. The pad of a cone's R is 1: det R = R_00.
+    const double floor =
+        dimension == 2 ? kOutlierProbability * std::sqrt(innovation.noise.determinant()) / 2.0
+                       : kOutlierProbability *
+                             std::sqrt(2.0 * std::numbers::pi * innovation.noise.determinant()) /
+                             std::numbers::pi;
     const double dof = settings_.student_t_dof;
     double total = 0.0;
     for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
-      const Measurement dz = azel_residual(z, predicted_.col(i));
-      const double d2 = dz.dot(information * dz);
-      // Both up to the same factor for every particle: 2 pi sqrt(det R).
-      const double likelihood =
-          dof > 0.0 ? std::pow(1.0 + d2 / dof, -0.5 * (dof + 2.0)) : std::exp(-0.5 * d2) + floor;
+      double likelihood = 0.0;
+      for (int k = 0; k < count; ++k) {
+        const Measurement dz = innovation.model != nullptr
+                                   ? innovation.model->residual(readings[k], predicted_.col(i))
+                                   : azel_residual(readings[k], predicted_.col(i));
+        const double d2 = dz.dot(information * dz);
+        // Both up to the same factor for every particle: (2 pi)^(d/2) sqrt(det R).
+        const double own =
+            dof > 0.0 ? std::pow(1.0 + d2 / dof, -0.5 * (dof + dimension)) : std::exp(-0.5 * d2);
+        likelihood += reading_weights[k] / weight_sum * own;
+      }
+      if (!(dof > 0.0)) likelihood += floor;
       weights_(i) *= likelihood;
       total += weights_(i);
     }
@@ -281,11 +398,16 @@ class ParticleFilter final : public TrackFilter {
     return FilterStatus::ok;
   }
 
-  const StateVector& mean() const override { return mean_; }
-  const StateCovariance& covariance() const override { return covariance_; }
-
- private:
-  static constexpr double kOutlierProbability = 0.05;
+  // The known source plane (issue 15): every particle on it, at rest vertically.
+  void hold_to_plane() {
+    const OneArrayParams& p = settings_.one_array;
+    if (!p.source_plane_z_m) return;
+    for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
+      particles_(StateBlock::position + 2, i) = *p.source_plane_z_m;
+      particles_(StateBlock::velocity + 2, i) = 0.0;
+      particles_(StateBlock::acceleration + 2, i) = 0.0;
+    }
+  }
 
   StateVector standard_normal_state() {
     StateVector draw;
@@ -311,9 +433,31 @@ class ParticleFilter final : public TrackFilter {
     StateCovariance spread = covariance_;
     StateCovariance lower;
     if (robust_cholesky(spread, lower) == FilterStatus::failed) lower.setZero();
-    for (Eigen::Index i = 0; i < count; ++i) {
-      particles_.col(i) = resampled_.col(i) + bandwidth * (lower * standard_normal_state());
+    if (settings_.local_jitter) {
+      // A cloud started with no guess spans a ray's range and both mirror sides: a kernel from its
+      // covariance (tens of metres) random-walks it out of the region. Each particle moves by
+      // a quarter of the width of the last DOA's likelihood strip at its range instead; velocity
+      // and acceleration by the cloud's own (small) spread.
+      for (Eigen::Index i = 0; i < count; ++i) {
+        StateVector particle = resampled_.col(i);
+        const double range_m = (position_of(particle) - jitter_centre_m_).norm();
+        const double position_std_m = 0.25 * range_m * jitter_angle_std_rad_;
+        for (int k = 0; k < 3; ++k) {
+          particle(StateBlock::position + k) += position_std_m * normal_(random_);
+          for (int block : {StateBlock::velocity, StateBlock::acceleration}) {
+            particle(block + k) += bandwidth *
+                                   std::sqrt(std::max(covariance_(block + k, block + k), 0.0)) *
+                                   normal_(random_);
+          }
+        }
+        particles_.col(i) = particle;
+      }
+    } else {
+      for (Eigen::Index i = 0; i < count; ++i) {
+        particles_.col(i) = resampled_.col(i) + bandwidth * (lower * standard_normal_state());
+      }
     }
+    hold_to_plane();
     weights_.setConstant(step);
   }
 
@@ -325,6 +469,14 @@ class ParticleFilter final : public TrackFilter {
       covariance_.noalias() += weights_(i) * d * d.transpose();
     }
     symmetrise(covariance_);
+    // On the plane the cloud has no vertical spread; the plane's own std keeps the covariance
+    // positive definite and honest.
+    const OneArrayParams& p = settings_.one_array;
+    if (p.source_plane_z_m) {
+      const double variance = p.source_plane_std_m * p.source_plane_std_m;
+      for (int block : {StateBlock::position, StateBlock::velocity, StateBlock::acceleration})
+        covariance_(block + 2, block + 2) += variance;
+    }
   }
 
   FilterSettings settings_;
@@ -336,6 +488,9 @@ class ParticleFilter final : public TrackFilter {
   StateCovariance covariance_ = StateCovariance::Identity();
   std::mt19937_64 random_;
   std::normal_distribution<double> normal_{0.0, 1.0};
+  // The last DOA's array centre and angular std, for the local jitter.
+  Eigen::Vector3d jitter_centre_m_ = Eigen::Vector3d::Zero();
+  double jitter_angle_std_rad_ = 0.01;
 };
 
 // Interacting multiple model (Blom & Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan ch. 11.6):
@@ -447,16 +602,16 @@ class InteractingFilter final : public TrackFilter {
     Measurement offset = Measurement::Zero();
     for (std::size_t j = 0; j < models_.size(); ++j) {
       if (innovation_ok_[j]) {
-        offset += probability_[j] / weight_sum * azel_residual(innovations_[j].predicted, centre);
+        offset += probability_[j] / weight_sum * model.residual(innovations_[j].predicted, centre);
       }
     }
-    const Measurement z_hat = azel_residual(centre + offset, Measurement::Zero());
+    const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
     MeasurementCovariance s = MeasurementCovariance::Zero();
     CrossCovariance cross = CrossCovariance::Zero();
     for (std::size_t j = 0; j < models_.size(); ++j) {
       if (!innovation_ok_[j]) continue;
       const double w = probability_[j] / weight_sum;
-      const Measurement dz = azel_residual(innovations_[j].predicted, z_hat);
+      const Measurement dz = model.residual(innovations_[j].predicted, z_hat);
       s += w * (innovations_[j].covariance + dz * dz.transpose());
       cross += w * (innovations_[j].cross + (models_[j]->mean() - mean_) * dz.transpose());
     }
@@ -481,7 +636,7 @@ class InteractingFilter final : public TrackFilter {
       own.covariance += extra;
       own.noise = innovation.noise;
       if (!valid_innovation_covariance(own.covariance)) continue;
-      const Measurement residual = azel_residual(z, own.predicted);
+      const Measurement residual = own.residual(z);
       const double d2 = residual.dot(own.covariance.ldlt().solve(residual));
       const FilterStatus status = models_[j]->update(own, z);
       if (status == FilterStatus::failed) continue;
@@ -555,8 +710,12 @@ class InteractingFilter final : public TrackFilter {
 
 }  // namespace
 
+Measurement Innovation::residual(const Measurement& z) const {
+  return model != nullptr ? model->residual(z, predicted) : azel_residual(z, predicted);
+}
+
 double Innovation::mahalanobis2(const Measurement& z) const {
-  const Measurement residual = azel_residual(z, predicted);
+  const Measurement residual = this->residual(z);
   return residual.dot(covariance.ldlt().solve(residual));
 }
 
@@ -602,16 +761,32 @@ std::unique_ptr<TrackFilter> make_single_filter(FilterKind kind, const FilterSet
       return std::make_unique<ExtendedFilter>(settings);
     case FilterKind::particle:
       return std::make_unique<ParticleFilter>(settings);
+    case FilterKind::gaussian_sum:
+      return make_gaussian_sum_filter(settings);
+    case FilterKind::ekf_range_init: {
+      FilterSettings own = settings;
+      own.range_initialisation = true;
+      return std::make_unique<ExtendedFilter>(own);
+    }
+    case FilterKind::particle_multipeak: {
+      FilterSettings own = settings;
+      own.multipeak_likelihood = true;
+      own.local_jitter = true;
+      return std::make_unique<ParticleFilter>(own);
+    }
   }
   return nullptr;
 }
 }  // namespace
 
 std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
-  // The particle filter samples one jerk level; the IMM mixes Gaussian filters only.
+  // The particle filters sample one jerk level; the IMM mixes the plain Gaussian filters only (the
+  // one-array localisers run one constant-jerk model: static and slow sources).
   const std::size_t modes =
       settings.imm_jerk_std_mps3.size() + settings.imm_turn_rate_std_radps2.size();
-  if (modes >= 2 && kind != FilterKind::particle) {
+  const bool mixable =
+      kind == FilterKind::ukf || kind == FilterKind::ukf_seed002 || kind == FilterKind::ekf;
+  if (modes >= 2 && mixable) {
     return std::make_unique<InteractingFilter>(kind, settings, &make_single_filter);
   }
   return make_single_filter(kind, settings);

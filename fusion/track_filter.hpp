@@ -4,16 +4,22 @@
 //   ukf_seed002  the seed's UKF, n + kappa = 3 (negative centre weight), for comparison
 //   ekf          extended KF, numerical Jacobian of the same h(x)
 //   particle     bootstrap particle filter, robust likelihood (seeds 001/004)
+// and the one-array localisers (issue 15; fusion_params.hpp): gaussian_sum
+// (gaussian_sum_filter.hpp), ekf_range_init (the EKF started by seed 000's range initialisation),
+// particle_multipeak (the particle filter started over the region, weighed by the GCC's top peaks).
 // The constant-jerk model is linear, so the Gaussian filters predict exactly with F and Q; they
 // differ in how they push the covariance through the nonlinear DOA model (and through the
 // nonlinear coordinated-turn model, an IMM mode: UKF sigma points, EKF numerical Jacobian). The
 // update is split in two so the tracker can gate and assign on the innovation before committing it.
 // Nothing allocates per measurement (fixed-size Eigen; particles are allocated once, at
 // construction).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "doa/doa_measurement.hpp"
+#include "fusion/bearing_prior.hpp"
 #include "fusion/fusion_params.hpp"
 #include "fusion/measurement_model.hpp"
 #include "fusion/motion_model.hpp"
@@ -33,8 +39,22 @@ struct Innovation {
   CrossCovariance cross = CrossCovariance::Zero();                       // P_xz
   MeasurementCovariance noise = MeasurementCovariance::Identity();       // R
   const DoaMeasurementModel* model = nullptr;
+  // z - predicted in the model's space (wrapped azimuth, or the plain cone angle); azel when no
+  // model is set.
+  Measurement residual(const Measurement& z) const;
+  // Degrees of freedom of the measurement (1: cone, 2: a direction).
+  int dimension() const { return model != nullptr ? model->dimension() : kMeasurementSize; }
   // Squared Mahalanobis distance of a measurement z under this innovation.
   double mahalanobis2(const Measurement& z) const;
+};
+
+// The other readings of one DOA (seed 004's multi-peak GCC, SPEC 4.3): the GCC's strongest peaks as
+// measurements of the model's kind (cone angles), strongest first, with their GCC values as
+// weights. count 0: none beyond z.
+struct MeasurementPeaks {
+  int count = 0;
+  std::array<Measurement, doa::kMaxConePeaks> value{};
+  std::array<double, doa::kMaxConePeaks> weight{};
 };
 
 // Which motion model a single Gaussian filter predicts with.
@@ -63,6 +83,17 @@ struct FilterSettings {
   // The IMM runs when jerk levels + turn levels >= 2.
   std::vector<double> imm_turn_rate_std_radps2;
   double imm_turn_jerk_std_mps3 = 0.2;
+  // One-array localisers (issue 15): the hypotheses, priors and region a track started from one
+  // DOA uses, and the source plane. The plane binds every filter whose settings carry it (the
+  // tracker gives it to one-array tracks only).
+  OneArrayParams one_array;
+  // Gaussian filters: initialise_from_bearing places one Gaussian at r_init (seed 000).
+  bool range_initialisation = false;
+  // Particle filter: weigh by the GCC's top peaks (seed 004) when the DOA carries them.
+  bool multipeak_likelihood = false;
+  // Particle filter: after resampling, jitter each particle by half the last DOA's likelihood
+  // width at its range (a cloud spread over a region), not by the cloud's covariance.
+  bool local_jitter = false;
 };
 
 class TrackFilter {
@@ -77,6 +108,18 @@ class TrackFilter {
   virtual FilterStatus update(const Innovation& innovation, const Measurement& z) = 0;
   virtual const StateVector& mean() const = 0;
   virtual const StateCovariance& covariance() const = 0;
+  // Starts from what one DOA alone says (issue 15): no range, maybe a mirror side. False when this
+  // filter cannot hold such a prior (the tracker then waits for a second array).
+  virtual bool initialise_from_bearing(const BearingLocus& /*locus*/) { return false; }
+  // The hypotheses about the source it still carries: 1 for a single Gaussian or a particle cloud,
+  // more for a Gaussian sum whose range or mirror side is not yet resolved.
+  virtual int hypothesis_count() const { return 1; }
+  // update() for a DOA that carries its GCC's other peaks (seed 004): filters whose likelihood
+  // uses them override it; the others take z alone.
+  virtual FilterStatus update_with_peaks(const Innovation& innovation, const Measurement& z,
+                                         const MeasurementPeaks& /*peaks*/) {
+    return update(innovation, z);
+  }
   // Probability of each motion mode (one entry for a single-model filter).
   virtual int mode_count() const { return 1; }
   virtual double mode_probability(int /*mode*/) const { return 1.0; }

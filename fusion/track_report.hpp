@@ -25,6 +25,11 @@ struct TrackReport {
   TrackClass track_class = TrackClass::unknown;  // fusion/track_classifier.hpp
   double class_confidence = 0.0;                 // 0..1
   double confirmed_s = -1.0;  // how long it has been confirmed (< 0: not confirmed)
+  // Issue 15: the track rests on one array (started from its DOAs alone; its range comes from
+  // hypotheses or the platform's motion, and its covariance says so), and how many hypotheses
+  // (Gaussians of a Gaussian sum) it still carries.
+  bool one_array = false;
+  int hypotheses = 1;
   Eigen::Vector3d position_std_m() const { return covariance.diagonal().head<3>().cwiseSqrt(); }
 };
 

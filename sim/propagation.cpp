@@ -17,6 +17,15 @@ constexpr double kMinDistance_m = 0.1;
 EmissionSolution solve_emission_time(const Trajectory& trajectory,
                                      const Eigen::Vector3d& receiver_m, double arrival_time_s,
                                      double speed_of_sound_mps, bool mirrored, double guess) {
+  return solve_emission_time(
+      trajectory, TrajectoryState{receiver_m, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()},
+      arrival_time_s, speed_of_sound_mps, mirrored, guess);
+}
+
+EmissionSolution solve_emission_time(const Trajectory& trajectory, const TrajectoryState& receiver,
+                                     double arrival_time_s, double speed_of_sound_mps,
+                                     bool mirrored, double guess) {
+  const Eigen::Vector3d& receiver_m = receiver.position_m;
   auto state_at = [&](double t_s) {
     TrajectoryState state = trajectory.at(t_s);
     if (mirrored) {
@@ -43,7 +52,10 @@ EmissionSolution solve_emission_time(const Trajectory& trajectory,
     const double residual = emission + distance / speed_of_sound_mps - arrival_time_s;
     const double step = residual / slope;
     emission -= step;
-    solution.derivative = 1.0 / slope;
+    // d/dt of t_e + |p(t_e) - m(t)| / c = t; a fixed mic gives exactly 1 / slope as before.
+    const double receiver_closing_speed =
+        distance > 0.0 ? offset.dot(receiver.velocity_mps) / distance : 0.0;
+    solution.derivative = (1.0 + receiver_closing_speed / speed_of_sound_mps) / slope;
     solution.distance_m = distance;
     if (std::abs(step) < 1e-14 * std::max(1.0, std::abs(arrival_time_s))) break;
   }
@@ -51,9 +63,8 @@ EmissionSolution solve_emission_time(const Trajectory& trajectory,
   return solution;
 }
 
-EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Eigen::Vector3d& receiver_m,
-                           bool mirrored, double speed_of_sound_mps, double begin_s, double end_s,
-                           double step_s)
+EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Receiver& receiver, bool mirrored,
+                           double speed_of_sound_mps, double begin_s, double end_s, double step_s)
     : begin_s_(begin_s), step_s_(step_s) {
   const auto intervals = static_cast<std::size_t>(std::ceil((end_s - begin_s) / step_s - 1e-9));
   const std::size_t points = std::max<std::size_t>(intervals, 1) + 1;
@@ -66,7 +77,7 @@ EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Eigen::Vector3d& 
     const double guess = k == 0 ? std::numeric_limits<double>::quiet_NaN()
                                 : emission_time_s_[k - 1] + derivative_[k - 1] * step_s;
     const EmissionSolution solution =
-        solve_emission_time(trajectory, receiver_m, t_s, speed_of_sound_mps, mirrored, guess);
+        solve_emission_time(trajectory, receiver.at(t_s), t_s, speed_of_sound_mps, mirrored, guess);
     emission_time_s_[k] = solution.emission_time_s;
     derivative_[k] = solution.derivative;
     distance_m_[k] = std::max(solution.distance_m, kMinDistance_m);

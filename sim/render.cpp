@@ -10,6 +10,7 @@
 
 #include "common/log.hpp"
 #include "common/output_file.hpp"
+#include "doa/array_geometry.hpp"
 #include "sim/noise.hpp"
 #include "sim/propagation.hpp"
 #include "sim/source_signal.hpp"
@@ -39,6 +40,27 @@ std::size_t channel_of(const config::ArrayConfig& array, std::size_t mic) {
   return mic < array.channel_map.size() ? static_cast<std::size_t>(array.channel_map[mic]) : mic;
 }
 
+const MovingArray* moving_array(const Scenario& scenario, std::size_t array_index) {
+  if (array_index >= scenario.moving_arrays.size() || !scenario.moving_arrays[array_index])
+    return nullptr;
+  return &*scenario.moving_arrays[array_index];
+}
+
+// Where a mic is: fixed at its site position, or carried by its array's motion.
+Receiver receiver_of(const Scenario& scenario, std::size_t array_index, std::size_t mic) {
+  const auto& geometry = scenario.site.arrays[array_index].geometry;
+  if (const MovingArray* moving = moving_array(scenario, array_index))
+    return Receiver::carried(moving->motion, geometry.mics_m[mic]);
+  return Receiver::fixed(geometry.mic_site_m(mic));
+}
+
+Eigen::Vector3d mic_centroid_array_m(const doa::ArrayGeometry& geometry) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& mic : geometry.mics_m) sum += mic;
+  return geometry.mics_m.empty() ? sum
+                                 : Eigen::Vector3d(sum / static_cast<double>(geometry.mic_count()));
+}
+
 // Renders scenes: synthesises each source once, over the emission times the chosen arrays need.
 class Renderer {
  public:
@@ -52,10 +74,10 @@ class Renderer {
         const auto& geometry = scenario.site.arrays[a].geometry;
         for (std::size_t mic = 0; mic < geometry.mic_count(); ++mic) {
           for (bool image : paths()) {
-            earliest =
-                std::min(earliest, solve_emission_time(scenario.sources[s].trajectory,
-                                                       geometry.mic_site_m(mic), 0.0, c, image)
-                                       .emission_time_s);
+            earliest = std::min(
+                earliest, solve_emission_time(scenario.sources[s].trajectory,
+                                              receiver_of(scenario, a, mic).at(0.0), 0.0, c, image)
+                              .emission_time_s);
           }
         }
       }
@@ -85,10 +107,11 @@ class Renderer {
       if ((scenario_.sources[s].kind == SourceKind::drone) != drones) continue;
       for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
         for (bool image : paths()) {
-          paths_to_render.push_back(
-              {EmissionGrid(scenario_.sources[s].trajectory, array.geometry.mic_site_m(mic), image,
-                            c, 0.0, end_s + EmissionGrid::kDefaultStep_s),
-               s, channel_of(array, mic), image ? scenario_.ground_reflection : 1.0});
+          paths_to_render.push_back({EmissionGrid(scenario_.sources[s].trajectory,
+                                                  receiver_of(scenario_, array_index, mic), image,
+                                                  c, 0.0, end_s + EmissionGrid::kDefaultStep_s),
+                                     s, channel_of(array, mic),
+                                     image ? scenario_.ground_reflection : 1.0});
         }
       }
     }
@@ -258,7 +281,12 @@ Truth compute_truth(const Scenario& scenario, double rate_hz) {
       out.position_m.push_back(state.position_m);
       out.velocity_mps.push_back(state.velocity_mps);
       for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
-        const Eigen::Vector3d centre = scenario.site.arrays[a].geometry.centre_site_m();
+        const auto& geometry = scenario.site.arrays[a].geometry;
+        const MovingArray* moving = moving_array(scenario, a);
+        // A moving array's centre where it is when the sound arrives.
+        const Eigen::Vector3d centre =
+            moving ? moving->motion.point_state(mic_centroid_array_m(geometry), t_s).position_m
+                   : geometry.centre_site_m();
         const EmissionSolution emission = solve_emission_time(source.trajectory, centre, t_s, c);
         out.direction[a].push_back(
             (source.trajectory.position(emission.emission_time_s) - centre).normalized());
@@ -304,8 +332,34 @@ nlohmann::json Truth::to_json(const Scenario& scenario) const {
                              ? scenario.recording_end_s[a]
                              : scenario.duration_s;
     arrays[geometry.id]["recording_end_s"] = end_s;
+    if (moving_array(scenario, a)) arrays[geometry.id]["pose_file"] = pose_file_name(geometry.id);
   }
   return document;
+}
+
+std::string pose_file_name(const std::string& array_id) { return array_id + ".pose.jsonl"; }
+
+std::vector<doa::PoseSample> pose_lines(const MovingArray& moving, double duration_s) {
+  // From t = 0 to the first line at or after the end, so the pose covers the whole recording.
+  const auto last = static_cast<std::size_t>(std::ceil(duration_s * moving.pose_rate_hz - 1e-9));
+  std::vector<doa::PoseSample> lines;
+  lines.reserve(last + 1);
+  for (std::size_t k = 0; k <= last; ++k)
+    lines.push_back(moving.motion.pose(static_cast<double>(k) / moving.pose_rate_hz));
+  return lines;
+}
+
+std::string pose_lines_text(const std::vector<doa::PoseSample>& lines) {
+  std::string text;
+  for (const auto& line : lines) {
+    const nlohmann::json document = {{"t", line.time_s},
+                                     {"position_m", vector_json(line.position_m)},
+                                     {"yaw_deg", line.yaw_deg},
+                                     {"pitch_deg", line.pitch_deg},
+                                     {"roll_deg", line.roll_deg}};
+    text += document.dump() + "\n";
+  }
+  return text;
 }
 
 nlohmann::json scene_site_json(const Scenario& scenario) {
@@ -314,7 +368,15 @@ nlohmann::json scene_site_json(const Scenario& scenario) {
     site["description"] = "Simulated: " + scenario.description;
   }
   for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
-    site["arrays"][a]["recording"] = scenario.site.arrays[a].geometry.id + ".wav";
+    const std::string& id = scenario.site.arrays[a].geometry.id;
+    site["arrays"][a]["recording"] = id + ".wav";
+    if (const MovingArray* moving = moving_array(scenario, a)) {
+      // Where it starts, for readers that only look at the fixed keys; the pose file rules.
+      const doa::PoseSample start = moving->motion.pose(0.0);
+      site["arrays"][a]["position_m"] = vector_json(start.position_m);
+      site["arrays"][a]["yaw_deg"] = start.yaw_deg;
+      site["arrays"][a]["pose_file"] = pose_file_name(id);
+    }
   }
   return site;
 }
@@ -330,11 +392,32 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   written.truth = out_dir / "truth.json";
   std::vector<NamedPath> outputs{{"the scene's site", written.site},
                                  {"the scene's truth", written.truth}};
-  for (const auto& array : scenario.site.arrays) {
-    written.recordings.push_back(out_dir / (array.geometry.id + ".wav"));
-    outputs.push_back({"array " + array.geometry.id + "'s recording", written.recordings.back()});
+  for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+    const std::string& id = scenario.site.arrays[a].geometry.id;
+    written.recordings.push_back(out_dir / (id + ".wav"));
+    outputs.push_back({"array " + id + "'s recording", written.recordings.back()});
+    if (moving_array(scenario, a)) {
+      written.poses.push_back(out_dir / pose_file_name(id));
+      outputs.push_back({"array " + id + "'s pose file", written.poses.back()});
+    }
   }
   check_output_paths({{"the scenario", scenario.file}}, outputs);
+  // The pose lines before the long render: the scenario checked its turns over its own
+  // duration, a longer --duration-s may reach turns it did not.
+  std::vector<std::string> pose_texts;
+  for (std::size_t a = 0; a < scenario.site.arrays.size(); ++a) {
+    const MovingArray* moving = moving_array(scenario, a);
+    if (!moving) continue;
+    const std::vector<doa::PoseSample> lines = pose_lines(*moving, scenario.duration_s);
+    for (std::size_t k = 1; k < lines.size(); ++k) {
+      const double turn_deg = std::abs(doa::wrap_deg_180(lines[k].yaw_deg - lines[k - 1].yaw_deg));
+      if (turn_deg > kMaxPoseYawStep_deg)
+        throw std::runtime_error("array " + scenario.site.arrays[a].geometry.id + " turns " +
+                                 std::to_string(turn_deg) + " deg between pose lines at t = " +
+                                 std::to_string(lines[k].time_s) + " s; raise its pose_rate_hz");
+    }
+    pose_texts.push_back(pose_lines_text(lines));
+  }
 
   const RenderedScene scene = render_scene(scenario, stop);
   written.scale = scene.scale;
@@ -347,6 +430,10 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   for (std::size_t i = 0; i < scene.arrays.size(); ++i) {
     files.push_back(std::make_unique<OutputFile>(written.recordings.at(i)));
     write_wav(*files.back(), scene.arrays[i]);
+  }
+  for (std::size_t pose = 0; pose < written.poses.size(); ++pose) {
+    files.push_back(std::make_unique<OutputFile>(written.poses[pose]));
+    files.back()->write(pose_texts.at(pose));
   }
   files.push_back(std::make_unique<OutputFile>(written.site));
   write_json(*files.back(), scene_site_json(scenario), 2);

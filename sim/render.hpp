@@ -67,12 +67,21 @@ struct WrittenScene {
   std::filesystem::path site;
   std::filesystem::path truth;
   std::vector<std::filesystem::path> recordings;
+  std::vector<std::filesystem::path> poses;  // one per moving array, site order
   double scale = 1.0;
 };
+// A moving array's pose file, beside its recording: "<id>.pose.jsonl".
+std::string pose_file_name(const std::string& array_id);
+// Its lines: t = k / pose_rate_hz from 0 to the first at or after `duration_s`.
+std::vector<doa::PoseSample> pose_lines(const MovingArray& moving, double duration_s);
+// As JSON lines: {"t", "position_m", "yaw_deg", "pitch_deg", "roll_deg"} (docs/scenarios.md).
+std::string pose_lines_text(const std::vector<doa::PoseSample>& lines);
+
 // Creates `out_dir` and writes site.json (SPEC 3.1; recordings relative, the scenario's doa,
 // fusion, zones, dds and http sections copied through), <array id>.wav (float32) per array and
-// truth.json, all of them or none (docs/contract.md). Throws std::runtime_error naming the file on
-// I/O failure. A set `stop` (a signal) ends it between arrays with nothing written.
+// truth.json, and <id>.pose.jsonl per moving array, all of them or none (docs/contract.md). Throws
+// std::runtime_error naming the file on I/O failure. A set `stop` (a signal) ends it between arrays
+// with nothing written.
 WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& out_dir,
                          const std::atomic<bool>* stop = nullptr);
 

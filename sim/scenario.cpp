@@ -9,6 +9,7 @@
 #include <sndfile.h>
 
 #include "config/config_reader.hpp"
+#include "doa/array_geometry.hpp"
 
 namespace dronetrack::sim {
 namespace {
@@ -297,8 +298,103 @@ void parse_noise(ObjectReader& reader, Scenario& scenario) {
   }
 }
 
+double largest_yaw_step_deg(const ArrayMotion& motion, double rate_hz, double duration_s) {
+  double largest = 0.0;
+  const auto lines = static_cast<std::size_t>(std::ceil(duration_s * rate_hz - 1e-9));
+  double previous = motion.yaw_at_deg(0.0);
+  for (std::size_t k = 1; k <= lines; ++k) {
+    const double yaw = motion.yaw_at_deg(static_cast<double>(k) / rate_hz);
+    largest = std::max(largest, std::abs(doa::wrap_deg_180(yaw - previous)));
+    previous = yaw;
+  }
+  return largest;
+}
+
+// The simulator's keys of a moving array (taken out of `array` before the site parser sees it):
+// trajectory, yaw ("heading" or "fixed"), pose_rate_hz; yaw_deg, pitch_deg and roll_deg are
+// site keys, read here too. Fills in position_m (the trajectory at t = 0) if absent.
+std::optional<MovingArray> parse_array_motion(json& array, const std::string& path,
+                                              double duration_s, Diagnostics& diagnostics) {
+  if (!array.contains("trajectory")) {
+    for (const char* key : {"yaw", "pose_rate_hz"}) {
+      if (!array.contains(key)) continue;
+      diagnostics.error(path + "." + key, "only for a moving array (one with a trajectory)");
+      array.erase(key);
+    }
+    return std::nullopt;
+  }
+  json keys = json::object();
+  for (const char* key : {"trajectory", "yaw", "pose_rate_hz"}) {
+    if (!array.contains(key)) continue;
+    keys[key] = array[key];
+    array.erase(key);
+  }
+  for (const char* key : {"yaw_deg", "pitch_deg", "roll_deg"}) {
+    if (array.contains(key)) keys[key] = array[key];
+  }
+  const std::size_t errors_before = diagnostics.errors.size();
+  ObjectReader reader(keys, path, diagnostics);
+  MovingArray moving;
+  std::optional<Trajectory> trajectory;
+  {
+    ObjectReader trajectory_reader = reader.object("trajectory");
+    trajectory = parse_trajectory(trajectory_reader);
+  }
+  const std::string yaw = reader.choice("yaw", "heading", {"heading", "fixed"});
+  moving.motion.yaw_mode = yaw == "heading" ? YawMode::heading : YawMode::fixed;
+  moving.motion.yaw_deg = reader.number("yaw_deg", 0.0, -360.0, 360.0);
+  moving.motion.pitch_deg = reader.number("pitch_deg", 0.0, -90.0, 90.0);
+  moving.motion.roll_deg = reader.number("roll_deg", 0.0, -180.0, 180.0);
+  moving.pose_rate_hz = reader.number("pose_rate_hz", moving.pose_rate_hz, 1.0, 1000.0);
+  if (!trajectory || diagnostics.errors.size() != errors_before) {
+    // The site parser would add "position_m missing" to the real problem.
+    if (!array.contains("position_m")) array["position_m"] = {0.0, 0.0, 0.0};
+    return std::nullopt;
+  }
+  moving.motion.trajectory = *trajectory;
+  const Eigen::Vector3d start_m = trajectory->position(0.0);
+  if (!array.contains("position_m")) {
+    array["position_m"] = {start_m.x(), start_m.y(), start_m.z()};
+  } else if (auto given =
+                 config::read_vector3(array["position_m"], path + ".position_m", diagnostics)) {
+    if ((*given - start_m).norm() > 1e-3) {
+      std::ostringstream what;
+      what << "differs from where the trajectory starts (" << start_m.x() << ", " << start_m.y()
+           << ", " << start_m.z() << "); leave it out for a moving array";
+      diagnostics.error(path + ".position_m", what.str());
+      return std::nullopt;
+    }
+  }
+  if (moving.motion.yaw_mode == YawMode::heading) {
+    // The heading is undefined where the platform stops or climbs straight up.
+    const auto samples = static_cast<std::size_t>(std::ceil(duration_s * 100.0)) + 1;
+    for (std::size_t k = 0; k < samples; ++k) {
+      const Eigen::Vector3d v = trajectory->at(static_cast<double>(k) / 100.0).velocity_mps;
+      if (std::hypot(v.x(), v.y()) < 1e-3) {
+        diagnostics.error(path + ".yaw",
+                          "\"heading\" needs horizontal motion, but the array stands "
+                          "still (or climbs vertically) at t = " +
+                              config::format_number(static_cast<double>(k) / 100.0) +
+                              " s; use \"fixed\"");
+        return std::nullopt;
+      }
+    }
+  }
+  const double step_deg = largest_yaw_step_deg(moving.motion, moving.pose_rate_hz, duration_s);
+  if (step_deg > kMaxPoseYawStep_deg) {
+    diagnostics.error(path + ".pose_rate_hz",
+                      "the array turns up to " + config::format_number(step_deg) +
+                          " deg between pose lines at " +
+                          config::format_number(moving.pose_rate_hz) + " Hz (at most " +
+                          config::format_number(kMaxPoseYawStep_deg) + "); raise the rate");
+    return std::nullopt;
+  }
+  return moving;
+}
+
 // The site section: validated by the site-config parser itself (so the simulator accepts exactly
-// what replay will), with the simulator's own per-array key taken out first.
+// what replay will), with the simulator's own per-array keys (recording_end_s; a moving array's
+// trajectory, yaw and pose_rate_hz) taken out first.
 void parse_site(const json& node, const std::filesystem::path& base_dir, Scenario& scenario,
                 Diagnostics& diagnostics) {
   if (!node.is_object()) {
@@ -325,7 +421,14 @@ void parse_site(const json& node, const std::filesystem::path& base_dir, Scenari
         diagnostics.warn(path + ".recording", "ignored: the simulator writes <id>.wav");
         array.erase("recording");
       }
+      if (array.is_object() && array.contains("pose_file")) {
+        diagnostics.warn(path + ".pose_file", "ignored: the simulator writes <id>.pose.jsonl");
+        array.erase("pose_file");
+      }
       scenario.recording_end_s.push_back(end_s);
+      scenario.moving_arrays.push_back(
+          array.is_object() ? parse_array_motion(array, path, scenario.duration_s, diagnostics)
+                            : std::nullopt);
     }
   }
   scenario.site_json = site;
@@ -350,7 +453,9 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
     ObjectReader root(document, "", diagnostics);
     scenario.description = root.string("description", "");
     scenario.seed = static_cast<std::uint64_t>(root.integer("seed", 0, 0, 2147483647));
-    scenario.sample_rate_hz = root.number("sample_rate_hz", 48000.0, 8000.0, 192000.0);
+    // What replay takes (hydrophones sample at 100 kHz and more), no narrower.
+    scenario.sample_rate_hz = root.number("sample_rate_hz", 48000.0, config::kMinSampleRate_hz,
+                                          config::kMaxSampleRate_hz);
     scenario.duration_s = root.required_number("duration_s", 0.01, 3600.0).value_or(1.0);
     scenario.full_scale_db_spl = root.number("full_scale_db_spl", 120.0, 60.0, 200.0);
     {

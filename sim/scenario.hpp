@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "config/site_config.hpp"
+#include "sim/array_motion.hpp"
 #include "sim/trajectory.hpp"
 
 namespace dronetrack::sim {
@@ -98,6 +99,13 @@ struct NoiseSpec {
   std::string snr_reference_array;         // empty: every array gets the SNR itself
 };
 
+// An array that moves (site.arrays[i].trajectory): its motion, and how often its pose file
+// (<id>.pose.jsonl, referenced as the array's pose_file in DIR/site.json) has a line.
+struct MovingArray {
+  ArrayMotion motion;
+  double pose_rate_hz = 20.0;
+};
+
 struct Scenario {
   std::filesystem::path file;  // empty if built in memory
   std::string description;
@@ -109,6 +117,7 @@ struct Scenario {
   config::SiteConfig site;
   nlohmann::json site_json;             // the site section as given, copied into DIR/site.json
   std::vector<double> recording_end_s;  // per array; <= 0: the whole duration
+  std::vector<std::optional<MovingArray>> moving_arrays;  // per array; nullopt: fixed
   std::vector<SourceSpec> sources;
   NoiseSpec noise;
 };

@@ -28,13 +28,14 @@ PathPiece arc_piece(const Eigen::Vector3d& start, const Eigen::Vector3d& directi
   return piece;
 }
 
-// Position and unit tangent at arc length `s` into `piece` (s may run past either end of a
-// line piece: that is how open paths extend).
-void evaluate(const PathPiece& piece, double s, Eigen::Vector3d& position,
-              Eigen::Vector3d& tangent) {
+// Position, unit tangent and curvature vector (d tangent / ds) at arc length `s` into `piece`
+// (s may run past either end of a line piece: that is how open paths extend).
+void evaluate(const PathPiece& piece, double s, Eigen::Vector3d& position, Eigen::Vector3d& tangent,
+              Eigen::Vector3d& curvature) {
   if (!piece.is_arc) {
     position = piece.start + s * piece.direction;
     tangent = piece.direction;
+    curvature.setZero();
     return;
   }
   const double angle = s / piece.radius_m;
@@ -42,6 +43,7 @@ void evaluate(const PathPiece& piece, double s, Eigen::Vector3d& position,
   const double sn = std::sin(angle);
   position = piece.centre + piece.radius_m * (-c * piece.normal + sn * piece.direction);
   tangent = c * piece.direction + sn * piece.normal;
+  curvature = (c * piece.normal - sn * piece.direction) / piece.radius_m;
 }
 
 }  // namespace
@@ -157,8 +159,10 @@ TrajectoryState Trajectory::at(double t_s) const {
       [](double value, const PathPiece& piece) { return value < piece.start_s_m; });
   const PathPiece& piece = after == pieces_.begin() ? pieces_.front() : *(after - 1);
   Eigen::Vector3d tangent;
-  evaluate(piece, s - piece.start_s_m, state.position_m, tangent);
+  Eigen::Vector3d curvature;
+  evaluate(piece, s - piece.start_s_m, state.position_m, tangent, curvature);
   state.velocity_mps = speed_mps_ * tangent;
+  state.acceleration_mps2 = speed_mps_ * speed_mps_ * curvature;
   return state;
 }
 

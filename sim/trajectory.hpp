@@ -26,6 +26,9 @@ struct PathPiece {
 struct TrajectoryState {
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();
+  // Zero on lines, centripetal on arcs (a platform whose yaw follows its heading turns at
+  // (v x a).z / |v_xy|^2).
+  Eigen::Vector3d acceleration_mps2 = Eigen::Vector3d::Zero();
 };
 
 class Trajectory {

@@ -220,6 +220,26 @@ TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   EXPECT_FALSE(parse_site_config(site.dump(), ".", warnings, no_recordings()).doa.ground_echo);
 }
 
+TEST(SiteConfig, TwoMicAndPlanarArraysNeedNoGroundUnderThem) {
+  // Only 3-D arrays model the ground echo: a hydrophone pair (a cone) or a planar array below
+  // the ground height is accepted beside a tetrahedron, which still must stand above it.
+  json site = two_array_site();
+  site["arrays"][1]["mics_m"] = {{-0.3, 0.0, 0.0}, {0.3, 0.0, 0.0}};
+  site["arrays"][1]["position_m"] = {20.0, 0.0, -5.0};
+  site["arrays"].push_back(tetra_array("A3", 40.0));
+  site["arrays"][2]["mics_m"] = {{0.3, 0.0, 0.0}, {-0.15, 0.26, 0.0}, {-0.15, -0.26, 0.0}};
+  site["arrays"][2]["position_m"] = {40.0, 0.0, -2.0};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), ".", warnings, no_recordings());
+  ASSERT_EQ(parsed.arrays.size(), 3U);
+  EXPECT_EQ(parsed.arrays[1].geometry.mic_count(), 2U);
+  EXPECT_TRUE(parsed.doa.ground_echo);
+  site["arrays"][0]["position_m"] = {0.0, 0.0, -5.0};
+  expect_problem(site,
+                 "arrays[0].mics_m[0]: mic at site z -4.5 m is not above the ground "
+                 "(doa.ground_height_m 0); raise it, or set doa.ground_echo false");
+}
+
 TEST(SiteConfig, AnArrayMayStandOnItsOwnGround) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 0.5}};
@@ -378,4 +398,49 @@ TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
 }
 
 }  // namespace
+// Issue 15's fusion keys: the one-array localisers and the source plane.
+TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
+  json site = two_array_site();
+  site["fusion"] = {{"single_array_start", true},
+                    {"single_array_filter", "particle_multipeak"},
+                    {"source_plane_z_m", -4.5},
+                    {"single_array",
+                     {{"hypothesis_spacing_m", 50},
+                      {"hypotheses_per_side", 10},
+                      {"max_range_m", 600},
+                      {"range_init_m", 30}}}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(parsed.fusion.single_array_start);
+  EXPECT_EQ(parsed.fusion.single_array_filter, fusion::FilterKind::particle_multipeak);
+  ASSERT_TRUE(parsed.fusion.single_array.source_plane_z_m.has_value());
+  EXPECT_EQ(*parsed.fusion.single_array.source_plane_z_m, -4.5);
+  EXPECT_EQ(parsed.fusion.single_array.hypothesis_spacing_m, 50.0);
+  EXPECT_EQ(parsed.fusion.single_array.hypotheses_per_side, 10);
+  EXPECT_EQ(parsed.fusion.single_array.max_range_m, 600.0);
+  EXPECT_EQ(parsed.fusion.single_array.range_init_m, 30.0);
+  EXPECT_EQ(parsed.fusion.single_array.prune_gamma, 0.1);  // default kept
+  const SiteConfig plain =
+      parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings());
+  EXPECT_FALSE(plain.fusion.single_array_start);
+  EXPECT_FALSE(plain.fusion.single_array.source_plane_z_m.has_value());
+  site["fusion"] = {{"single_array_filter", "ukf"}};
+  const auto problems = problems_of(site);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("fusion.single_array_filter"), std::string::npos) << problems[0];
+  site["fusion"] = {{"single_array", {{"hypotheses_per_side", 0}}}};
+  expect_problem(site, "fusion.single_array.hypotheses_per_side: must be in [1, 64], got 0");
+  // A site of one array feeds a fusion only when it may start tracks from one array.
+  LoadOptions fusion_options = no_recordings();
+  fusion_options.for_fusion = true;
+  json one_array = {{"arrays", {tetra_array("A1", 0.0)}}};
+  expect_problem(one_array,
+                 "arrays: the fusion needs at least 2 arrays (it triangulates), got 1 (or "
+                 "fusion.single_array_start: true)",
+                 fusion_options);
+  one_array["fusion"] = {{"single_array_start", true}};
+  EXPECT_EQ(parse_site_config(one_array.dump(), "/data", warnings, fusion_options).arrays.size(),
+            1u);
+}
+
 }  // namespace dronetrack::config

@@ -75,6 +75,32 @@ TEST_F(SimCommand, WritesSiteWavsAndTruthForABundledScenario) {
   EXPECT_EQ(truth["sources"][0]["t"].size(), 101u);
 }
 
+TEST_F(SimCommand, MovingArrayGetsItsPoseFileBesideItsRecording) {
+  const fs::path scenario =
+      fs::path(DRONETRACK_SOURCE_DIR) / "config/scenarios/seed004-multipeak.json";
+  const CommandResult result = run(
+      "sim " + scenario.string() + " --out " + (dir_ / "scene").string() + " --duration-s 1", dir_);
+  ASSERT_EQ(result.status, 0) << result.err;
+  const fs::path pose = dir_ / "scene" / "H1.pose.jsonl";
+  EXPECT_NE(result.out.find("wrote " + pose.string()), std::string::npos) << result.out;
+  std::ifstream pose_stream(pose);
+  std::string line, last;
+  int lines = 0;
+  while (std::getline(pose_stream, line)) ++lines, last = line;
+  EXPECT_EQ(lines, 21);  // 20 Hz over the shortened 1 s, both ends
+  EXPECT_EQ(nlohmann::json::parse(last)["t"], 1.0);
+  std::ifstream site_stream(dir_ / "scene" / "site.json");
+  const auto site = nlohmann::json::parse(site_stream);
+  EXPECT_EQ(site["arrays"][0]["pose_file"], "H1.pose.jsonl");
+  EXPECT_EQ(site["speed_of_sound_mps"], 1500.0);
+  SF_INFO info{};
+  SNDFILE* file = sf_open((dir_ / "scene" / "H1.wav").c_str(), SFM_READ, &info);
+  ASSERT_NE(file, nullptr);
+  sf_close(file);
+  EXPECT_EQ(info.samplerate, 100000);
+  EXPECT_EQ(info.channels, 2);
+}
+
 TEST_F(SimCommand, BadScenarioIsOneLinePerProblemAndExitOne) {
   const fs::path scenario = dir_ / "bad.json";
   std::ofstream(scenario) << R"({"site": {"arrays": []}, "sources": [{"id": "D1"}]})";

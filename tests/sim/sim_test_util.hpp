@@ -126,4 +126,30 @@ inline double band_power(const std::vector<double>& x, double low_hz, double hig
   return 2.0 * sum / (window_power * static_cast<double>(x.size()));
 }
 
+// Frequency of the strongest line of x within [low_hz, high_hz] (Hann window, a 0.5 Hz scan,
+// then bisection on the exact DTFT to 1e-4 Hz).
+inline double strongest_frequency_hz(const std::vector<double>& x, double low_hz, double high_hz,
+                                     double sample_rate_hz) {
+  auto power_at = [&](double f) {
+    std::complex<double> sum = 0.0;
+    for (std::size_t n = 0; n < x.size(); ++n) {
+      const double w = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (n + 0.5) / x.size());
+      sum += w * x[n] * std::polar(1.0, -2.0 * std::numbers::pi * f * n / sample_rate_hz);
+    }
+    return std::norm(sum);
+  };
+  double best_hz = low_hz, best_power = 0.0;
+  for (double f = low_hz; f <= high_hz; f += 0.5) {
+    const double power = power_at(f);
+    if (power > best_power) best_power = power, best_hz = f;
+  }
+  for (double step = 0.25; step > 1e-4; step /= 2.0) {
+    if (power_at(best_hz + step) > best_power)
+      best_hz += step, best_power = power_at(best_hz);
+    else if (power_at(best_hz - step) > best_power)
+      best_hz -= step, best_power = power_at(best_hz);
+  }
+  return best_hz;
+}
+
 }  // namespace dronetrack::sim::test
