@@ -3,20 +3,24 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
-#include "calib/tdoa_model.hpp"
 #include "doa/array_geometry.hpp"
 
 namespace dronetrack::apps {
 namespace {
 
-constexpr double kRadPerDeg = 3.14159265358979323846 / 180.0;
+// The double nearest to `value` written with `decimals` decimals, so the file reads as a person
+// would write it (0.47114, not 0.47114000000000006: JSON numbers print in their shortest form).
+double rounded(double value, int decimals) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", decimals, value);
+  return std::strtod(text, nullptr);
+}
 
-// Rounded to `step` so the file reads as a person would write it (0.1 mm, 1e-4 degrees, 10 ns).
-double rounded(double value, double step) { return std::round(value / step) * step; }
-
-nlohmann::json vector_json(const Eigen::Vector3d& v, double step) {
-  return nlohmann::json::array({rounded(v.x(), step), rounded(v.y(), step), rounded(v.z(), step)});
+nlohmann::ordered_json vector_json(const Eigen::Vector3d& v, int decimals) {
+  return nlohmann::ordered_json::array(
+      {rounded(v.x(), decimals), rounded(v.y(), decimals), rounded(v.z(), decimals)});
 }
 
 std::filesystem::path relocated(const std::filesystem::path& path,
@@ -44,37 +48,36 @@ void row(std::string& out, const std::string& name, const calib::Estimate& estim
 
 }  // namespace
 
-nlohmann::json calibrated_site_document(const nlohmann::json& original,
-                                        const config::SiteConfig& site,
-                                        const calib::CalibrationResult& result,
-                                        const std::filesystem::path& site_dir,
-                                        const std::filesystem::path& out_dir) {
-  nlohmann::json document = original;
+nlohmann::ordered_json calibrated_site_document(const nlohmann::ordered_json& original,
+                                                const config::SiteConfig& site,
+                                                const calib::CalibrationResult& result,
+                                                const std::filesystem::path& site_dir,
+                                                const std::filesystem::path& out_dir) {
+  nlohmann::ordered_json document = original;
   for (std::size_t a = 0; a < result.arrays.size(); ++a) {
     const calib::ArrayCalibration& calibration = result.arrays[a];
     const doa::ArrayGeometry& before = site.arrays[a].geometry;
-    nlohmann::json& array = document["arrays"][a];
+    nlohmann::ordered_json& array = document["arrays"][a];
     const calib::ArrayNominal& after = calibration.calibrated;
-    array["position_m"] = vector_json(after.position_m, 1e-4);
-    array["yaw_deg"] = rounded(doa::wrap_deg_180(after.yaw_deg), 1e-4);
-    nlohmann::json mics = nlohmann::json::array();
+    array["position_m"] = vector_json(after.position_m, 4);
+    array["yaw_deg"] = rounded(doa::wrap_deg_180(after.yaw_deg), 4);
+    array["pitch_deg"] = rounded(after.pitch_deg, 4);
+    array["roll_deg"] = rounded(doa::wrap_deg_180(after.roll_deg), 4);
+    nlohmann::ordered_json mics = nlohmann::ordered_json::array();
     double mic_std_m = 0.0;
     for (std::size_t i = 0; i < after.mics_m.size(); ++i) {
-      double turned[3];
-      calib::rotate_array_to_site(0.0, after.pitch_deg * kRadPerDeg, after.roll_deg * kRadPerDeg,
-                                  after.mics_m[i].data(), turned);
-      mics.push_back(vector_json(Eigen::Vector3d(turned[0], turned[1], turned[2]), 1e-5));
+      mics.push_back(vector_json(after.mics_m[i], 5));
       for (const auto& coordinate : calibration.mic_position_m[i])
         mic_std_m = std::max(mic_std_m, coordinate.std);
     }
     array["mics_m"] = mics;
     if (before.mic_position_std_m > 0.0 || mic_std_m > 0.0)
-      array["mic_position_std_m"] = rounded(mic_std_m, 1e-5);
-    nlohmann::json delays = nlohmann::json::array();
+      array["mic_position_std_m"] = rounded(mic_std_m, 5);
+    nlohmann::ordered_json delays = nlohmann::ordered_json::array();
     for (const calib::Estimate& delay : calibration.channel_delay_s)
-      delays.push_back(rounded(delay.value, 1e-8));
+      delays.push_back(rounded(delay.value, 8));
     array["channel_delay_s"] = delays;
-    array["clock_offset_s"] = rounded(calibration.clock_offset_s.value, 1e-6);
+    array["clock_offset_s"] = rounded(calibration.clock_offset_s.value, 6);
     if (array.contains("recording") && array["recording"].is_string())
       array["recording"] =
           relocated(array["recording"].get<std::string>(), site_dir, out_dir).generic_string();

@@ -132,6 +132,8 @@ std::vector<calib::ArrayNominal> nominal_arrays(const config::SiteConfig& site,
     nominal.id = array.geometry.id;
     nominal.position_m = array.geometry.position_m;
     nominal.yaw_deg = array.geometry.yaw_deg;
+    nominal.pitch_deg = array.geometry.pitch_deg;
+    nominal.roll_deg = array.geometry.roll_deg;
     nominal.mics_m = array.geometry.mics_m;
     nominal.mic_position_std_m = mic_position_std_m.value_or(array.geometry.mic_position_std_m);
     nominal.channel_delay_s = array.geometry.channel_delay_s;

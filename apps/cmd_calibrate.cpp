@@ -68,6 +68,12 @@ int run(const CalibrateArguments& arguments) {
     if (!arguments.tdoa.empty()) inputs.push_back({"--tdoa", arguments.tdoa});
     check_output_paths(inputs, {{"--out", arguments.out}});
   }
+  for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+    if (site.arrays[i].moving())
+      throw UserError(arguments.site + ": arrays[" + std::to_string(i) +
+                      "]: a moving array (pose_file or pose_topic) is calibrated fixed, from "
+                      "a flight with it standing still; remove its pose keys for the flight");
+  }
   const ReferenceLog log = read_reference_log(arguments.reference);
   const calib::ReferenceTrack reference(log.samples, arguments.settings.reference_max_gap_s);
   calib::CalibrationSettings settings = arguments.settings;
@@ -101,10 +107,10 @@ int run(const CalibrateArguments& arguments) {
       dropped, arguments.direction_gate_deg);
   std::fputs(calibration_table(result).c_str(), stdout);
 
-  const nlohmann::json original = nlohmann::json::parse(
+  const nlohmann::ordered_json original = nlohmann::ordered_json::parse(
       config::read_text_file(arguments.site, config::kMaxConfigBytes, "site config"));
   const std::filesystem::path out_path(arguments.out);
-  const nlohmann::json calibrated = calibrated_site_document(
+  const nlohmann::ordered_json calibrated = calibrated_site_document(
       original, site, result, std::filesystem::path(arguments.site).parent_path(),
       out_path.parent_path());
   OutputFile out(out_path);

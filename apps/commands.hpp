@@ -37,6 +37,7 @@ void register_sim(CLI::App& root, CommandTable& table);
 void register_eval(CLI::App& root, CommandTable& table);
 void register_devices(CLI::App& root, CommandTable& table);
 void register_demo(CLI::App& root, CommandTable& table);
+void register_pose_publish(CLI::App& root, CommandTable& table);
 void register_calibrate(CLI::App& root, CommandTable& table);
 
 }  // namespace dronetrack::apps
