@@ -89,11 +89,12 @@ std::string calibration_table(const calib::CalibrationResult& result) {
   std::string out;
   char line[256];
   std::snprintf(line, sizeof line,
-                "calibration: %d frames (%d off the reference), %d reference positions; TDOA "
+                "calibration: %d frames (%d off the reference, %d outliers), %d reference "
+                "positions; TDOA "
                 "noise std %.2f us (%s); frames' errors correlated: weighed as %.2fx fewer\n",
-                result.frames_used, result.frames_off_reference, result.reference_samples_used,
-                result.tdoa_std_s * 1e6, result.tdoa_std_estimated ? "estimated" : "given",
-                result.correlation_inflation);
+                result.frames_used, result.frames_off_reference, result.frames_rejected,
+                result.reference_samples_used, result.tdoa_std_s * 1e6,
+                result.tdoa_std_estimated ? "estimated" : "given", result.correlation_inflation);
   out += line;
   std::snprintf(line, sizeof line,
                 "TDOA residuals: rms %.2f us -> %.2f us, median |r| %.2f us -> %.2f us\n",

@@ -33,6 +33,7 @@ struct CalibrateArguments {
   calib::CalibrationSettings settings;
   double direction_gate_deg = 10.0;
   double max_duration_s = 0.0;
+  int passes = 2;
 };
 
 // Every full-rank DOA's pair delays, as the nodes measured them.
@@ -54,6 +55,23 @@ std::vector<TdoaLine> measure_tdoas(const config::SiteConfig& site, double max_d
   log::info("calibrate: ", collector.lines.size(), " full-rank DOAs over ", summary.stream_s,
             " s of recordings");
   return std::move(collector.lines);
+}
+
+// The site as the calibration found it, for the next pass's nodes.
+void apply_calibration(const calib::CalibrationResult& result, config::SiteConfig& site) {
+  for (std::size_t a = 0; a < result.arrays.size() && a < site.arrays.size(); ++a) {
+    const calib::ArrayCalibration& found = result.arrays[a];
+    doa::ArrayGeometry& geometry = site.arrays[a].geometry;
+    geometry.position_m = found.calibrated.position_m;
+    geometry.yaw_deg = found.calibrated.yaw_deg;
+    geometry.pitch_deg = found.calibrated.pitch_deg;
+    geometry.roll_deg = found.calibrated.roll_deg;
+    geometry.mics_m = found.calibrated.mics_m;
+    geometry.channel_delay_s.clear();
+    for (const calib::Estimate& delay : found.channel_delay_s)
+      geometry.channel_delay_s.push_back(delay.value);
+    geometry.clock_offset_s = found.clock_offset_s.value;
+  }
 }
 
 int run(const CalibrateArguments& arguments) {
@@ -81,30 +99,44 @@ int run(const CalibrateArguments& arguments) {
   settings.reference_position_std_m =
       arguments.reference_std_m.value_or(log.position_std_m.value_or(1.0));
 
-  const std::vector<TdoaLine> lines = arguments.tdoa.empty()
-                                          ? measure_tdoas(site, arguments.max_duration_s)
-                                          : read_tdoa_lines(arguments.tdoa, site);
+  // Each pass after the first runs the nodes again with what the previous one found (channel
+  // delays undone, mics where they are): a skewed channel makes the GCC take wrong cycles of
+  // the rotor's harmonic, which the corrected nodes no longer do.
+  const int passes = arguments.tdoa.empty() ? arguments.passes : 1;
   const std::string data_name = arguments.tdoa.empty() ? site.file.string() : arguments.tdoa;
-  if (lines.empty())
-    throw UserError(data_name +
-                    ": no full-rank DOA with pair delays (is the calibration source "
-                    "audible, are the arrays solid?)");
-  const std::vector<calib::ArrayNominal> arrays =
-      nominal_arrays(site, arguments.mic_position_std_m);
-  int dropped = 0;
-  const std::vector<calib::TdoaFrame> frames = frames_towards_reference(
-      lines, arrays, reference, site.speed_of_sound_mps, arguments.direction_gate_deg, dropped);
-
+  config::SiteConfig current = site;
   calib::CalibrationResult result;
-  try {
-    result = calib::calibrate_site(arrays, frames, reference, settings);
-  } catch (const calib::CalibrationError& error) {
-    throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
+  calib::ResidualStats first_before;
+  for (int pass = 1; pass <= passes; ++pass) {
+    const std::vector<TdoaLine> lines = arguments.tdoa.empty()
+                                            ? measure_tdoas(current, arguments.max_duration_s)
+                                            : read_tdoa_lines(arguments.tdoa, site);
+    if (lines.empty())
+      throw UserError(data_name +
+                      ": no full-rank DOA with pair delays (is the calibration source "
+                      "audible, are the arrays solid?)");
+    const std::vector<calib::ArrayNominal> arrays =
+        nominal_arrays(current, arguments.mic_position_std_m);
+    int dropped = 0;
+    const std::vector<calib::TdoaFrame> frames = frames_towards_reference(
+        lines, arrays, reference, site.speed_of_sound_mps, arguments.direction_gate_deg, dropped);
+    try {
+      result = calib::calibrate_site(arrays, frames, reference, settings);
+    } catch (const calib::CalibrationError& error) {
+      throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
+    }
+    if (pass == 1) first_before = result.before;
+    std::printf(
+        "calibrate pass %d of %d: %zu DOAs, %d pointed beyond %g deg of the reference (another "
+        "source, an echo), %d outliers; TDOA residual median |r| %.2f us -> %.2f us\n",
+        pass, passes, lines.size(), dropped, arguments.direction_gate_deg, result.frames_rejected,
+        result.before.median_abs_s * 1e6, result.after.median_abs_s * 1e6);
+    apply_calibration(result, current);
   }
   std::printf(
-      "calibrate: %d DOAs pointed beyond %g deg of the reference (another source, an "
-      "echo): left out\n",
-      dropped, arguments.direction_gate_deg);
+      "calibrate: TDOA residual median |r| %.2f us with the site as given, %.2f us "
+      "calibrated\n",
+      first_before.median_abs_s * 1e6, result.after.median_abs_s * 1e6);
   std::fputs(calibration_table(result).c_str(), stdout);
 
   const nlohmann::ordered_json original = nlohmann::ordered_json::parse(
@@ -185,6 +217,12 @@ void register_calibrate(CLI::App& root, CommandTable& table) {
                    "Use a DOA only within this angle of the direction to the reference")
       ->capture_default_str()
       ->check(finite_in(0.1, 180.0));
+  command
+      ->add_option("--passes", arguments->passes,
+                   "Run the nodes and the solver this many times, each pass's nodes with what the "
+                   "previous pass found (1 with --tdoa)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 5));
   command
       ->add_option("--max-duration-s", arguments->max_duration_s,
                    "Stop reading the recordings after this many seconds")

@@ -47,6 +47,7 @@ int run_sim(const SimOptions& options) {
     std::printf("wrote %s\n", recording.string().c_str());
   }
   for (const auto& pose : written.poses) std::printf("wrote %s\n", pose.string().c_str());
+  if (!written.reference.empty()) std::printf("wrote %s\n", written.reference.string().c_str());
   std::printf("wrote %s\n", written.truth.string().c_str());
   std::printf("%.1f s of audio, %zu arrays, %.0f Hz, rendered in %.2f s%s\n", scenario.duration_s,
               scenario.site.arrays.size(), scenario.sample_rate_hz, elapsed_s,

@@ -299,10 +299,25 @@ struct Solve {
   std::string report;
 };
 
+enum class Loss { huber, cauchy };
+
+// The frames whose every residual is within `limit_s`.
+std::vector<PlacedFrame> inliers(const std::vector<PlacedFrame>& placed,
+                                 const std::vector<std::vector<double>>& residuals,
+                                 double limit_s) {
+  std::vector<PlacedFrame> out;
+  for (std::size_t k = 0; k < placed.size(); ++k) {
+    const bool inside = std::all_of(residuals[k].begin(), residuals[k].end(),
+                                    [&](double value) { return std::abs(value) <= limit_s; });
+    if (inside) out.push_back(placed[k]);
+  }
+  return out;
+}
+
 Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<TdoaFrame>& frames,
                  const std::vector<PlacedFrame>& placed, std::vector<ArrayUnknowns>& unknowns,
                  const ReferenceTrack& reference, std::vector<Eigen::Vector3d>& positions,
-                 const CalibrationSettings& settings, double tdoa_std_s) {
+                 const CalibrationSettings& settings, double tdoa_std_s, Loss loss) {
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   Solve solve;
@@ -352,7 +367,11 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
         u.attitude_rad.data(),      u.position_m.data(), u.mic_offsets_m.data(),
         u.delays_s.data(),          &u.clock_s,          positions[lower].data(),
         positions[lower + 1].data()};
-    problem.AddResidualBlock(cost, new ceres::HuberLoss(settings.huber_threshold), blocks);
+    ceres::LossFunction* robust =
+        loss == Loss::huber
+            ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(settings.huber_threshold))
+            : new ceres::CauchyLoss(settings.huber_threshold);
+    problem.AddResidualBlock(cost, robust, blocks);
     used[lower] = used[lower + 1] = true;
   }
   for (std::size_t i = 0; i < positions.size(); ++i) {
@@ -516,15 +535,28 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
   double tdoa_std_s = estimate_std
                           ? std::max(1e-9, kMadToStd * std::max(result.before.median_abs_s, 1e-9))
                           : settings.tdoa_std_s;
+  const auto frames_residuals_of = [&](const std::vector<PlacedFrame>& some) {
+    return frame_residuals(arrays, frames, some, unknowns, positions, settings.speed_of_sound_mps);
+  };
+  // Early passes use a redescending loss (Cauchy), so a frame whose GCC took the wrong cycle of
+  // the rotor's harmonic (hundreds of microseconds off on every pair of one mic) pulls nothing;
+  // between passes such frames (any pair beyond outlier_threshold std) are set aside, judged
+  // afresh each time; the last pass is Huber on what is left.
   Solve solve;
   const int passes = estimate_std ? 4 : 2;
+  int off_reference = static_cast<int>(frames.size() - placed.size());
   for (int pass = 0; pass < passes; ++pass) {
-    if (pass > 0)
+    if (pass > 0) {
       placed =
           place_frames(arrays, frames, unknowns, reference, positions, settings.speed_of_sound_mps);
-    solve =
-        solve_once(arrays, frames, placed, unknowns, reference, positions, settings, tdoa_std_s);
-    if (estimate_std && pass + 1 < passes) {
+      off_reference = static_cast<int>(frames.size() - placed.size());
+      placed =
+          inliers(placed, frames_residuals_of(placed), settings.outlier_threshold * tdoa_std_s);
+    }
+    const bool last = pass + 1 == passes;
+    solve = solve_once(arrays, frames, placed, unknowns, reference, positions, settings, tdoa_std_s,
+                       last ? Loss::huber : Loss::cauchy);
+    if (estimate_std && !last) {
       const auto residuals =
           frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
       const ResidualStats stats = stats_of(residuals, placed, frames, -1);
@@ -544,17 +576,16 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     result.correlation_inflation =
         correlation_inflation(residuals, placed, frames, tdoa_std_s, settings.huber_threshold);
     if (result.correlation_inflation > 1.05) {
-      placed =
-          place_frames(arrays, frames, unknowns, reference, positions, settings.speed_of_sound_mps);
       solve = solve_once(arrays, frames, placed, unknowns, reference, positions, settings,
-                         tdoa_std_s * std::sqrt(result.correlation_inflation));
+                         tdoa_std_s * std::sqrt(result.correlation_inflation), Loss::huber);
     }
   }
   result.tdoa_std_s = tdoa_std_s;
   result.tdoa_std_estimated = estimate_std;
   result.solver_report = solve.report;
   result.frames_used = static_cast<int>(placed.size());
-  result.frames_off_reference = static_cast<int>(frames.size() - placed.size());
+  result.frames_off_reference = off_reference;
+  result.frames_rejected = static_cast<int>(frames.size() - placed.size()) - off_reference;
 
   ceres::Covariance::Options covariance_options;
   covariance_options.num_threads = 1;

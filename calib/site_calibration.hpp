@@ -61,6 +61,9 @@ struct CalibrationSettings {
   // Whitened TDOA residuals beyond this many std count linearly (Huber), so a frame's wrong
   // peak cannot drag the fit.
   double huber_threshold = 2.0;
+  // Between passes a frame with any residual beyond this many std is set aside (a wrong GCC
+  // peak); the early passes use a Cauchy loss of the same scale.
+  double outlier_threshold = 5.0;
   // A parameter is "excited" when its posterior std is below this share of its prior std.
   double excited_ratio = 0.8;
   // Refused below this many directions (per array) at least min_direction_separation_deg apart:
@@ -108,6 +111,7 @@ struct CalibrationResult {
   double correlation_inflation = 1.0;
   int frames_used = 0;
   int frames_off_reference = 0;  // emission time outside the reference track (or in a gap)
+  int frames_rejected = 0;       // set aside as outliers (beyond outlier_threshold std)
   int reference_samples_used = 0;
   ResidualStats before, after;
   std::string solver_report;  // Ceres' one-line summary of the last solve

@@ -64,7 +64,8 @@ EmissionSolution solve_emission_time(const Trajectory& trajectory, const Traject
 }
 
 EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Receiver& receiver, bool mirrored,
-                           double speed_of_sound_mps, double begin_s, double end_s, double step_s)
+                           double speed_of_sound_mps, double begin_s, double end_s, double step_s,
+                           double recording_delay_s)
     : begin_s_(begin_s), step_s_(step_s) {
   const auto intervals = static_cast<std::size_t>(std::ceil((end_s - begin_s) / step_s - 1e-9));
   const std::size_t points = std::max<std::size_t>(intervals, 1) + 1;
@@ -72,7 +73,7 @@ EmissionGrid::EmissionGrid(const Trajectory& trajectory, const Receiver& receive
   derivative_.resize(points);
   distance_m_.resize(points);
   for (std::size_t k = 0; k < points; ++k) {
-    const double t_s = begin_s + static_cast<double>(k) * step_s;
+    const double t_s = begin_s + static_cast<double>(k) * step_s - recording_delay_s;
     // The previous point extrapolated is within nanoseconds: Newton then needs one or two steps.
     const double guess = k == 0 ? std::numeric_limits<double>::quiet_NaN()
                                 : emission_time_s_[k - 1] + derivative_[k - 1] * step_s;

@@ -70,9 +70,11 @@ class EmissionGrid {
  public:
   static constexpr double kDefaultStep_s = 1e-3;
   // Covers arrival times [begin_s, end_s] (end inclusive, rounded up to the grid).
+  // `recording_delay_s`: the channel records the sound reaching the mic at t at t + delay (a
+  // late clock, a slow channel): the grid's times are the recording's.
   EmissionGrid(const Trajectory& trajectory, const Receiver& receiver, bool mirrored,
                double speed_of_sound_mps, double begin_s, double end_s,
-               double step_s = kDefaultStep_s);
+               double step_s = kDefaultStep_s, double recording_delay_s = 0.0);
   EmissionGrid(const Trajectory& trajectory, const Eigen::Vector3d& receiver_m, bool mirrored,
                double speed_of_sound_mps, double begin_s, double end_s,
                double step_s = kDefaultStep_s)

@@ -13,6 +13,7 @@
 #include "doa/array_geometry.hpp"
 #include "sim/noise.hpp"
 #include "sim/propagation.hpp"
+#include "sim/random.hpp"
 #include "sim/source_signal.hpp"
 
 namespace dronetrack::sim {
@@ -81,7 +82,15 @@ class Renderer {
           }
         }
       }
-      sources_[s] = synthesise_source(scenario, s, earliest - 0.01,
+      double latest_recording_s = 0.0;  // a late clock or channel needs earlier emissions
+      for (std::size_t a : arrays) {
+        for (std::size_t mic = 0;
+             a < scenario.array_errors.size() && mic < scenario.site.arrays[a].geometry.mic_count();
+             ++mic)
+          latest_recording_s =
+              std::max(latest_recording_s, scenario.array_errors[a].recording_delay_s(mic));
+      }
+      sources_[s] = synthesise_source(scenario, s, earliest - 0.01 - latest_recording_s,
                                       scenario.duration_s + 2.0 * EmissionGrid::kDefaultStep_s);
     }
   }
@@ -107,9 +116,14 @@ class Renderer {
       if ((scenario_.sources[s].kind == SourceKind::drone) != drones) continue;
       for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
         for (bool image : paths()) {
+          const double recording_delay_s =
+              array_index < scenario_.array_errors.size()
+                  ? scenario_.array_errors[array_index].recording_delay_s(mic)
+                  : 0.0;
           paths_to_render.push_back({EmissionGrid(scenario_.sources[s].trajectory,
                                                   receiver_of(scenario_, array_index, mic), image,
-                                                  c, 0.0, end_s + EmissionGrid::kDefaultStep_s),
+                                                  c, 0.0, end_s + EmissionGrid::kDefaultStep_s,
+                                                  EmissionGrid::kDefaultStep_s, recording_delay_s),
                                      s, channel_of(array, mic),
                                      image ? scenario_.ground_reflection : 1.0});
         }
@@ -194,6 +208,18 @@ class Renderer {
     add(noise.sensor, NoiseKind::sensor);
     add(noise.wind, NoiseKind::wind);
     add(noise.ambient, NoiseKind::ambient);
+    // A channel's gain scales all it records: the mic's sensitivity and its preamplifier.
+    if (array_index < scenario_.array_errors.size() &&
+        !scenario_.array_errors[array_index].channel_gain_db.empty()) {
+      const ArrayErrors& errors = scenario_.array_errors[array_index];
+      const auto& array = scenario_.site.arrays[array_index];
+      for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
+        const auto gain = static_cast<float>(errors.gain(mic));
+        const std::size_t channel = channel_of(array, mic);
+        for (std::size_t n = 0; n < out.frames(); ++n)
+          out.samples[n * out.channels + channel] *= gain;
+      }
+    }
     return out;
   }
 
@@ -333,8 +359,31 @@ nlohmann::json Truth::to_json(const Scenario& scenario) const {
                              : scenario.duration_s;
     arrays[geometry.id]["recording_end_s"] = end_s;
     if (moving_array(scenario, a)) arrays[geometry.id]["pose_file"] = pose_file_name(geometry.id);
+    if (scenario.array_error_spec.enabled && a < scenario.array_errors.size())
+      arrays[geometry.id]["errors"] = scenario.array_errors[a].to_json();
   }
   return document;
+}
+
+std::string reference_log_text(const Scenario& scenario) {
+  const ReferenceLogSpec& spec = scenario.reference_log;
+  std::string text;
+  const SourceSpec* source = nullptr;
+  for (const auto& candidate : scenario.sources)
+    if (candidate.id == spec.source) source = &candidate;
+  if (!spec.enabled || source == nullptr) return text;
+  Random random(scenario.seed, stream_id(0xCA1C));
+  const auto last = static_cast<std::size_t>(std::floor(scenario.duration_s * spec.rate_hz + 1e-9));
+  for (std::size_t k = 0; k <= last; ++k) {
+    const double t_s = static_cast<double>(k) / spec.rate_hz;
+    const double x = random.normal(), y = random.normal(), z = random.normal();
+    const Eigen::Vector3d fix =
+        source->trajectory.position(t_s) + spec.position_std_m * Eigen::Vector3d(x, y, z);
+    const nlohmann::json line = {
+        {"t", t_s}, {"position_m", vector_json(fix)}, {"position_std_m", spec.position_std_m}};
+    text += line.dump() + "\n";
+  }
+  return text;
 }
 
 std::string pose_file_name(const std::string& array_id) { return array_id + ".pose.jsonl"; }
@@ -401,6 +450,10 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
       outputs.push_back({"array " + id + "'s pose file", written.poses.back()});
     }
   }
+  if (scenario.reference_log.enabled) {
+    written.reference = out_dir / "reference.jsonl";
+    outputs.push_back({"the scene's reference log", written.reference});
+  }
   check_output_paths({{"the scenario", scenario.file}}, outputs);
   // The pose lines before the long render: the scenario checked its turns over its own
   // duration, a longer --duration-s may reach turns it did not.
@@ -434,6 +487,10 @@ WrittenScene write_scene(const Scenario& scenario, const std::filesystem::path& 
   for (std::size_t pose = 0; pose < written.poses.size(); ++pose) {
     files.push_back(std::make_unique<OutputFile>(written.poses[pose]));
     files.back()->write(pose_texts.at(pose));
+  }
+  if (!written.reference.empty()) {
+    files.push_back(std::make_unique<OutputFile>(written.reference));
+    files.back()->write(reference_log_text(scenario));
   }
   files.push_back(std::make_unique<OutputFile>(written.site));
   write_json(*files.back(), scene_site_json(scenario), 2);

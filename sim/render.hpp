@@ -68,6 +68,7 @@ struct WrittenScene {
   std::filesystem::path truth;
   std::vector<std::filesystem::path> recordings;
   std::vector<std::filesystem::path> poses;  // one per moving array, site order
+  std::filesystem::path reference;           // reference.jsonl (a reference_log); else empty
   double scale = 1.0;
 };
 // A moving array's pose file, beside its recording: "<id>.pose.jsonl".
@@ -76,6 +77,10 @@ std::string pose_file_name(const std::string& array_id);
 std::vector<doa::PoseSample> pose_lines(const MovingArray& moving, double duration_s);
 // As JSON lines: {"t", "position_m", "yaw_deg", "pitch_deg", "roll_deg"} (docs/scenarios.md).
 std::string pose_lines_text(const std::vector<doa::PoseSample>& lines);
+
+// A reference_log's lines (docs/calibration.md): {"t", "position_m", "position_std_m"} of its
+// source every 1 / rate_hz s over the duration, each position with Gaussian noise of that std.
+std::string reference_log_text(const Scenario& scenario);
 
 // Creates `out_dir` and writes site.json (SPEC 3.1; recordings relative, the scenario's doa,
 // fusion, zones, dds and http sections copied through), <array id>.wav (float32) per array and

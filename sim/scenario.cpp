@@ -512,6 +512,31 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       ObjectReader noise = root.object("noise");
       parse_noise(noise, scenario);
     }
+    if (root.has("array_errors")) {
+      ObjectReader errors = root.object("array_errors");
+      ArrayErrorSpec& spec = scenario.array_error_spec;
+      spec.enabled = true;
+      spec.seed = static_cast<std::uint64_t>(
+          errors.integer("seed", static_cast<int>(scenario.seed), 0, 2147483647));
+      spec.mic_position_std_m = errors.number("mic_position_std_m", 0.0, 0.0, 0.1);
+      spec.gain_spread_db = errors.number("gain_spread_db", 0.0, 0.0, 20.0);
+      spec.channel_delay_std_s = errors.number("channel_delay_std_s", 0.0, 0.0, 0.01);
+      spec.yaw_std_deg = errors.number("yaw_std_deg", 0.0, 0.0, 45.0);
+      spec.tilt_std_deg = errors.number("tilt_std_deg", 0.0, 0.0, 45.0);
+      spec.clock_offset_std_s = errors.number("clock_offset_std_s", 0.0, 0.0, 1.0);
+    }
+    scenario.array_errors = draw_array_errors(scenario.array_error_spec, scenario.site);
+    apply_geometry_errors(scenario.array_errors, scenario.site);
+    if (root.has("reference_log")) {
+      ObjectReader log = root.object("reference_log");
+      ReferenceLogSpec& spec = scenario.reference_log;
+      spec.enabled = true;
+      spec.source = log.required_string("source").value_or("");
+      spec.rate_hz = log.number("rate_hz", spec.rate_hz, 0.1, 1000.0);
+      spec.position_std_m = log.number("position_std_m", spec.position_std_m, 0.0, 100.0);
+      if (log.has("source") && !spec.source.empty() && !ids.contains(spec.source))
+        diagnostics.error(log.path_of("source"), "no source with id \"" + spec.source + "\"");
+    }
     const bool needs_drone =
         scenario.noise.sensor.snr_db || scenario.noise.wind.snr_db || scenario.noise.ambient.snr_db;
     bool has_drone = false;

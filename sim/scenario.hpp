@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "config/site_config.hpp"
+#include "sim/array_errors.hpp"
 #include "sim/array_motion.hpp"
 #include "sim/trajectory.hpp"
 
@@ -106,6 +107,16 @@ struct MovingArray {
   double pose_rate_hz = 20.0;
 };
 
+// A GPS logger on one source (a calibration flight's reference, docs/calibration.md): its
+// positions every 1 / rate_hz s with Gaussian noise of position_std_m, written as
+// DIR/reference.jsonl.
+struct ReferenceLogSpec {
+  bool enabled = false;
+  std::string source;  // the source's id
+  double rate_hz = 10.0;
+  double position_std_m = 1.0;
+};
+
 struct Scenario {
   std::filesystem::path file;  // empty if built in memory
   std::string description;
@@ -120,6 +131,11 @@ struct Scenario {
   std::vector<std::optional<MovingArray>> moving_arrays;  // per array; nullopt: fixed
   std::vector<SourceSpec> sources;
   NoiseSpec noise;
+  // The arrays as built (issue 16): `site` holds them with these draws applied (rendering and
+  // truth), `site_json` the nominal values (site.json).
+  ArrayErrorSpec array_error_spec;
+  std::vector<ArrayErrors> array_errors;  // per array; all zero when not enabled
+  ReferenceLogSpec reference_log;
 };
 
 // Validates a scenario document. Throws config::ConfigError with one line per problem, each

@@ -1,0 +1,50 @@
+#pragma once
+// What real arrays get wrong (issue 16), drawn per array from the scenario's "array_errors" keys
+// (docs/scenarios.md): mics a few millimetres off their nominal positions, channels that differ
+// in gain and delay, a yaw set by compass to a degree or two, a tilted mast, a node clock that is
+// milliseconds off. The scene is rendered with the arrays as drawn; site.json keeps the nominal
+// values (what the operator believes), truth.json records the draws.
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "config/site_config.hpp"
+
+namespace dronetrack::sim {
+
+// The keys, each a 1-sigma spread (0: none).
+struct ArrayErrorSpec {
+  bool enabled = false;
+  std::uint64_t seed = 0;            // draws; default the scenario's seed
+  double mic_position_std_m = 0.0;   // each mic coordinate, array frame
+  double gain_spread_db = 0.0;       // each channel's gain
+  double channel_delay_std_s = 0.0;  // each channel's delay (channel 0 included)
+  double yaw_std_deg = 0.0;          // the array's yaw
+  double tilt_std_deg = 0.0;         // its pitch and its roll
+  double clock_offset_std_s = 0.0;   // the node's clock: its recording starts this late
+};
+
+// One array's draws.
+struct ArrayErrors {
+  std::vector<Eigen::Vector3d> mic_offset_m;  // array frame, per mic
+  std::vector<double> channel_gain_db;        // per mic
+  std::vector<double> channel_delay_s;        // per mic
+  double yaw_deg = 0.0;
+  double pitch_deg = 0.0;
+  double roll_deg = 0.0;
+  double clock_offset_s = 0.0;
+  // How late channel `mic` records the sound that reaches the mic at t: clock + channel delay.
+  double recording_delay_s(std::size_t mic) const;
+  double gain(std::size_t mic) const;  // linear
+  nlohmann::json to_json() const;
+};
+
+// Per array of `site`, deterministic in spec.seed and the array's index.
+std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
+                                           const config::SiteConfig& site);
+// The arrays as they really are: mics, yaw, pitch and roll with the draws applied.
+void apply_geometry_errors(const std::vector<ArrayErrors>& errors, config::SiteConfig& site);
+
+}  // namespace dronetrack::sim
