@@ -31,7 +31,7 @@ struct CalibrateArguments {
   std::optional<double> reference_std_m;
   std::optional<double> mic_position_std_m;
   calib::CalibrationSettings settings;
-  double direction_gate_deg = 10.0;
+  double direction_gate_deg = 30.0;
   double max_duration_s = 0.0;
   int passes = 2;
 };
@@ -45,7 +45,10 @@ class TdoaCollector : public FusionObserver {
   std::vector<TdoaLine> lines;
 };
 
-std::vector<TdoaLine> measure_tdoas(const config::SiteConfig& site, double max_duration_s) {
+std::vector<TdoaLine> measure_tdoas(config::SiteConfig site, double max_duration_s) {
+  // The replay runs a fusion beside the nodes; its tracks are not used here, but one array alone
+  // may only feed it with single-array starts on.
+  if (site.arrays.size() == 1) site.fusion.single_array_start = true;
   TdoaCollector collector;
   ReplayOptions options;
   options.max_duration_s = max_duration_s;
