@@ -32,7 +32,7 @@ std::filesystem::path relocated(const std::filesystem::path& path,
 }
 
 std::string flag(const calib::Estimate& estimate) {
-  if (estimate.prior_std <= 0.0) return "fixed";
+  if (estimate.prior_std <= 0.0) return estimate.std > 0.0 ? "from levels" : "fixed";
   return estimate.excited ? "" : "unexcited: kept its prior";
 }
 
@@ -77,6 +77,12 @@ nlohmann::ordered_json calibrated_site_document(const nlohmann::ordered_json& or
     for (const calib::Estimate& delay : calibration.channel_delay_s)
       delays.push_back(rounded(delay.value, 8));
     array["channel_delay_s"] = delays;
+    if (!calibration.channel_gain_db.empty()) {
+      nlohmann::ordered_json gains = nlohmann::ordered_json::array();
+      for (const calib::Estimate& gain : calibration.channel_gain_db)
+        gains.push_back(rounded(gain.value, 3));
+      array["channel_gain_db"] = gains;
+    }
     array["clock_offset_s"] = rounded(calibration.clock_offset_s.value, 6);
     if (array.contains("recording") && array["recording"].is_string())
       array["recording"] =
@@ -122,6 +128,9 @@ std::string calibration_table(const calib::CalibrationResult& result) {
     for (std::size_t i = 0; i < array.channel_delay_s.size(); ++i)
       row(out, "channel_delay_s[" + std::to_string(i) + "]", array.channel_delay_s[i], 1e6, "us",
           2);
+    for (std::size_t i = 0; i < array.channel_gain_db.size(); ++i)
+      row(out, "channel_gain_db[" + std::to_string(i) + "]", array.channel_gain_db[i], 1.0, "dB",
+          3);
     row(out, "clock_offset_s", array.clock_offset_s, 1e3, "ms", 3);
   }
   return out;

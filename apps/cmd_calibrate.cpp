@@ -14,6 +14,7 @@
 #include "apps/replay_runner.hpp"
 #include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
+#include "calib/channel_gains.hpp"
 #include "calib/site_calibration.hpp"
 #include "common/log.hpp"
 #include "common/output_file.hpp"
@@ -36,20 +37,39 @@ struct CalibrateArguments {
   int passes = 2;
 };
 
-// Every full-rank DOA's pair delays, as the nodes measured them.
+// Every full-rank DOA's pair delays, as the nodes measured them, and every status's channel
+// levels (per array, per second: the gains' evidence).
 class TdoaCollector : public FusionObserver {
  public:
+  explicit TdoaCollector(const config::SiteConfig& site)
+      : levels(site.arrays.size()), site_(site) {}
   void on_doa(const doa::DoaMeasurement& doa) override {
     if (doa.ambiguity == doa::DoaAmbiguity::none) lines.push_back(tdoa_line_of(doa));
   }
+  void on_node_status(const doa::NodeStatus& status) override {
+    const int array = site_.array_index(status.array_id);
+    if (array < 0 || status.channels.empty()) return;
+    std::vector<double> stretch;
+    for (const auto& channel : status.channels) stretch.push_back(channel.rms_dbfs);
+    levels[static_cast<std::size_t>(array)].push_back(std::move(stretch));
+  }
   std::vector<TdoaLine> lines;
+  std::vector<std::vector<std::vector<double>>> levels;  // [array][second][channel], dBFS
+
+ private:
+  const config::SiteConfig& site_;
 };
 
-std::vector<TdoaLine> measure_tdoas(config::SiteConfig site, double max_duration_s) {
+struct Measured {
+  std::vector<TdoaLine> lines;
+  std::vector<std::vector<std::vector<double>>> levels;
+};
+
+Measured measure_tdoas(config::SiteConfig site, double max_duration_s) {
   // The replay runs a fusion beside the nodes; its tracks are not used here, but one array alone
   // may only feed it with single-array starts on.
   if (site.arrays.size() == 1) site.fusion.single_array_start = true;
-  TdoaCollector collector;
+  TdoaCollector collector(site);
   ReplayOptions options;
   options.max_duration_s = max_duration_s;
   const ReplaySummary summary = run_replay(site, {&collector}, options, &install_stop_handlers());
@@ -57,7 +77,7 @@ std::vector<TdoaLine> measure_tdoas(config::SiteConfig site, double max_duration
   if (!summary.cut_short.empty()) throw UserError(summary.cut_short);
   log::info("calibrate: ", collector.lines.size(), " full-rank DOAs over ", summary.stream_s,
             " s of recordings");
-  return std::move(collector.lines);
+  return {std::move(collector.lines), std::move(collector.levels)};
 }
 
 // The site as the calibration found it, for the next pass's nodes.
@@ -111,9 +131,13 @@ int run(const CalibrateArguments& arguments) {
   calib::CalibrationResult result;
   calib::ResidualStats first_before;
   for (int pass = 1; pass <= passes; ++pass) {
-    const std::vector<TdoaLine> lines = arguments.tdoa.empty()
-                                            ? measure_tdoas(current, arguments.max_duration_s)
-                                            : read_tdoa_lines(arguments.tdoa, site);
+    Measured measured;
+    if (arguments.tdoa.empty()) {
+      measured = measure_tdoas(current, arguments.max_duration_s);
+    } else {
+      measured.lines = read_tdoa_lines(arguments.tdoa, site);
+    }
+    const std::vector<TdoaLine>& lines = measured.lines;
     if (lines.empty())
       throw UserError(data_name +
                       ": no full-rank DOA with pair delays (is the calibration source "
@@ -129,6 +153,14 @@ int run(const CalibrateArguments& arguments) {
       throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
     }
     if (pass == 1) first_before = result.before;
+    // The raw channels' levels (the node applies a configured gain only to its spectra).
+    for (std::size_t a = 0; a < result.arrays.size() && a < measured.levels.size(); ++a) {
+      auto& gains = result.arrays[a].channel_gain_db;
+      gains = calib::estimate_channel_gains(measured.levels[a]);
+      const std::vector<double>& configured = site.arrays[a].geometry.channel_gain_db;
+      for (std::size_t i = 0; i < gains.size() && i < configured.size(); ++i)
+        gains[i].nominal = configured[i];
+    }
     std::printf(
         "calibrate pass %d of %d: %zu DOAs, %d pointed beyond %g deg of the reference (another "
         "source, an echo), %d outliers; TDOA residual median |r| %.2f us -> %.2f us\n",

@@ -92,8 +92,13 @@ struct ArrayCalibration {
   Estimate yaw_deg, pitch_deg, roll_deg;
   std::array<Estimate, 3> position_m;                   // site frame
   std::vector<std::array<Estimate, 3>> mic_position_m;  // array frame, per mic
-  std::vector<Estimate> channel_delay_s;                // per mic; mic 0 is the reference (0)
-  Estimate clock_offset_s;
+  // Per mic, incl. the nominal (the corrections the nodes already applied); mic 0 is the
+  // reference (0).
+  std::vector<Estimate> channel_delay_s;
+  Estimate clock_offset_s;  // incl. the nominal
+  // Per mic, relative to the channels' mean: from levels (calib/channel_gains.hpp), filled by
+  // the caller that has them; empty otherwise.
+  std::vector<Estimate> channel_gain_db;
   int frames = 0;  // frames used
   int distinct_directions = 0;
   ResidualStats before;     // nominal geometry against the logged positions

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "calib/channel_gains.hpp"
 #include "tests/calib/synthetic_flight.hpp"
 
 namespace dronetrack::calib {
@@ -300,6 +301,40 @@ TEST(ReferenceTrack, EmissionTimeSatisfiesThePropagationDelay) {
   EXPECT_FALSE(track.emission_time_s(0.1, listener, 343.0, positions));  // before the track
   const ReferenceTrack gappy({{0.0, {0, 0, 0}}, {10.0, {100, 0, 0}}}, 5.0);
   EXPECT_FALSE(gappy.bracket(5.0));
+}
+
+}  // namespace
+}  // namespace dronetrack::calib
+
+namespace dronetrack::calib {
+namespace {
+
+// Levels of four channels over 60 one-second stretches: a flight's level swinging by 20 dB, each
+// channel's gain on top, 0.3 dB of scatter (the spreading across the array, noise), a stretch
+// where channel 2 went silent. The gains come back relative to their mean, within their std.
+TEST(ChannelGains, LevelsGiveTheGainsRelativeToTheirMean) {
+  const std::vector<double> gains_db = {0.9, -0.4, 1.3, -1.1};
+  double mean_gain = 0.0;
+  for (double gain : gains_db) mean_gain += gain / 4.0;
+  std::mt19937_64 random(21);
+  std::normal_distribution<double> scatter(0.0, 0.3);
+  std::vector<std::vector<double>> levels;
+  for (int k = 0; k < 60; ++k) {
+    const double flight_db = -40.0 + 10.0 * std::sin(0.2 * k);
+    std::vector<double> stretch;
+    for (double gain : gains_db) stretch.push_back(flight_db + gain + scatter(random));
+    levels.push_back(stretch);
+  }
+  levels[17][2] = -120.0;  // silent: left out
+  const std::vector<Estimate> found = estimate_channel_gains(levels);
+  ASSERT_EQ(found.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    std::printf("channel %zu gain %+.3f +- %.3f dB (drawn %+.3f relative to the mean)\n", i,
+                found[i].value, found[i].std, gains_db[i] - mean_gain);
+    EXPECT_NEAR(found[i].value, gains_db[i] - mean_gain, 3.0 * found[i].std);
+    EXPECT_LT(found[i].std, 0.1);
+  }
+  EXPECT_TRUE(estimate_channel_gains({{-40, -41}, {-40, -41}}).empty());  // too few stretches
 }
 
 }  // namespace
