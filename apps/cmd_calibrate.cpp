@@ -128,6 +128,8 @@ int run(const CalibrateArguments& arguments) {
   const int passes = arguments.tdoa.empty() ? arguments.passes : 1;
   const std::string data_name = arguments.tdoa.empty() ? site.file.string() : arguments.tdoa;
   config::SiteConfig current = site;
+  const std::vector<calib::ArrayNominal> configured =
+      nominal_arrays(site, arguments.mic_position_std_m);
   calib::CalibrationResult result;
   calib::ResidualStats first_before;
   for (int pass = 1; pass <= passes; ++pass) {
@@ -148,7 +150,7 @@ int run(const CalibrateArguments& arguments) {
     const std::vector<calib::TdoaFrame> frames = frames_towards_reference(
         lines, arrays, reference, site.speed_of_sound_mps, arguments.direction_gate_deg, dropped);
     try {
-      result = calib::calibrate_site(arrays, frames, reference, settings);
+      result = calib::calibrate_site(arrays, frames, reference, settings, &configured);
     } catch (const calib::CalibrationError& error) {
       throw UserError(arguments.reference + " with " + data_name + ": " + error.what());
     }

@@ -314,10 +314,33 @@ std::vector<PlacedFrame> inliers(const std::vector<PlacedFrame>& placed,
   return out;
 }
 
+// The priors' means as corrections to `nominal`: where `centre` is, seen from `nominal`.
+ArrayUnknowns prior_mean(const ArrayNominal& nominal, const ArrayNominal& centre) {
+  ArrayUnknowns mean;
+  mean.attitude_rad = {(centre.yaw_deg - nominal.yaw_deg) * kRadPerDeg,
+                       (centre.pitch_deg - nominal.pitch_deg) * kRadPerDeg,
+                       (centre.roll_deg - nominal.roll_deg) * kRadPerDeg};
+  for (int axis = 0; axis < 3; ++axis)
+    mean.position_m[static_cast<std::size_t>(axis)] =
+        centre.position_m(axis) - nominal.position_m(axis);
+  const auto delay = [](const ArrayNominal& array, std::size_t i) {
+    return i < array.channel_delay_s.size() ? array.channel_delay_s[i] : 0.0;
+  };
+  for (std::size_t i = 0; i < nominal.mics_m.size(); ++i) {
+    for (int axis = 0; axis < 3; ++axis)
+      mean.mic_offsets_m.push_back(centre.mics_m[i](axis) - nominal.mics_m[i](axis));
+    mean.delays_s.push_back((delay(centre, i) - delay(centre, 0)) -
+                            (delay(nominal, i) - delay(nominal, 0)));
+  }
+  mean.clock_s = centre.clock_offset_s - nominal.clock_offset_s;
+  return mean;
+}
+
 Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<TdoaFrame>& frames,
                  const std::vector<PlacedFrame>& placed, std::vector<ArrayUnknowns>& unknowns,
-                 const ReferenceTrack& reference, std::vector<Eigen::Vector3d>& positions,
-                 const CalibrationSettings& settings, double tdoa_std_s, Loss loss) {
+                 const std::vector<ArrayUnknowns>& prior_means, const ReferenceTrack& reference,
+                 std::vector<Eigen::Vector3d>& positions, const CalibrationSettings& settings,
+                 double tdoa_std_s, Loss loss) {
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   Solve solve;
@@ -334,20 +357,24 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
     problem.AddParameterBlock(u.delays_s.data(), static_cast<int>(mics),
                               new ceres::SubsetManifold(static_cast<int>(mics), {0}));
     problem.AddParameterBlock(&u.clock_s, 1);
-    const auto add_prior = [&](double* block, int size, double std) {
+    const ArrayUnknowns& mean = prior_means[a];
+    const auto add_prior = [&](double* block, const double* centre, int size, double std) {
       if (std <= 0.0) {
         problem.SetParameterBlockConstant(block);
         return;
       }
-      problem.AddResidualBlock(
-          prior_on(Eigen::VectorXd::Zero(size), Eigen::VectorXd::Constant(size, std)), nullptr,
-          block);
+      problem.AddResidualBlock(prior_on(Eigen::Map<const Eigen::VectorXd>(centre, size),
+                                        Eigen::VectorXd::Constant(size, std)),
+                               nullptr, block);
     };
-    add_prior(u.attitude_rad.data(), 3, priors.attitude_std_deg * kRadPerDeg);
-    add_prior(u.position_m.data(), 3, priors.array_position_std_m);
-    add_prior(u.mic_offsets_m.data(), static_cast<int>(3 * mics), arrays[a].mic_position_std_m);
-    add_prior(u.delays_s.data(), static_cast<int>(mics), priors.channel_delay_std_s);
-    add_prior(&u.clock_s, 1, priors.clock_offset_std_s);
+    add_prior(u.attitude_rad.data(), mean.attitude_rad.data(), 3,
+              priors.attitude_std_deg * kRadPerDeg);
+    add_prior(u.position_m.data(), mean.position_m.data(), 3, priors.array_position_std_m);
+    add_prior(u.mic_offsets_m.data(), mean.mic_offsets_m.data(), static_cast<int>(3 * mics),
+              arrays[a].mic_position_std_m);
+    add_prior(u.delays_s.data(), mean.delays_s.data(), static_cast<int>(mics),
+              priors.channel_delay_std_s);
+    add_prior(&u.clock_s, &mean.clock_s, 1, priors.clock_offset_std_s);
   }
 
   std::vector<bool> used(positions.size(), false);
@@ -475,8 +502,21 @@ int free_parameters(const Solve& solve, const std::vector<ArrayNominal>& arrays,
 CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
                                  const std::vector<TdoaFrame>& frames,
                                  const ReferenceTrack& reference,
-                                 const CalibrationSettings& settings) {
+                                 const CalibrationSettings& settings,
+                                 const std::vector<ArrayNominal>* prior_centres) {
   check_input(arrays, frames, reference, settings);
+  if (prior_centres != nullptr) {
+    bool matching = prior_centres->size() == arrays.size();
+    for (std::size_t a = 0; matching && a < arrays.size(); ++a)
+      matching = (*prior_centres)[a].mics_m.size() == arrays[a].mics_m.size();
+    if (!matching) throw CalibrationError("the prior centres do not match the arrays");
+  }
+  const auto centre_of = [&](std::size_t a) -> const ArrayNominal& {
+    return prior_centres != nullptr ? (*prior_centres)[a] : arrays[a];
+  };
+  std::vector<ArrayUnknowns> prior_means;
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    prior_means.push_back(prior_mean(arrays[a], centre_of(a)));
   std::vector<ArrayUnknowns> unknowns(arrays.size());
   for (std::size_t a = 0; a < arrays.size(); ++a) {
     unknowns[a].mic_offsets_m.assign(3 * arrays[a].mics_m.size(), 0.0);
@@ -554,8 +594,8 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
           inliers(placed, frames_residuals_of(placed), settings.outlier_threshold * tdoa_std_s);
     }
     const bool last = pass + 1 == passes;
-    solve = solve_once(arrays, frames, placed, unknowns, reference, positions, settings, tdoa_std_s,
-                       last ? Loss::huber : Loss::cauchy);
+    solve = solve_once(arrays, frames, placed, unknowns, prior_means, reference, positions,
+                       settings, tdoa_std_s, last ? Loss::huber : Loss::cauchy);
     if (estimate_std && !last) {
       const auto residuals =
           frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
@@ -576,8 +616,9 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     result.correlation_inflation =
         correlation_inflation(residuals, placed, frames, tdoa_std_s, settings.huber_threshold);
     if (result.correlation_inflation > 1.05) {
-      solve = solve_once(arrays, frames, placed, unknowns, reference, positions, settings,
-                         tdoa_std_s * std::sqrt(result.correlation_inflation), Loss::huber);
+      solve =
+          solve_once(arrays, frames, placed, unknowns, prior_means, reference, positions, settings,
+                     tdoa_std_s * std::sqrt(result.correlation_inflation), Loss::huber);
     }
   }
   result.tdoa_std_s = tdoa_std_s;
@@ -625,6 +666,7 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
   const double ratio = settings.excited_ratio;
   for (std::size_t a = 0; a < arrays.size(); ++a) {
     const ArrayNominal& nominal = arrays[a];
+    const ArrayNominal& centre = centre_of(a);
     const ArrayUnknowns& u = unknowns[a];
     const std::size_t mics = nominal.mics_m.size();
     ArrayCalibration out;
@@ -633,19 +675,19 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     const double attitude_scale = 1.0 / kRadPerDeg;
     const double attitude_prior = priors.attitude_std_deg;
     out.yaw_deg =
-        make_estimate(nominal.yaw_deg, nominal.yaw_deg + u.attitude_rad[0] * attitude_scale,
+        make_estimate(centre.yaw_deg, nominal.yaw_deg + u.attitude_rad[0] * attitude_scale,
                       attitude(0) * attitude_scale * attitude_scale, attitude_prior, ratio);
     out.pitch_deg =
-        make_estimate(nominal.pitch_deg, nominal.pitch_deg + u.attitude_rad[1] * attitude_scale,
+        make_estimate(centre.pitch_deg, nominal.pitch_deg + u.attitude_rad[1] * attitude_scale,
                       attitude(1) * attitude_scale * attitude_scale, attitude_prior, ratio);
     out.roll_deg =
-        make_estimate(nominal.roll_deg, nominal.roll_deg + u.attitude_rad[2] * attitude_scale,
+        make_estimate(centre.roll_deg, nominal.roll_deg + u.attitude_rad[2] * attitude_scale,
                       attitude(2) * attitude_scale * attitude_scale, attitude_prior, ratio);
     const Eigen::VectorXd position = variances(u.position_m.data(), 3);
     for (int axis = 0; axis < 3; ++axis) {
       const auto index = static_cast<std::size_t>(axis);
       out.position_m[index] =
-          make_estimate(nominal.position_m(axis), nominal.position_m(axis) + u.position_m[index],
+          make_estimate(centre.position_m(axis), nominal.position_m(axis) + u.position_m[index],
                         position(axis), priors.array_position_std_m, ratio);
     }
     const Eigen::VectorXd offsets = variances(u.mic_offsets_m.data(), static_cast<int>(3 * mics));
@@ -655,18 +697,20 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
       for (int axis = 0; axis < 3; ++axis) {
         const std::size_t k = 3 * i + static_cast<std::size_t>(axis);
         mic[static_cast<std::size_t>(axis)] =
-            make_estimate(nominal.mics_m[i](axis), nominal.mics_m[i](axis) + u.mic_offsets_m[k],
+            make_estimate(centre.mics_m[i](axis), nominal.mics_m[i](axis) + u.mic_offsets_m[k],
                           offsets(static_cast<Eigen::Index>(k)), nominal.mic_position_std_m, ratio);
       }
       out.mic_position_m.push_back(mic);
       const double applied_s =
           i < nominal.channel_delay_s.size() ? nominal.channel_delay_s[i] : 0.0;
-      out.channel_delay_s.push_back(
-          make_estimate(applied_s, applied_s + u.delays_s[i], delays(static_cast<Eigen::Index>(i)),
-                        i == 0 ? 0.0 : priors.channel_delay_std_s, ratio));
+      const double configured_s =
+          i < centre.channel_delay_s.size() ? centre.channel_delay_s[i] : 0.0;
+      out.channel_delay_s.push_back(make_estimate(
+          configured_s, applied_s + u.delays_s[i], delays(static_cast<Eigen::Index>(i)),
+          i == 0 ? 0.0 : priors.channel_delay_std_s, ratio));
     }
     out.clock_offset_s =
-        make_estimate(nominal.clock_offset_s, nominal.clock_offset_s + u.clock_s,
+        make_estimate(centre.clock_offset_s, nominal.clock_offset_s + u.clock_s,
                       variances(&u.clock_s, 1)(0), priors.clock_offset_std_s, ratio);
     out.frames = 0;
     for (const auto& place : placed) out.frames += frames[place.frame].array == static_cast<int>(a);

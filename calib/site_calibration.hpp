@@ -128,9 +128,14 @@ struct CalibrationError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// `prior_centres` (optional, one per array): where the priors are centred when not on `arrays`
+// (a later pass linearises at the previous pass's estimate, measured by nodes that applied it,
+// but its priors stay the configured values, so no pass's drift is taken as known). The
+// estimates' `nominal` are then these.
 CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
                                  const std::vector<TdoaFrame>& frames,
                                  const ReferenceTrack& reference,
-                                 const CalibrationSettings& settings);
+                                 const CalibrationSettings& settings,
+                                 const std::vector<ArrayNominal>* prior_centres = nullptr);
 
 }  // namespace dronetrack::calib
