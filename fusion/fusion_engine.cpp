@@ -13,8 +13,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/log.hpp"
 #include "fusion/assignment.hpp"
 #include "fusion/doa_likelihood.hpp"
+#include "fusion/gaussian_sum_filter.hpp"
 #include "fusion/measurement_model.hpp"
 #include "fusion/track_filter.hpp"
 #include "fusion/triangulation.hpp"
@@ -155,7 +157,24 @@ struct Track {
   bool one_array = false;
   int origin_array = -1;                                                   // its one array
   MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
+  int branches_left = -1;  // a Gaussian sum's locus branches (mirror sides) with weight left
 };
+
+// A one-array Gaussian-sum track whose count of live branches (the locus's mirror sides) changed:
+// one debug line (seed 003's "mirror hypotheses gone", docs/replicas.md measures it by this).
+void log_branches(Track& track, double time_s) {
+  const auto* sum = dynamic_cast<const GaussianSumFilter*>(track.filter.get());
+  if (sum == nullptr) return;
+  int left = 0;
+  for (int branch = 0; branch < 4; ++branch) left += sum->branch_weight(branch) > 0.0 ? 1 : 0;
+  if (left == track.branches_left) return;
+  if (track.branches_left >= 0) {
+    const StateVector& x = sum->mean();
+    log::debug("fusion: track ", track.id, " t ", time_s, " s: ", left, " branch(es) left, ",
+               sum->hypothesis_count(), " hypotheses, mean (", x(0), ", ", x(1), ", ", x(2), ")");
+  }
+  track.branches_left = left;
+}
 
 }  // namespace
 
@@ -626,7 +645,10 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
     classifier->add_acoustic(track.evidence, m.acoustic, time_s);
-    if (track.one_array) hand_over(track);
+    if (track.one_array) {
+      if (log::level() <= log::Level::debug) log_branches(track, time_s);
+      hand_over(track);
+    }
   }
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
