@@ -168,11 +168,10 @@ void log_branches(Track& track, double time_s) {
   int left = 0;
   for (int branch = 0; branch < 4; ++branch) left += sum->branch_weight(branch) > 0.0 ? 1 : 0;
   if (left == track.branches_left) return;
-  if (track.branches_left >= 0) {
-    const StateVector& x = sum->mean();
-    log::debug("fusion: track ", track.id, " t ", time_s, " s: ", left, " branch(es) left, ",
-               sum->hypothesis_count(), " hypotheses, mean (", x(0), ", ", x(1), ", ", x(2), ")");
-  }
+  const StateVector& x = sum->mean();
+  log::debug("fusion: track ", track.id, " t ", time_s, " s: ", left, " branch(es) left",
+             track.branches_left < 0 ? " at its first update, " : ", ", sum->hypothesis_count(),
+             " hypotheses, mean (", x(0), ", ", x(1), ", ", x(2), ")");
   track.branches_left = left;
 }
 
