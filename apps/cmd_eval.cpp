@@ -98,6 +98,12 @@ void register_eval(CLI::App& root, CommandTable& table) {
       ->capture_default_str()
       ->check(finite_in(1e-3, 1e5));
   command
+      ->add_option("--one-array-bearing-deg", arguments->options.one_array_bearing_gate_deg,
+                   "A one-array track follows a source on its bearing within this angle from an "
+                   "array, with the source inside its stated extent, degrees")
+      ->capture_default_str()
+      ->check(finite_in(1e-3, 90.0));
+  command
       ->add_option("--tick-s", arguments->options.tick_s,
                    "Evaluation step, seconds (default: the tracks' output interval)")
       ->check(finite_in(0.0, 3600.0));

@@ -108,14 +108,17 @@ int format_track_line(double time_s, const fusion::TrackReport& track, char* buf
   const Eigen::Vector3d& v = track.velocity_mps;
   const Eigen::Vector3d& a = track.acceleration_mps2;
   const Eigen::Vector3d s = track.position_std_m();
-  return std::snprintf(
+  const int length = std::snprintf(
       buffer, size,
       R"({"t":%.3f,"id":%d,"position_m":[%.4f,%.4f,%.4f],"velocity_mps":[%.4f,%.4f,%.4f],)"
       R"("acceleration_mps2":[%.4f,%.4f,%.4f],"position_std_m":[%.4f,%.4f,%.4f],"status":"%s",)"
-      R"("class":"%s","class_confidence":%.3f})",
+      R"("class":"%s","class_confidence":%.3f%s)",
       time_s, track.id, p.x(), p.y(), p.z(), v.x(), v.y(), v.z(), a.x(), a.y(), a.z(), s.x(), s.y(),
       s.z(), fusion::to_string(track.status), fusion::to_string(track.track_class),
-      track.class_confidence);
+      track.class_confidence, track.one_array ? "," : "}");
+  if (length <= 0 || !track.one_array) return length;
+  return append_formatted(buffer, size, length, R"("one_array":true,"hypotheses":%d})",
+                          track.hypotheses);
 }
 
 int format_alert_line(const fusion::ZoneEvent& event, char* buffer, std::size_t size) {

@@ -6,7 +6,7 @@ namespace dronetrack::apps {
 
 LivePoseStamper::LivePoseStamper(const doa::ArrayGeometry& geometry, double max_gap_s)
     : ring_(max_gap_s),
-      mic_centroid_m_(doa::mic_centroid_array_m(geometry)),
+      mic_centroid_m_(doa::mic_centroid_m(geometry)),
       max_wait_s_(max_gap_s + kWaitMargin_s) {
   pending_.reserve(kMaxPending);
 }

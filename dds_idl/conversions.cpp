@@ -374,6 +374,8 @@ void to_idl(const fusion::TrackReport& report, dronetrack_Track& sample) {
   sample.last_update_ns = seconds_to_ns(report.last_update_s);
   sample.track_class = static_cast<std::uint8_t>(report.track_class);
   sample.class_confidence = report.class_confidence;
+  sample.one_array = report.one_array;
+  sample.hypotheses = report.hypotheses;
 }
 
 SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out) {
@@ -381,7 +383,8 @@ SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out)
       !all_finite(sample.acceleration_mps2) || !all_finite(sample.covariance_upper)) {
     return SampleProblem::non_finite;
   }
-  if (sample.status > 2 || sample.track_class > 3 || !finite(sample.class_confidence))
+  if (sample.status > 2 || sample.track_class > 3 || !finite(sample.class_confidence) ||
+      sample.hypotheses < 0)
     return SampleProblem::bad_value;
   out.id = sample.id;
   out.time_s = ns_to_seconds(sample.time_ns);
@@ -401,6 +404,8 @@ SampleProblem from_idl(const dronetrack_Track& sample, fusion::TrackReport& out)
   out.last_update_s = ns_to_seconds(sample.last_update_ns);
   out.track_class = static_cast<fusion::TrackClass>(sample.track_class);
   out.class_confidence = sample.class_confidence;
+  out.one_array = sample.one_array;
+  out.hypotheses = std::max(1, static_cast<int>(sample.hypotheses));  // 0: a zeroed sample
   return SampleProblem::none;
 }
 

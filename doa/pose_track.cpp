@@ -46,7 +46,7 @@ Eigen::Quaterniond pose_attitude(const PoseSample& sample) {
   return Eigen::Quaterniond(attitude_to_site(sample.yaw_deg, sample.pitch_deg, sample.roll_deg));
 }
 
-Eigen::Vector3d mic_centroid_array_m(const ArrayGeometry& geometry) {
+Eigen::Vector3d mic_centroid_m(const ArrayGeometry& geometry) {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& mic : geometry.mics_m) centroid += mic;
   if (!geometry.mics_m.empty()) centroid /= static_cast<double>(geometry.mics_m.size());
@@ -93,8 +93,7 @@ std::size_t PoseTrack::after(double time_s) const {
 std::optional<PoseStamp> PoseTrack::stamp(double time_s, const ArrayGeometry& geometry) const {
   if (!covers(time_s)) return std::nullopt;
   const std::size_t next = after(time_s);
-  return interpolate_pose(samples_[next - 1], samples_[next], time_s,
-                          mic_centroid_array_m(geometry));
+  return interpolate_pose(samples_[next - 1], samples_[next], time_s, mic_centroid_m(geometry));
 }
 
 std::optional<Eigen::Vector3d> PoseTrack::velocity_mps(double time_s) const {

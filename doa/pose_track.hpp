@@ -34,8 +34,8 @@ Eigen::Quaterniond pose_attitude(const PoseSample& sample);
 PoseStamp interpolate_pose(const PoseSample& before, const PoseSample& after, double time_s,
                            const Eigen::Vector3d& mic_centroid_array_m);
 
-// The mic centroid in the array frame (the point DOAs point from).
-Eigen::Vector3d mic_centroid_array_m(const ArrayGeometry& geometry);
+// The mic centroid in the array frame (the point DOAs point from), m.
+Eigen::Vector3d mic_centroid_m(const ArrayGeometry& geometry);
 
 class PoseTrack {
  public:

@@ -75,6 +75,10 @@ struct TrackRecord {
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
   std::string status;                   // tentative | confirmed | coasting
   std::string track_class = "unknown";  // "class": drone | ground | aircraft | unknown
+  // A track resting on one array (issue 15: "one_array": true) and its stated 1-sigma extent
+  // ("position_std_m"; absent: unknown, 0).
+  bool one_array = false;
+  Eigen::Vector3d position_std_m = Eigen::Vector3d::Zero();
 };
 
 // An alert line (`replay --alerts-out`).
@@ -94,6 +98,10 @@ struct EvalOptions {
   // A source has converged once every later error of its associated tracks is within this
   // (static and slow sources, issue 15: the papers' "time to converge").
   double converge_gate_m = 3.0;
+  // A one-array track (issue 15) knows its bearing, not its range: it follows a source when, seen
+  // from some array, it lies within this angle of the source AND the source lies within its own
+  // stated 99 % extent; then it is associated and covers the source whatever its metric error.
+  double one_array_bearing_gate_deg = 3.0;
 };
 
 struct PositionMetrics {
@@ -129,7 +137,8 @@ struct SourceMetrics {
   // EvalOptions::converge_gate_m for good (-1: never tracked / never converged).
   double final_error_m = -1.0;
   double converged_after_s = -1.0;
-  double travelled_m = 0.0;  // path length of the truth in the window (0: a static source)
+  double travelled_m = 0.0;       // path length of the truth in the window (0: a static source)
+  double one_array_time_s = 0.0;  // of tracked_time_s, followed by a one-array track
 };
 
 struct DoaArrayMetrics {

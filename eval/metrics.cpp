@@ -135,6 +135,26 @@ double doa_error_deg(const DoaRecord& doa, const Eigen::Vector3d& truth_directio
   return doa::angle_between_deg(truth_direction, doa.direction.normalized());
 }
 
+// sqrt of the chi-square 99 % quantile with 3 degrees of freedom (11.345).
+constexpr double kNinetyNinePercent3d = 3.3682;
+
+// Whether a one-array track follows a truth position in the sense of EvalOptions: on the
+// source's bearing from some array, and the source within its stated extent.
+bool one_array_follows(const TrackRecord& track, const Eigen::Vector3d& truth_position,
+                       const Truth& truth, const EvalOptions& options) {
+  if (!track.one_array || !(track.position_std_m.minCoeff() > 0.0)) return false;
+  const Eigen::Vector3d error = track.position_m - truth_position;
+  if (error.cwiseQuotient(track.position_std_m).norm() > kNinetyNinePercent3d) return false;
+  for (const auto& [id, centre] : truth.array_centres_m) {
+    const Eigen::Vector3d to_track = track.position_m - centre;
+    const Eigen::Vector3d to_truth = truth_position - centre;
+    if (to_track.norm() > 0.0 && to_truth.norm() > 0.0 &&
+        doa::angle_between_deg(to_track, to_truth) <= options.one_array_bearing_gate_deg)
+      return true;
+  }
+  return false;
+}
+
 bool counted(const TrackRecord& track, const EvalOptions& options) {
   return track.status != "tentative" || options.include_tentative;
 }
@@ -276,9 +296,10 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
     cost.assign(static_cast<std::size_t>(rows) * cols, fusion::kForbidden);
     for (int r = 0; r < rows; ++r) {
       for (int c = 0; c < cols; ++c) {
-        const double distance =
-            (live[r]->position_m - truth.sources[alive[c]].position_at(live[r]->time_s)).norm();
-        if (distance <= options.association_gate_m) {
+        const Eigen::Vector3d truth_position = truth.sources[alive[c]].position_at(live[r]->time_s);
+        const double distance = (live[r]->position_m - truth_position).norm();
+        if (distance <= options.association_gate_m ||
+            one_array_follows(*live[r], truth_position, truth, options)) {
           cost[static_cast<std::size_t>(r) * cols + c] = distance;
         }
       }
@@ -321,7 +342,10 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
         metrics.track_ids.push_back(live[r]->id);
       }
       const double error_m = (live[r]->position_m - truth_position).norm();
-      if (error_m <= options.coverage_gate_m) source_covered[s] = 1;
+      if (error_m <= options.coverage_gate_m ||
+          one_array_follows(*live[r], truth_position, truth, options))
+        source_covered[s] = 1;
+      if (live[r]->one_array) metrics.one_array_time_s += tick;
       metrics.final_error_m = error_m;
       if (error_m > options.converge_gate_m) {
         within_gate_since[s] = -1.0;

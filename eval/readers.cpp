@@ -230,8 +230,8 @@ Truth parse_truth(const std::string& text, const std::string& file) {
 namespace {
 void fill_track(ObjectReader& reader, const nlohmann::json& node, Diagnostics& diagnostics,
                 TrackRecord& record) {
-  for (const char* key : {"velocity_mps", "acceleration_mps2", "position_std_m", "covariance",
-                          "arrays", "contributing_arrays"}) {
+  for (const char* key : {"velocity_mps", "acceleration_mps2", "covariance", "arrays",
+                          "contributing_arrays", "hypotheses"}) {
     reader.accept(key);
   }
   (void)node;
@@ -247,6 +247,15 @@ void fill_track(ObjectReader& reader, const nlohmann::json& node, Diagnostics& d
   record.status = reader.choice("status", "confirmed", {"tentative", "confirmed", "coasting"});
   record.track_class =
       reader.choice("class", "unknown", {"drone", "ground", "aircraft", "unknown"});
+  record.one_array = reader.boolean("one_array", false);
+  if (reader.has("position_std_m")) {
+    const auto std_m = reader.vector3("position_std_m", true);
+    if (std_m && (std_m->array() >= 0.0).all()) {
+      record.position_std_m = *std_m;
+    } else if (std_m) {
+      reader.diagnostics().error(reader.path_of("position_std_m"), "expected 3 numbers >= 0");
+    }
+  }
   // Extra keys are allowed in JSON lines.
   for (const auto& item : node.items()) reader.accept(item.key());
 }

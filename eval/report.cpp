@@ -55,11 +55,14 @@ std::string format_table(const EvalReport& r) {
                   source.id_switches, ids.empty() ? "-" : ids.c_str());
   }
   out += format("%-8s %7.2f%% %12d\n", "all", 100.0 * r.coverage, r.id_switches);
-  out += format("\nsource  travelled_m  final_error_m  converged_after_s  (within %.1f m)\n",
-                r.options.converge_gate_m);
+  out += format(
+      "\nsource  travelled_m  final_error_m  converged_after_s  first_tracked_s  one_array_s  "
+      "(within %.1f m)\n",
+      r.options.converge_gate_m);
   for (const SourceMetrics& source : r.sources) {
-    out += format("%-8s %11.1f %14.3f %18.1f\n", source.id.c_str(), source.travelled_m,
-                  source.final_error_m, source.converged_after_s);
+    out += format("%-8s %11.1f %14.3f %18.1f %16.1f %12.1f\n", source.id.c_str(),
+                  source.travelled_m, source.final_error_m, source.converged_after_s,
+                  source.first_tracked_s, source.one_array_time_s);
   }
   out += format("\ntracks %d, track time %.1f s, false-track time %.1f s (%.2f%%)\n", r.tracks_seen,
                 r.track_time_s, r.false_track_time_s, 100.0 * r.false_track_fraction);
@@ -105,7 +108,9 @@ nlohmann::json to_json(const EvalReport& r) {
                        {"classified_after_s", source.classified_after_s},
                        {"travelled_m", source.travelled_m},
                        {"final_error_m", source.final_error_m},
-                       {"converged_after_s", source.converged_after_s}});
+                       {"converged_after_s", source.converged_after_s},
+                       {"first_tracked_s", source.first_tracked_s},
+                       {"one_array_time_s", source.one_array_time_s}});
   }
   nlohmann::json others = nlohmann::json::array();
   for (const OtherSourceMetrics& other : r.others) {

@@ -45,6 +45,8 @@ json track_json(const fusion::TrackReport& track, const SiteLayout& layout) {
       {"covariance_xy_m2",
        json::array({json::array({c(0, 0), c(0, 1)}), json::array({c(1, 0), c(1, 1)})})},
       {"contributing_arrays", std::move(contributing)},
+      {"one_array", track.one_array},
+      {"hypotheses", track.hypotheses},
       {"speed_mps", track.velocity_mps.norm()},
       {"ground_speed_mps", track.velocity_mps.head<2>().norm()},
       {"heading_deg", compass_heading_deg(track.velocity_mps)},

@@ -258,7 +258,7 @@
       if (!shown(t)) continue;
       // A track resting on one array (range from its motion or its hypotheses, not from a
       // second bearing) is drawn dashed and says so.
-      const oneArray = t.contributing_arrays.length === 1;
+      const oneArray = t.one_array || t.contributing_arrays.length === 1;
       const tg = el('g', { class: `track ${t.status} class-${t.class}` + (oneArray ? ' one-array' : '') +
                              (t.id === state.selected ? ' selected' : ''),
                            'data-track-id': t.id, 'data-arrays': t.contributing_arrays.length }, g);
@@ -332,7 +332,8 @@
     set('uncertainty', `x ${fmt(sd[0])} m, y ${fmt(sd[1])} m, z ${fmt(sd[2])} m`, Math.max(...sd));
     set('status', t.status);
     set('class', `${t.class} (${fmt(100 * t.class_confidence, 0)} %)`, t.class);
-    set('arrays', t.contributing_arrays.length === 1 ? `${t.contributing_arrays[0]} only (one-array track)`
+    set('arrays', t.one_array ? `${t.contributing_arrays.join(', ')} only (one-array track, ${t.hypotheses} hypotheses)`
+      : t.contributing_arrays.length === 1 ? `${t.contributing_arrays[0]} only`
       : t.contributing_arrays.length ? t.contributing_arrays.join(', ') : 'none', t.contributing_arrays.join(','));
   }
   function shown(t) { return state.classFilter === 'all' || t.class === state.classFilter; }

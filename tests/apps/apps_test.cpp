@@ -91,6 +91,29 @@ TEST(JsonLines, ConeAndPoseBlocksRoundTripThroughTheReader) {
   EXPECT_FALSE(mirror[0].pose.has_value());
 }
 
+TEST(JsonLines, OneArrayTrackSaysSoAndEvalReadsIt) {
+  fusion::TrackReport track;
+  track.id = 5;
+  track.one_array = true;
+  track.hypotheses = 7;
+  track.covariance.diagonal().head<3>() = Eigen::Vector3d(400.0, 900.0, 100.0);
+  char buffer[1024];
+  const int length = format_track_line(3.0, track, buffer, sizeof buffer);
+  ASSERT_GT(length, 0);
+  const std::string text(buffer, static_cast<std::size_t>(length));
+  const auto line = nlohmann::json::parse(text);
+  EXPECT_EQ(line.at("one_array"), true);
+  EXPECT_EQ(line.at("hypotheses"), 7);
+  const auto records = eval::parse_tracks(text + "\n", "T.jsonl");
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_TRUE(records[0].one_array);
+  EXPECT_EQ(records[0].position_std_m, Eigen::Vector3d(20.0, 30.0, 10.0));
+  track.one_array = false;
+  const int plain = format_track_line(3.0, track, buffer, sizeof buffer);
+  EXPECT_FALSE(nlohmann::json::parse(std::string(buffer, static_cast<std::size_t>(plain)))
+                   .contains("one_array"));
+}
+
 TEST(JsonLines, TrackLineCarriesTheSpecFields) {
   fusion::TrackReport track;
   track.id = 3;

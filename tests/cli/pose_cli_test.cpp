@@ -299,7 +299,7 @@ TEST_F(PoseCli, MovingArrayPointsAtAStaticSourceFromThePoseAtEachTime) {
     const dronetrack::doa::PoseSample truth = platform_pose(t);
     const Eigen::Vector3d true_centre =
         truth.position_m + dronetrack::doa::attitude_to_site(truth.yaw_deg, 0, 0) *
-                               dronetrack::doa::mic_centroid_array_m(nominal_);
+                               dronetrack::doa::mic_centroid_m(nominal_);
     EXPECT_LT((centre - true_centre).norm(), 1e-3) << t;
     worst_deg = std::max(worst_deg, dronetrack::doa::angle_between_deg(
                                         direction, (kSource_m - true_centre).normalized()));

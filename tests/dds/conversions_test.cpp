@@ -211,6 +211,14 @@ TEST(DdsConversions, DamagedStatusTrackAndAlert) {
   track.covariance_upper[44] = 1.0;
   track.status = 9;
   EXPECT_EQ(from_idl(track, track_out), SampleProblem::bad_value);
+  track.status = 0;
+  track.one_array = true;
+  track.hypotheses = 12;
+  ASSERT_EQ(from_idl(track, track_out), SampleProblem::none);
+  EXPECT_TRUE(track_out.one_array);
+  EXPECT_EQ(track_out.hypotheses, 12);
+  track.hypotheses = -1;
+  EXPECT_EQ(from_idl(track, track_out), SampleProblem::bad_value);
 
   dronetrack_Alert alert{};
   fusion::ZoneEvent alert_out;

@@ -192,7 +192,7 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
     worst_deg = std::max(worst_deg, dronetrack::doa::angle_between_deg(doa.direction, expected));
     const Eigen::Vector3d centre =
         origin_m(doa.time_s) + dronetrack::doa::attitude_to_site(heading_deg(doa.time_s), 0, 0) *
-                                   dronetrack::doa::mic_centroid_array_m(array);
+                                   dronetrack::doa::mic_centroid_m(array);
     EXPECT_LT((doa.pose.centre_m - centre).norm(), 1e-6) << doa.time_s;
   }
   std::printf("%zu DOAs over DDS, worst error against the heading at their time %.3f deg\n",

@@ -178,6 +178,41 @@ TEST(EvalMetrics, FinalErrorAndTimeToConvergeOfAStaticSource) {
               40.0, 1e-6);
 }
 
+// A one-array track on the source's bearing with a range error its stated extent covers is the
+// source's track (associated, covering); off the bearing, or claiming more than it knows, it is
+// a false track.
+TEST(EvalMetrics, OneArrayTrackCoversOnItsBearingWithinItsStatedExtent) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {300, 0, 60}, {0, 0, 0}, 10.0));
+  truth.array_centres_m = {{"A1", {0, 0, 0}}};
+  const auto track_at = [&](double range_scale, double angle_deg, double std_m) {
+    std::vector<TrackRecord> tracks;
+    const double angle = angle_deg * M_PI / 180.0;
+    const Eigen::Vector3d truth_position(300, 0, 60);
+    const Eigen::Vector3d along = truth_position * range_scale;
+    const Eigen::Vector3d turned(along.x() * std::cos(angle) - along.y() * std::sin(angle),
+                                 along.x() * std::sin(angle) + along.y() * std::cos(angle),
+                                 along.z());
+    for (int k = 0; k <= 100; ++k) {
+      TrackRecord record{k * 0.1, 4, turned, "confirmed"};
+      record.one_array = true;
+      record.position_std_m = Eigen::Vector3d(std_m, std_m, std_m);
+      tracks.push_back(record);
+    }
+    return evaluate(truth, tracks, {}, EvalOptions{});
+  };
+  // 60 m short along the ray (0.8 of the range), 40 m std each axis: on the bearing, inside.
+  const EvalReport on_bearing = track_at(0.8, 0.0, 40.0);
+  EXPECT_NEAR(on_bearing.coverage, 1.0, 1e-9);
+  EXPECT_NEAR(on_bearing.false_track_fraction, 0.0, 1e-12);
+  EXPECT_NEAR(on_bearing.sources[0].one_array_time_s, 10.1, 1e-9);
+  EXPECT_NEAR(on_bearing.sources[0].first_tracked_s, 0.0, 1e-9);
+  // The same error claimed at 10 m std: the truth is outside what the track says: false.
+  EXPECT_NEAR(track_at(0.8, 0.0, 10.0).coverage, 0.0, 1e-12);
+  // 5 deg off the bearing: false however wide.
+  EXPECT_NEAR(track_at(1.0, 5.0, 100.0).false_track_fraction, 1.0, 1e-12);
+}
+
 // A cone DOA is judged on the one angle it measured; a mirror DOA against the nearer image.
 TEST(EvalMetrics, ConeAndMirrorDoaErrors) {
   Truth truth;
