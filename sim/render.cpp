@@ -11,7 +11,6 @@
 #include "common/log.hpp"
 #include "common/output_file.hpp"
 #include "doa/array_geometry.hpp"
-#include "doa/pose_track.hpp"  // mic_centroid_array_m
 #include "sim/noise.hpp"
 #include "sim/propagation.hpp"
 #include "sim/source_signal.hpp"
@@ -53,6 +52,13 @@ Receiver receiver_of(const Scenario& scenario, std::size_t array_index, std::siz
   if (const MovingArray* moving = moving_array(scenario, array_index))
     return Receiver::carried(moving->motion, geometry.mics_m[mic]);
   return Receiver::fixed(geometry.mic_site_m(mic));
+}
+
+Eigen::Vector3d mic_centroid_array_m(const doa::ArrayGeometry& geometry) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& mic : geometry.mics_m) sum += mic;
+  return geometry.mics_m.empty() ? sum
+                                 : Eigen::Vector3d(sum / static_cast<double>(geometry.mic_count()));
 }
 
 // Renders scenes: synthesises each source once, over the emission times the chosen arrays need.
