@@ -299,7 +299,13 @@ struct FusionEngine::Impl {
     const double z_std = std::sqrt(std::max(fix.covariance_m2(2, 2), 0.0));
     return fix.position_m.z() + 3.0 * z_std < params.ground_altitude_m;
   }
+  // Track life cycle. Confirmation and deletion are decided at each frame (deletion before the
+  // frame's assignment, confirmation after it), so the tracks do not depend on how the caller
+  // batches advance_to (replay from audio advances per audio block, --doa-in per DOA line);
+  // life_cycle (at each advance) deletes up to that time and updates the classifier.
   void life_cycle(double now_s);
+  void confirm_tracks(double now_s);
+  void delete_expired(double now_s);
   // Ghost test (issue 14): from every array that supports it, the track lies along the ray of
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
@@ -555,7 +561,10 @@ void FusionEngine::Impl::feed_until(double cutoff_s) {
            queue[end].array_index == queue[begin].array_index) {
       ++end;
     }
+    const double frame_time_s = queue[begin].time_s;
+    delete_expired(frame_time_s);
     process_frame(begin, end);
+    confirm_tracks(frame_time_s);
     begin = end;
   }
   queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(begin));
@@ -1052,7 +1061,7 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
   return supporting > 0;
 }
 
-void FusionEngine::Impl::life_cycle(double now_s) {
+void FusionEngine::Impl::confirm_tracks(double now_s) {
   const std::uint32_t window_mask =
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
   const int min_arrays = std::min<int>(params.confirm_min_arrays, static_cast<int>(arrays.size()));
@@ -1089,6 +1098,9 @@ void FusionEngine::Impl::life_cycle(double now_s) {
       ++counters.tracks_confirmed;
     }
   }
+}
+
+void FusionEngine::Impl::life_cycle(double now_s) {
   for (Track& track : tracks) {
     const StateVector& mean = track.filter->mean();
     const double altitude_std_m = std::sqrt(std::max(
@@ -1097,6 +1109,10 @@ void FusionEngine::Impl::life_cycle(double now_s) {
                                track.time_s);
     classifier->classify(track.evidence);
   }
+  delete_expired(now_s);
+}
+
+void FusionEngine::Impl::delete_expired(double now_s) {
   const double max_variance = params.max_position_std_m * params.max_position_std_m;
   const auto dead = [&](const Track& track) {
     const bool unconfirmed_expired =
