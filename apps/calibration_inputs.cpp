@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <numbers>
 
 #include <nlohmann/json.hpp>
 
@@ -12,7 +13,7 @@
 namespace dronetrack::apps {
 namespace {
 
-constexpr double kRadPerDeg = 3.14159265358979323846 / 180.0;
+constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 // Times are stream seconds (or UNIX seconds); beyond this a double no longer resolves a
 // microsecond and the value is a bug.
 constexpr double kMaxTime_s = 1e10;
