@@ -39,6 +39,18 @@ constexpr int kMaxSources = 8;
 // Per-band detection: source_index = band + bands x rank < 64, the fusion's per-array source mask.
 constexpr int kMaxDetectionBands = 8;
 
+// A narrow band far from DC correlates as fringes one carrier period (1/f_c) apart under an
+// envelope ~1/B wide, the neighbours nearly as high as the peak (sinc(B / f_c): 0.89 for 30-39
+// kHz). The lag grid (2 f_high x correlation_oversample samples a second) finds the peak's
+// fringe, so it must sample the fringes densely enough that the true one is not undercut by
+// where its samples fall: at 2.3 samples a fringe (30-39 kHz, oversample 1) a neighbour won in
+// most frames at some angles (4.2 deg on a 0.6 m pair, BandSources.NarrowBandFarFromDc...); at
+// >= 8 a fringe, never. The oversample giving >= 8 grid samples per period of the band centre.
+int fringe_oversample(const FrequencyBand& band) {
+  const double centre_hz = 0.5 * (band.low_hz + band.high_hz);
+  return std::clamp(static_cast<int>(std::ceil(4.0 * centre_hz / band.high_hz)), 1, 16);
+}
+
 // A node per band: several bands listed, and the config asks for each on its own.
 bool splits_bands(const DoaParams& params) {
   return params.per_band_detection && params.bands_hz.size() > 1;
@@ -809,6 +821,8 @@ NodePipeline::NodePipeline(ArrayGeometry geometry, int array_index, const DoaPar
     for (const FrequencyBand& band : params.bands_hz) {
       DoaParams one_band = params;
       one_band.bands_hz = {band};
+      one_band.correlation_oversample =
+          std::max(params.correlation_oversample, fringe_oversample(band));
       per_band_->nodes.emplace_back(geometry, array_index, one_band, sample_rate_hz,
                                     speed_of_sound_mps);
     }
