@@ -42,8 +42,9 @@ struct DoaParams {
   // Several bands (issue 15, seed 003: sources separated by band): true runs the whole node once
   // per band (its own detection gate, GCC over that band's bins, TDOA tracker, source search and
   // cones) and publishes each band's sources as their own, source_index = band + bands x rank in
-  // the band; false correlates the union of the bands as one (e.g. a band with a notch). One
-  // band: no difference.
+  // the band, each band's lag grid at least correlation_oversample and >= 8 points a period of
+  // its centre (docs/doa.md stage 9, "Fringes"); false correlates the union of the bands as one
+  // (e.g. a band with a notch). One band: no difference.
   bool per_band_detection = true;
   double frame_s = 0.17;  // analysis frame length; FFT size = next FFTW-friendly size >= frame
   double hop_s = 0.05;    // about 20 DOAs per second
