@@ -159,9 +159,9 @@ int run(const CalibrateArguments& arguments) {
     for (std::size_t a = 0; a < result.arrays.size() && a < measured.levels.size(); ++a) {
       auto& gains = result.arrays[a].channel_gain_db;
       gains = calib::estimate_channel_gains(measured.levels[a]);
-      const std::vector<double>& configured = site.arrays[a].geometry.channel_gain_db;
-      for (std::size_t i = 0; i < gains.size() && i < configured.size(); ++i)
-        gains[i].nominal = configured[i];
+      const std::vector<double>& configured_db = site.arrays[a].geometry.channel_gain_db;
+      for (std::size_t i = 0; i < gains.size() && i < configured_db.size(); ++i)
+        gains[i].nominal = configured_db[i];
     }
     std::printf(
         "calibrate pass %d of %d: %zu DOAs, %d pointed beyond %g deg of the reference (another "
