@@ -123,8 +123,37 @@ std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConf
   return std::make_unique<capture::RecordingSource>(recording, array.channel_map, block_frames);
 }
 
+std::string pose_span_problem(const config::SiteConfig& site, std::size_t array_index,
+                              const std::filesystem::path& recording, double max_duration_s) {
+  const config::ArrayConfig& array = site.arrays.at(array_index);
+  if (array.pose.empty()) return "";
+  const capture::RecordingInfo info = capture::probe_recording(recording);
+  const double rate_hz = info.sample_rate_hz;
+  const doa::DoaParams params = site.doa_params(array_index);
+  const auto frame = static_cast<std::int64_t>(std::lround(params.frame_s * rate_hz));
+  const auto hop = std::max<std::int64_t>(1, std::lround(params.hop_s * rate_hz));
+  std::int64_t samples = info.frames;
+  if (max_duration_s > 0.0)
+    samples = std::min(samples, static_cast<std::int64_t>(std::ceil(max_duration_s * rate_hz)));
+  if (samples < frame) return "";  // no frame, no DOA
+  // DOAs carry frame centre times (a smoothed one an earlier frame's): these bound them all.
+  const double first_s = 0.5 * static_cast<double>(frame - 1) / rate_hz;
+  const double last_s =
+      (static_cast<double>((samples - frame) / hop * hop) + 0.5 * static_cast<double>(frame - 1)) /
+      rate_hz;
+  const double uncovered_s = first_s < array.pose.start_s() ? first_s
+                             : last_s > array.pose.end_s()  ? last_s
+                                                            : -1.0;
+  if (uncovered_s < 0.0) return "";
+  return "array " + array.geometry.id + ": " + array.pose_file.string() + " covers t " +
+         config::format_number(array.pose.start_s()) + " to " +
+         config::format_number(array.pose.end_s()) + " s, but " + recording.string() +
+         " has a frame at t " + config::format_number(uncovered_s) +
+         " s: no pose then (the pose file must span the recording)";
+}
+
 ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
-                     std::unique_ptr<capture::AudioSource> source)
+                     std::unique_ptr<capture::AudioSource> source, bool pose_from_file)
     : array_id_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry.id),
       array_index_(array_index),
       channel_map_(site.arrays[static_cast<std::size_t>(array_index)].channel_map),
@@ -139,6 +168,8 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
                              std::to_string(source_->channels()) + " channels for " +
                              std::to_string(pipeline_.geometry().mic_count()) + " mics");
   }
+  const config::ArrayConfig& array = site.arrays[static_cast<std::size_t>(array_index)];
+  if (pose_from_file && !array.pose.empty()) pipeline_.set_pose_track(array.pose);
 }
 
 bool ArrayNode::step(std::vector<doa::DoaMeasurement>& doas) {

@@ -18,8 +18,10 @@ namespace dronetrack::apps {
 
 class ArrayNode {
  public:
+  // A moving array's DOAs are stamped with its pose file's pose at their time unless
+  // `pose_from_file` is false (the live node, which stamps them from the ArrayPose stream).
   ArrayNode(const config::SiteConfig& site, int array_index,
-            std::unique_ptr<capture::AudioSource> source);
+            std::unique_ptr<capture::AudioSource> source, bool pose_from_file = true);
 
   // Reads one block and appends the DOAs it completes. False at end of stream. Logs a warning
   // for every audio health problem raised (also on the last stretch, at the end).
@@ -35,6 +37,8 @@ class ArrayNode {
   int array_index() const { return array_index_; }
   double sample_rate_hz() const { return sample_rate_hz_; }
   const capture::AudioSource& source() const { return *source_; }
+  // DOAs dropped for want of a pose at their time (pose file).
+  std::int64_t unposed_doas() const { return pipeline_.diagnostics().unposed_doas; }
 
  private:
   void warn_health_problems() const;
@@ -58,6 +62,12 @@ std::string health_warning(const std::string& array_id, int input_channel,
 // One line summing up a node's audio problems over the whole run ("" when it had none), e.g.
 // "A2 channel 3: non-finite 100 % of samples; channel 0: clipped 2.1 % of samples".
 std::string health_summary(const doa::NodeStatus& status);
+
+// "" when the array is fixed or its pose file covers every analysis frame of `recording` (up to
+// max_duration_s when > 0); otherwise one line naming the pose file and the first frame time
+// it does not cover. Replay and node check this before anything is written.
+std::string pose_span_problem(const config::SiteConfig& site, std::size_t array_index,
+                              const std::filesystem::path& recording, double max_duration_s = 0.0);
 
 // Opens the array's recording (its channel map applied) in blocks of about block_s seconds.
 std::unique_ptr<capture::RecordingSource> open_recording(const config::ArrayConfig& array,

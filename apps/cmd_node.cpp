@@ -6,8 +6,13 @@
 // replaying the same scene shares one clock without any synchronisation. Live capture uses Unix
 // time: the stream's start on the system clock plus the sample count, so all nodes of a site
 // share one clock as far as their system clocks agree (docs/deployment.md: chrony/PTP).
+//
+// A moving array (issue 15): replaying a recording, each DOA is stamped from the array's
+// pose_file; live (or with --pose-topic), from the ArrayPose topic on the same clock, each DOA
+// waiting until the poses around its time have arrived (apps/live_pose_stamper.hpp).
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <thread>
@@ -15,6 +20,7 @@
 #include "apps/array_node.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
+#include "apps/live_pose_stamper.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
 #include "common/log.hpp"
@@ -38,6 +44,19 @@ struct NodeArguments {
   std::optional<int> domain;
   double sample_rate_hz = 48000.0;
   double block_s = 0.01;
+  bool pose_topic = false;
+};
+
+// ThrottledWarnings kinds of the pose stream, and their texts (which must outlive the log).
+enum PoseWarning : int { kBadPose = 0, kRefusedPose = 1, kUnposedDoa = 2 };
+struct PoseWarningTexts {
+  explicit PoseWarningTexts(const std::string& array_id)
+      : bad("node " + array_id + ": ArrayPose samples not finite or out of bounds"),
+        refused("node " + array_id + ": ArrayPose samples not after the newest (out of order)"),
+        unposed("node " + array_id + ": DOAs without an ArrayPose around their time (dropped)") {}
+  std::string bad;
+  std::string refused;
+  std::string unposed;
 };
 
 // Skips, without processing, the part of a recording whose due time has long passed: a node
@@ -66,6 +85,29 @@ class SkippingSource : public capture::AudioSource {
   double skip_to_s_;
 };
 
+// Every pose waiting on the reader into the stamper, moved to the node's stream clock (the wire
+// carries stream time + offset). Other arrays' poses are not this node's business.
+void take_poses(const dds::Reader<dronetrack_ArrayPose>& reader, const std::string& array_id,
+                double offset_s, LivePoseStamper& stamper, ThrottledWarnings& warnings,
+                const PoseWarningTexts& texts) {
+  for (;;) {
+    dds::Samples<dronetrack_ArrayPose> samples = reader.take();
+    if (samples.empty()) return;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (!samples.info(i).valid_data) continue;
+      doa::PoseSample pose;
+      const dds::SampleProblem problem = dds::from_idl(samples.data(i), array_id, pose);
+      if (problem == dds::SampleProblem::unknown_array) continue;
+      if (problem != dds::SampleProblem::none) {
+        warnings.count(kBadPose, texts.bad.c_str());
+        continue;
+      }
+      pose.time_s -= offset_s;
+      if (!stamper.add_pose(pose)) warnings.count(kRefusedPose, texts.refused.c_str());
+    }
+  }
+}
+
 double unix_now_s() {
   return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
 }
@@ -89,6 +131,12 @@ int run(const NodeArguments& arguments) {
   const std::optional<int> device = arguments.device ? arguments.device : array.device;
   const bool live = arguments.device.has_value() ||
                     (arguments.recording.empty() && array.recording.empty() && device);
+  const bool pose_from_topic = array.pose_topic || arguments.pose_topic;
+  if (pose_from_topic && !live && !arguments.realtime) {
+    throw UserError("array " + arguments.array +
+                    " takes its pose from the ArrayPose topic, which runs in real time: replay "
+                    "its recording with --realtime");
+  }
 
   // The source. Live: the stream's start time on the system clock gives Unix time.
   capture::PortAudioSource* live_source = nullptr;
@@ -112,6 +160,11 @@ int run(const NodeArguments& arguments) {
       throw UserError("array " + arguments.array +
                       " has no recording in the site config: give --recording F or --device N");
     }
+    if (!pose_from_topic) {
+      const std::string problem =
+          pose_span_problem(site, static_cast<std::size_t>(array_index), recording);
+      if (!problem.empty()) throw UserError(problem);
+    }
     source = open_recording(array, recording, arguments.block_s);
     if (arguments.realtime) {
       epoch_unix_s = arguments.epoch_unix_s.value_or(unix_now_s());
@@ -123,10 +176,13 @@ int run(const NodeArguments& arguments) {
       }
     }
   }
-  ArrayNode node(site, array_index, std::move(source));
+  ArrayNode node(site, array_index, std::move(source), !pose_from_topic);
   log::info("node ", node.array_id(), ": ", node.source().describe(), ", ", node.sample_rate_hz(),
             " Hz, DDS domain ", domain, live ? ", live" : "",
-            arguments.realtime ? ", real time" : "");
+            arguments.realtime ? ", real time" : "",
+            pose_from_topic       ? ", pose from ArrayPose"
+            : !array.pose.empty() ? ", pose file"
+                                  : "");
 
   // Participant first: destroyed last.
   dds::Participant participant(domain);
@@ -137,6 +193,18 @@ int run(const NodeArguments& arguments) {
   dds::status_writer_qos(status_qos);
   dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
   dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
+  std::unique_ptr<dds::Topic<dronetrack_ArrayPose>> pose_topic;
+  std::unique_ptr<dds::Reader<dronetrack_ArrayPose>> pose_reader;
+  if (pose_from_topic) {
+    pose_topic = std::make_unique<dds::Topic<dronetrack_ArrayPose>>(participant);
+    dds::Qos pose_qos;
+    dds::pose_reader_qos(pose_qos);
+    pose_reader =
+        std::make_unique<dds::Reader<dronetrack_ArrayPose>>(participant, *pose_topic, pose_qos);
+  }
+  LivePoseStamper pose_stamper(array.geometry, array.pose_max_gap_s);
+  const PoseWarningTexts pose_texts(node.array_id());
+  ThrottledWarnings pose_warnings;
 
   // A volatile sample written before a reader has matched is lost to it. Give discovery a
   // moment (milliseconds on a LAN) before the first block; never wait for a fusion forever.
@@ -151,7 +219,8 @@ int run(const NodeArguments& arguments) {
   }
   install_stop_handlers();
   std::vector<doa::DoaMeasurement> doas;
-  doas.reserve(64);
+  // A moving node may release a whole queue of DOAs at once.
+  doas.reserve(pose_reader ? LivePoseStamper::kMaxPending : 64);
   doa::NodeStatus status;
   dronetrack_Doa doa_sample{};
   dronetrack_NodeStatus status_sample{};
@@ -164,14 +233,17 @@ int run(const NodeArguments& arguments) {
   const auto wall_epoch = Clock::time_point(
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(epoch_unix_s)));
 
-  while (!stop_requested()) {
-    if (!node.step(doas)) break;
-    if (arguments.realtime && !live) {
-      // The block is due when its last sample would have been captured.
-      std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
-                                                     std::chrono::duration<double>(node.time_s())));
-    }
-    const std::int64_t offset_ns = time_offset_ns();
+  // Pose-topic node: this step's DOAs wait for their poses; those whose pose came are published.
+  auto stamp_from_topic = [&](double now_s, std::int64_t offset_ns) {
+    take_poses(*pose_reader, node.array_id(), dds::ns_to_seconds(offset_ns), pose_stamper,
+               pose_warnings, pose_texts);
+    const std::int64_t dropped_before = pose_stamper.dropped();
+    pose_stamper.add_doas(doas);
+    pose_stamper.release(now_s, doas);
+    for (std::int64_t d = dropped_before; d < pose_stamper.dropped(); ++d)
+      pose_warnings.count(kUnposedDoa, pose_texts.unposed.c_str());
+  };
+  auto publish_doas = [&](std::int64_t offset_ns) {
     for (const auto& measurement : doas) {
       dds::to_idl(measurement, offset_ns, doa_sample);
       if (doa_writer.try_write(doa_sample) < 0) {
@@ -181,12 +253,41 @@ int run(const NodeArguments& arguments) {
       }
     }
     doas.clear();
+  };
+
+  while (!stop_requested()) {
+    if (!node.step(doas)) break;
+    if (arguments.realtime && !live) {
+      // The block is due when its last sample would have been captured.
+      std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
+                                                     std::chrono::duration<double>(node.time_s())));
+    }
+    const std::int64_t offset_ns = time_offset_ns();
+    if (pose_reader) stamp_from_topic(node.time_s(), offset_ns);
+    publish_doas(offset_ns);
     if (node.status_due(status)) {
       dds::to_idl(status, offset_ns + dds::seconds_to_ns(status.time_s), status_sample);
       if (status_writer.try_write(status_sample) < 0) ++write_failures;
     }
   }
+  if (pose_reader) {
+    // The stream ended: the last DOAs' poses may still be on their way (as long as a DOA may
+    // wait for them); then whatever is left has no pose and is counted.
+    const auto give_up =
+        std::chrono::steady_clock::now() +
+        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(array.pose_max_gap_s + LivePoseStamper::kWaitMargin_s));
+    while (pose_stamper.pending() > 0 && !stop_requested() &&
+           std::chrono::steady_clock::now() < give_up) {
+      pose_reader->wait(std::chrono::milliseconds(50));
+      stamp_from_topic(node.time_s(), time_offset_ns());
+      publish_doas(time_offset_ns());
+    }
+    stamp_from_topic(std::numeric_limits<double>::infinity(), time_offset_ns());
+    publish_doas(time_offset_ns());
+  }
   if (live_source) live_source->request_stop();
+  pose_warnings.flush();
 
   // Say goodbye: readers see alive = false, then the writers' deletion leaves the instances
   // without writers, exactly as a lost liveliness would.
@@ -198,7 +299,11 @@ int run(const NodeArguments& arguments) {
   doa_writer.wait_for_acks(std::chrono::milliseconds(500));
   log::info("node ", node.array_id(), ": ", node.time_s(), " s of audio, ", published,
             " DOAs published", write_failures ? ", " : "",
-            write_failures ? std::to_string(write_failures) + " writes failed" : "");
+            write_failures ? std::to_string(write_failures) + " writes failed" : "",
+            pose_reader
+                ? ", " + std::to_string(pose_stamper.dropped()) + " dropped without a pose (" +
+                      std::to_string(pose_stamper.refused_poses()) + " poses refused)"
+                : "");
   if (stop_requested()) return interrupted_exit_code();
   if (node.source().cut_short()) {
     log::error("node ", node.array_id(), ": ", node.source().describe(),
@@ -234,6 +339,9 @@ void register_node(CLI::App& root, CommandTable& table) {
                    "With --realtime: Unix time (s) at which recording time 0 is due; nodes given "
                    "the same epoch replay in step, and a restarted node resumes in step")
       ->needs("--realtime");
+  command->add_flag("--pose-topic", arguments->pose_topic,
+                    "Take the array's pose from the ArrayPose DDS topic (as the array's "
+                    "\"pose_topic\": true does), not from its pose_file");
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
   command->add_option("--sample-rate", arguments->sample_rate_hz, "Live capture sample rate, Hz")

@@ -37,5 +37,6 @@ void register_sim(CLI::App& root, CommandTable& table);
 void register_eval(CLI::App& root, CommandTable& table);
 void register_devices(CLI::App& root, CommandTable& table);
 void register_demo(CLI::App& root, CommandTable& table);
+void register_pose_publish(CLI::App& root, CommandTable& table);
 
 }  // namespace dronetrack::apps

@@ -30,6 +30,7 @@ int run(int argc, char** argv) {
   apps::register_eval(root, table);
   apps::register_devices(root, table);
   apps::register_demo(root, table);
+  apps::register_pose_publish(root, table);
 
   try {
     root.parse(argc, argv);

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 
+#include "apps/array_node.hpp"
 #include "apps/doa_file_replay.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
@@ -42,6 +44,18 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     if (!options.doa_out.empty()) outputs.push_back({"--doa-out", options.doa_out});
     if (!options.alerts_out.empty()) outputs.push_back({"--alerts-out", options.alerts_out});
     check_output_paths(inputs, outputs);
+  }
+  if (options.doa_in.empty()) {
+    // A moving array's recording must lie within its pose file's span.
+    for (std::size_t i = 0; i < site.arrays.size(); ++i) {
+      const std::string problem =
+          pose_span_problem(site, i, site.arrays[i].recording, options.max_duration_s);
+      if (!problem.empty()) throw std::runtime_error(problem);
+      if (site.arrays[i].pose_topic && site.arrays[i].pose_file.empty())
+        log::warn("array ", site.arrays[i].geometry.id,
+                  " moves (pose_topic) but has no pose_file: replay takes its config pose as "
+                  "fixed");
+    }
   }
   std::vector<doa::DoaMeasurement> recorded_doas;
   if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);

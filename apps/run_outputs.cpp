@@ -29,6 +29,8 @@ std::vector<NamedPath> site_inputs(const config::SiteConfig& site, bool recordin
   for (std::size_t i = 0; i < site.arrays.size(); ++i) {
     if (!site.arrays[i].recording.empty())
       inputs.push_back({"arrays[" + std::to_string(i) + "].recording", site.arrays[i].recording});
+    if (!site.arrays[i].pose_file.empty())
+      inputs.push_back({"arrays[" + std::to_string(i) + "].pose_file", site.arrays[i].pose_file});
   }
   return inputs;
 }

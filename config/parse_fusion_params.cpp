@@ -44,9 +44,11 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
     one.bearing_init_std_deg =
         reader.number("bearing_init_std_deg", one.bearing_init_std_deg, 0.01, 90.0);
     one.jerk_std_mps3 = reader.number("jerk_std_mps3", one.jerk_std_mps3, 1e-6, 1e4);
-    one.velocity_std_mps = reader.number("velocity_std_mps", one.velocity_std_mps, 1e-3, 1000.0);
+    // A static source's prior (docs/fusion.md "Static sources": 0.01 m/s, 1e-4 m/s^2, 1e-5 m/s^3)
+    // must fit: the lower bounds are those of the jerk.
+    one.velocity_std_mps = reader.number("velocity_std_mps", one.velocity_std_mps, 1e-6, 1000.0);
     one.acceleration_std_mps2 =
-        reader.number("acceleration_std_mps2", one.acceleration_std_mps2, 1e-3, 1000.0);
+        reader.number("acceleration_std_mps2", one.acceleration_std_mps2, 1e-6, 1000.0);
     one.particle_count = reader.integer("particle_count", one.particle_count, 10, 1000000);
   }
   params.jerk_noise_std_mps3 =

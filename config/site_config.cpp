@@ -8,6 +8,7 @@
 #include "capture/recording_info.hpp"
 #include "config/config_reader.hpp"
 #include "config/parse_sections.hpp"
+#include "config/pose_file.hpp"
 #include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
 
@@ -64,7 +65,8 @@ void parse_mics(const nlohmann::json& node, const std::string& path, Diagnostics
 }
 
 ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
-                        const std::filesystem::path& base_dir, Diagnostics& diagnostics) {
+                        const std::filesystem::path& base_dir, bool read_pose_files,
+                        Diagnostics& diagnostics) {
   ArrayConfig array;
   ObjectReader reader(node, path, diagnostics);
   array.geometry.id = reader.required_string("id").value_or("");
@@ -89,6 +91,8 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
       diagnostics.error(reader.path_of("position_m"), kSiteExtentReason);
   }
   array.geometry.yaw_deg = reader.number("yaw_deg", 0.0, -360.0, 360.0);
+  array.geometry.pitch_deg = reader.number("pitch_deg", 0.0, -90.0, 90.0);
+  array.geometry.roll_deg = reader.number("roll_deg", 0.0, -180.0, 180.0);
   array.geometry.mic_position_std_m = reader.number("mic_position_std_m", 0.0, 0.0, 1.0);
   reader.accept("mics_m");
   if (!reader.has("mics_m")) {
@@ -100,6 +104,26 @@ ArrayConfig parse_array(const nlohmann::json& node, const std::string& path,
   if (!recording.empty()) {
     const std::filesystem::path recording_path(recording);
     array.recording = recording_path.is_absolute() ? recording_path : base_dir / recording_path;
+  }
+  array.pose_max_gap_s = reader.number("pose_max_gap_s", 1.0, 1e-3, 60.0);
+  array.pose_topic = reader.boolean("pose_topic", false);
+  const std::string pose_file = reader.string("pose_file", "");
+  if (reader.has("pose_file") && pose_file.empty())
+    diagnostics.error(reader.path_of("pose_file"), "must not be empty");
+  if (!pose_file.empty()) {
+    const std::filesystem::path pose_path(pose_file);
+    array.pose_file = pose_path.is_absolute() ? pose_path : base_dir / pose_path;
+  }
+  if (!array.pose_file.empty() && read_pose_files) {
+    PoseFileLimits limits;
+    limits.max_gap_s = array.pose_max_gap_s;
+    limits.max_coordinate_m = kMaxSiteCoordinate_m;
+    limits.max_gap_key = reader.path_of("pose_max_gap_s");
+    try {
+      array.pose = read_pose_file(array.pose_file, limits);
+    } catch (const std::exception& failure) {
+      diagnostics.error(reader.path_of("pose_file"), failure.what());
+    }
   }
   array.device = reader.optional_integer("device", 0, 100000);
   if (reader.has("ground_height_m"))
@@ -291,7 +315,7 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
                         "fusion.single_array_start: true)");
     }
     root.for_each("arrays", true, [&](const nlohmann::json& node, const std::string& path) {
-      ArrayConfig array = parse_array(node, path, base_dir, diagnostics);
+      ArrayConfig array = parse_array(node, path, base_dir, options.read_pose_files, diagnostics);
       if (!array.geometry.id.empty() && !ids.insert(array.geometry.id).second) {
         diagnostics.error(path + ".id", "duplicate array id \"" + array.geometry.id + "\"");
       }

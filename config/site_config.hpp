@@ -9,6 +9,7 @@
 
 #include "doa/array_geometry.hpp"
 #include "doa/doa_params.hpp"
+#include "doa/pose_track.hpp"
 #include "fusion/fusion_params.hpp"
 #include "fusion/zone_monitor.hpp"
 
@@ -22,6 +23,17 @@ struct ArrayConfig {
   // Site z of the ground under this array, where it differs from doa.ground_height_m (a site on
   // uneven ground): the ground-echo removal mirrors this array's mics in it.
   std::optional<double> ground_height_m;
+  // A moving array (issue 15). pose_file: absolute (resolved against the config file), read and
+  // checked at load into `pose`; replay stamps each DOA with the pose at its frame's time. The
+  // geometry's position_m and attitude stay the array's nominal pose: the node's DSP (ground
+  // echo, horizon, static null) works in that frame, and every DOA is turned to the pose at its
+  // time when it is published. Empty: a fixed array.
+  std::filesystem::path pose_file;
+  doa::PoseTrack pose;
+  double pose_max_gap_s = 1.0;  // larger gaps between pose lines (or live samples) are unknown
+  // Live: the node takes this array's pose from the ArrayPose DDS topic (a GPS/INS adapter).
+  bool pose_topic = false;
+  bool moving() const { return !pose_file.empty() || pose_topic; }
 };
 
 struct DdsConfig {
@@ -66,6 +78,9 @@ struct LoadOptions {
   bool check_recordings = true;
   // The site feeds a fusion (replay, fusion): it needs at least 2 arrays.
   bool for_fusion = false;
+  // Read and check each array's pose_file into ArrayConfig::pose (off when the pose files are
+  // about to be written, e.g. by the simulator: pose_file is then only resolved).
+  bool read_pose_files = true;
 };
 
 // Input bounds checked while parsing (docs/contract.md).

@@ -9,8 +9,15 @@ namespace {
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 }
 
+Eigen::Matrix3d attitude_to_site(double yaw_deg, double pitch_deg, double roll_deg) {
+  return (Eigen::AngleAxisd(yaw_deg / kDegPerRad, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(pitch_deg / kDegPerRad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_deg / kDegPerRad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
 Eigen::Matrix3d ArrayGeometry::array_to_site() const {
-  return Eigen::AngleAxisd(yaw_deg / kDegPerRad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return attitude_to_site(yaw_deg, pitch_deg, roll_deg);
 }
 
 Eigen::Vector3d ArrayGeometry::mic_site_m(std::size_t mic) const {

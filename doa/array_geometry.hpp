@@ -1,7 +1,8 @@
 #pragma once
 // Where an array is and where its microphones are. Mic positions are given in the array frame;
-// the array frame is rotated by yaw about +z (counter-clockwise) and translated to position_m
-// to give the site frame (x east, y north, z up; SPEC section 2).
+// the array frame is turned by yaw about +z (counter-clockwise), then pitch about the new +y,
+// then roll about the new +x (array_to_site = Rz(yaw) Ry(pitch) Rx(roll)), and translated to
+// position_m to give the site frame (x east, y north, z up; SPEC section 2).
 #include <string>
 #include <vector>
 
@@ -14,6 +15,8 @@ struct ArrayGeometry {
   std::string id;
   Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  // site frame
   double yaw_deg = 0.0;
+  double pitch_deg = 0.0;  // a tilted mast or a vehicle on a slope; 0 for a level array
+  double roll_deg = 0.0;
   std::vector<Eigen::Vector3d> mics_m;  // array frame, one per channel after channel_map
   // 1-sigma uncertainty of each mic coordinate; feeds the DOA's measurement noise.
   double mic_position_std_m = 0.0;
@@ -24,6 +27,9 @@ struct ArrayGeometry {
   Eigen::Vector3d centre_site_m() const;
   std::size_t mic_count() const { return mics_m.size(); }
 };
+
+// Rz(yaw) Ry(pitch) Rx(roll): the rotation taking array-frame vectors to the site frame.
+Eigen::Matrix3d attitude_to_site(double yaw_deg, double pitch_deg, double roll_deg);
 
 // Azimuth = atan2(u_y, u_x), elevation = asin(u_z), degrees (SPEC section 2).
 double azimuth_deg(const Eigen::Vector3d& unit_direction);

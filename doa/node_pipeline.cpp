@@ -234,6 +234,10 @@ struct NodePipeline::Impl {
   double inband_power() const;
   bool publish(const Candidate& candidate, double time_s, int source_index,
                std::vector<DoaMeasurement>& out);
+  // The pose at the DOA's time, its site-frame vectors turned to it; false: no pose then.
+  bool stamp_pose(DoaMeasurement& measurement);
+  // A moving array's solution from its TDOAs freed of the platform's Doppler scale.
+  DoaSolution doppler_corrected(const Candidate& candidate, double time_s) const;
 
   ArrayGeometry geometry;
   int array_index;
@@ -284,6 +288,9 @@ struct NodePipeline::Impl {
   double null_time_s = 0.0;
   bool null_frame_clean = false;
   NodeDiagnostics diagnostics;
+  PoseStamp fixed_pose = fixed_stamp(geometry);
+  PoseTrack pose_track;            // empty: a fixed array
+  double sound_speed_mps = 343.0;  // for the Doppler correction
 };
 
 // The static null learns from plain PHAT peaks: a steady ground source is as steady in power as
@@ -323,7 +330,7 @@ double NodePipeline::Impl::inband_power() const {
 
 bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int source_index,
                                  std::vector<DoaMeasurement>& out) {
-  const DoaSolution& solution = candidate.solution;
+  const DoaSolution solution = doppler_corrected(candidate, time_s);
   const std::span<const PairTdoa> used(candidate.tdoas.data(), tdoas.size());
   DoaMeasurement measurement;
   measurement.array_id = geometry.id;
@@ -343,9 +350,51 @@ bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int 
   for (int p = 0; p < solver.pair_count(); ++p)
     measurement.tdoa_s[static_cast<std::size_t>(p)] = used[static_cast<std::size_t>(p)].tdoa_s;
   if (acoustic && candidate.slot >= 0) measurement.acoustic = acoustic->features(candidate.slot);
+  if (!stamp_pose(measurement)) return false;
   out.push_back(std::move(measurement));
   ++diagnostics.doas_published;
   return true;
+}
+
+// Everything before publishing works in the frame of the geometry's fixed attitude (the solver's
+// rotation, the ground echo, the horizon); a moving array's DOA is turned to the attitude at its
+// time here, and only here.
+bool NodePipeline::Impl::stamp_pose(DoaMeasurement& measurement) {
+  if (pose_track.empty()) {
+    measurement.pose = fixed_pose;
+    return true;
+  }
+  const std::optional<PoseStamp> stamp = pose_track.stamp(measurement.time_s, geometry);
+  if (!stamp) {
+    ++diagnostics.unposed_doas;
+    return false;
+  }
+  restamp(measurement, *stamp, solver.array_to_site());
+  return true;
+}
+
+// A platform moving at v towards the source shortens every TDOA alike: measured = true /
+// (1 + u.v / c), 0.5 % at 2 m/s. The plane-wave fit is blind to a common scale, but the
+// near-field refinement reads it as wavefront curvature and bends the direction (0.7 deg for a
+// platform driving at 2 m/s and turning at 15 deg/s), and the chi^2 gate of a plain plane-wave
+// fit would refuse it. So: solved again on the TDOAs scaled back by the pose track's velocity,
+// with u from the first solve (its error is far below what moves the scale). Only for a full
+// direction: a cone or mirror pair does not know u.
+DoaSolution NodePipeline::Impl::doppler_corrected(const Candidate& candidate, double time_s) const {
+  if (pose_track.empty() || !candidate.solution.accepted ||
+      candidate.solution.ambiguity != DoaAmbiguity::none)
+    return candidate.solution;
+  const std::optional<Eigen::Vector3d> velocity_site = pose_track.velocity_mps(time_s);
+  const std::optional<PoseStamp> stamp = pose_track.stamp(time_s, geometry);
+  if (!velocity_site || !stamp) return candidate.solution;
+  // The solver's frame is the config pose's: the velocity as that frame sees it.
+  const Eigen::Vector3d velocity =
+      solver.array_to_site() * (stamp->array_to_site.conjugate() * *velocity_site);
+  const double scale = 1.0 + candidate.solution.direction_site.dot(velocity) / sound_speed_mps;
+  std::array<PairTdoa, kMaxPairs> scaled = candidate.tdoas;
+  for (PairTdoa& pair : scaled) pair.tdoa_s *= scale;
+  const DoaSolution solution = solver.solve(std::span<const PairTdoa>(scaled.data(), tdoas.size()));
+  return solution.accepted ? solution : candidate.solution;
 }
 
 double NodePipeline::Impl::mean_coherence(std::span<const PairTdoa> used) const {
@@ -673,6 +722,7 @@ NodePipeline::NodePipeline(ArrayGeometry geometry, int array_index, const DoaPar
   validate(geometry, params, sample_rate_hz, speed_of_sound_mps);
   impl_ = std::make_unique<Impl>(std::move(geometry), array_index, params, sample_rate_hz,
                                  speed_of_sound_mps);
+  impl_->sound_speed_mps = speed_of_sound_mps;
 }
 NodePipeline::~NodePipeline() = default;
 NodePipeline::NodePipeline(NodePipeline&&) noexcept = default;
@@ -689,6 +739,8 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
   impl.diagnostics.stream_gaps = counters.stream_gaps;
   impl.diagnostics.rejected_blocks = counters.rejected_blocks;
 }
+
+void NodePipeline::set_pose_track(PoseTrack track) { impl_->pose_track = std::move(track); }
 
 void NodePipeline::finish() { impl_->health.finish(); }
 

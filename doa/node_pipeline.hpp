@@ -11,6 +11,7 @@
 #include "doa/channel_health.hpp"
 #include "doa/doa_measurement.hpp"
 #include "doa/doa_params.hpp"
+#include "doa/pose_track.hpp"
 
 namespace dronetrack::doa {
 
@@ -27,6 +28,7 @@ struct NodeDiagnostics {
   std::int64_t rejected_blocks = 0;  // blocks with the wrong channel count or no data
   std::int64_t below_horizon_rejected = 0;  // sources below min_elevation_deg (not reported)
   int static_sources_nulled = 0;            // ground sources whose bins are dropped (static_null)
+  std::int64_t unposed_doas = 0;  // moving array: DOAs outside the pose track's span (dropped)
 };
 
 class NodePipeline {
@@ -45,6 +47,11 @@ class NodePipeline {
   // Feeds any number of samples; appends to `out` the DOAs of every analysis frame completed.
   // Never throws on odd audio (silence, clipping, NaN, dropouts): counts it in diagnostics().
   void process(const AudioBlockView& block, std::vector<DoaMeasurement>& out);
+
+  // A moving array (issue 15): every DOA is stamped with `track`'s pose at its time and turned
+  // to that attitude; one outside the track's span is counted (unposed_doas), not published.
+  // An empty track (the default): the geometry's fixed pose.
+  void set_pose_track(PoseTrack track);
 
   // The stream ended: judges the audio health of its last, partial stretch (health().events()).
   void finish();

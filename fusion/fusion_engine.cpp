@@ -13,8 +13,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/log.hpp"
 #include "fusion/assignment.hpp"
 #include "fusion/doa_likelihood.hpp"
+#include "fusion/gaussian_sum_filter.hpp"
 #include "fusion/measurement_model.hpp"
 #include "fusion/track_filter.hpp"
 #include "fusion/triangulation.hpp"
@@ -155,7 +157,23 @@ struct Track {
   bool one_array = false;
   int origin_array = -1;                                                   // its one array
   MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
+  int branches_left = -1;  // a Gaussian sum's locus branches (mirror sides) with weight left
 };
+
+// A one-array Gaussian-sum track whose count of live branches (the locus's mirror sides) changed:
+// one debug line (seed 003's "mirror hypotheses gone", docs/replicas.md measures it by this).
+void log_branches(Track& track, double time_s) {
+  const auto* sum = dynamic_cast<const GaussianSumFilter*>(track.filter.get());
+  if (sum == nullptr) return;
+  int left = 0;
+  for (int branch = 0; branch < 4; ++branch) left += sum->branch_weight(branch) > 0.0 ? 1 : 0;
+  if (left == track.branches_left) return;
+  const StateVector& x = sum->mean();
+  log::debug("fusion: track ", track.id, " t ", time_s, " s: ", left, " branch(es) left",
+             track.branches_left < 0 ? " at its first update, " : ", ", sum->hypothesis_count(),
+             " hypotheses, mean (", x(0), ", ", x(1), ", ", x(2), ")");
+  track.branches_left = left;
+}
 
 }  // namespace
 
@@ -281,7 +299,13 @@ struct FusionEngine::Impl {
     const double z_std = std::sqrt(std::max(fix.covariance_m2(2, 2), 0.0));
     return fix.position_m.z() + 3.0 * z_std < params.ground_altitude_m;
   }
+  // Track life cycle. Confirmation and deletion are decided at each frame (deletion before the
+  // frame's assignment, confirmation after it), so the tracks do not depend on how the caller
+  // batches advance_to (replay from audio advances per audio block, --doa-in per DOA line);
+  // life_cycle (at each advance) deletes up to that time and updates the classifier.
   void life_cycle(double now_s);
+  void confirm_tracks(double now_s);
+  void delete_expired(double now_s);
   // Ghost test (issue 14): from every array that supports it, the track lies along the ray of
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
@@ -542,7 +566,10 @@ void FusionEngine::Impl::feed_until(double cutoff_s) {
            queue[end].array_index == queue[begin].array_index) {
       ++end;
     }
+    const double frame_time_s = queue[begin].time_s;
+    delete_expired(frame_time_s);
     process_frame(begin, end);
+    confirm_tracks(frame_time_s);
     begin = end;
   }
   queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(begin));
@@ -631,7 +658,10 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
     classifier->add_acoustic(track.evidence, m.acoustic, time_s);
-    if (track.one_array) hand_over(track);
+    if (track.one_array) {
+      if (log::level() <= log::Level::debug) log_branches(track, time_s);
+      hand_over(track);
+    }
   }
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
@@ -1036,7 +1066,7 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
   return supporting > 0;
 }
 
-void FusionEngine::Impl::life_cycle(double now_s) {
+void FusionEngine::Impl::confirm_tracks(double now_s) {
   const std::uint32_t window_mask =
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
   const int min_arrays = std::min<int>(params.confirm_min_arrays, static_cast<int>(arrays.size()));
@@ -1073,6 +1103,9 @@ void FusionEngine::Impl::life_cycle(double now_s) {
       ++counters.tracks_confirmed;
     }
   }
+}
+
+void FusionEngine::Impl::life_cycle(double now_s) {
   for (Track& track : tracks) {
     const StateVector& mean = track.filter->mean();
     const double altitude_std_m = std::sqrt(std::max(
@@ -1081,6 +1114,10 @@ void FusionEngine::Impl::life_cycle(double now_s) {
                                track.time_s);
     classifier->classify(track.evidence);
   }
+  delete_expired(now_s);
+}
+
+void FusionEngine::Impl::delete_expired(double now_s) {
   const double max_variance = params.max_position_std_m * params.max_position_std_m;
   const auto dead = [&](const Track& track) {
     const bool unconfirmed_expired =

@@ -428,6 +428,18 @@ TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
   const auto problems = problems_of(site);
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("fusion.single_array_filter"), std::string::npos) << problems[0];
+  // The static-source prior docs/fusion.md gives ("Static sources") is accepted.
+  site["fusion"] = {
+      {"single_array",
+       {{"velocity_std_mps", 0.01}, {"acceleration_std_mps2", 1e-4}, {"jerk_std_mps3", 1e-5}}}};
+  const SiteConfig static_prior =
+      parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(static_prior.fusion.single_array.velocity_std_mps, 0.01);
+  EXPECT_EQ(static_prior.fusion.single_array.acceleration_std_mps2, 1e-4);
+  EXPECT_EQ(static_prior.fusion.single_array.jerk_std_mps3, 1e-5);
+  site["fusion"] = {{"single_array", {{"acceleration_std_mps2", 1e-7}}}};
+  expect_problem(site,
+                 "fusion.single_array.acceleration_std_mps2: must be in [1e-06, 1000], got 1e-07");
   site["fusion"] = {{"single_array", {{"hypotheses_per_side", 0}}}};
   expect_problem(site, "fusion.single_array.hypotheses_per_side: must be in [1, 64], got 0");
   // A site of one array feeds a fusion only when it may start tracks from one array.

@@ -164,10 +164,11 @@ TEST(StaticSourceNull, ForgetsAStaticSourceThatWentQuiet) {
   testing::Recording recording = testing::silent_recording(4, frames);
   testing::BandNoise generator(static_cast<int>(frames), kRate, 100.0, 6000.0, 13);
   std::vector<double> delays = testing::plane_wave_delays(geometry, kGround, kSpeed);
-  for (int mic = 0; mic < 4; ++mic) {
-    std::vector<double> samples = generator.delayed(delays[static_cast<std::size_t>(mic)], 0.3);
+  ASSERT_EQ(delays.size(), 4u);
+  for (std::size_t mic = 0; mic < delays.size(); ++mic) {
+    std::vector<double> samples = generator.delayed(delays[mic], 0.3);
     std::fill(samples.begin() + static_cast<std::ptrdiff_t>(stop), samples.end(), 0.0);
-    recording.add(mic, samples);
+    recording.add(static_cast<int>(mic), samples);
   }
   add_harmonic_source(recording, geometry, kSky, 160.0, 0.05, 0, frames);
   testing::add_sensor_noise(recording, kRate, 100.0, 8000.0, 0.003, 7);

@@ -55,7 +55,8 @@ if (!fs.existsSync(chromiumPath)) {
 
 // A 28 s perimeter scene: four arrays on the corners of a 200 m square, one drone flying east
 // at 8 m/s, 35 m up, entering the 100 m "inner-yard" zone at about x = -50 m (t ~ 15 s). Array
-// N4's recording stops at 12 s, so that node goes stale.
+// N4's recording stops at 12 s, so that node goes stale. M5, a microphone pair on a vehicle,
+// drives east inside the square.
 const tetra = [[0, 0, 0.5], [0.4714, 0, -0.1667], [-0.2357, 0.4082, -0.1667], [-0.2357, -0.4082, -0.1667]];
 const scenario = {
   description: 'browser test: one drone entering the inner yard; N4 stops at 12 s',
@@ -70,6 +71,10 @@ const scenario = {
       { id: 'N2', position_m: [100, -100, 2], yaw_deg: 135, mics_m: tetra },
       { id: 'N3', position_m: [100, 100, 2], yaw_deg: -135, mics_m: tetra },
       { id: 'N4', position_m: [-100, 100, 2], yaw_deg: -45, mics_m: tetra, recording_end_s: 12 },
+      // A two-mic pair on a vehicle driving east at 3 m/s (issue 15): a moving array's path and
+      // its cone DOAs on the page.
+      { id: 'M5', mics_m: [[-0.3, 0, 0], [0.3, 0, 0]],
+        trajectory: { type: 'straight', start_m: [-60, -80, 1.5], velocity_mps: [3, 0, 0] } },
     ],
     zones: [{ name: 'inner-yard', polygon_m: [[-50, -50], [50, -50], [50, 50], [-50, 50]], altitude_m: [0, 150] }],
   },
@@ -182,7 +187,7 @@ try {
   // 1. The arrays appear on the plan, with the site's ids.
   await page.waitForSelector('#plan [data-array-id]', { timeout: 10000 });
   const arrayIds = await page.$$eval('#plan [data-array-id]', (els) => els.map((e) => e.dataset.arrayId).sort());
-  if (JSON.stringify(arrayIds) !== JSON.stringify(['N1', 'N2', 'N3', 'N4'])) fail(`arrays on the plan: ${arrayIds}`);
+  if (JSON.stringify(arrayIds) !== JSON.stringify(['M5', 'N1', 'N2', 'N3', 'N4'])) fail(`arrays on the plan: ${arrayIds}`);
   if (await page.locator('#plan [data-zone="inner-yard"]').count() !== 1) fail('zone inner-yard not drawn');
   if (await page.locator('#scale-bar').count() !== 1 || await page.locator('#north-arrow').count() !== 1) {
     fail('scale bar or north arrow missing');
@@ -208,6 +213,19 @@ try {
   if (await page.locator('#plan polyline.trail').count() < 1) fail('no trail drawn');
   if (await page.locator('#plan .track ellipse').count() < 1) fail('no uncertainty ellipse drawn');
   if (await page.locator('#altitude polyline').count() < 1) fail('no altitude line drawn');
+  // The moving pair: its path so far, its marker where the vehicle is now (not where it started),
+  // and its cone drawn as the two mirror lines it cannot tell apart.
+  // (A straight path has no height: attached, not "visible", in Playwright's sense.)
+  await page.waitForSelector('#plan polyline.array-path[data-array-path="M5"]', { state: 'attached', timeout: 10000 });
+  const pairX = await page.evaluate(() => {
+    const node = window.dronetrack.state.nodes.find((n) => n.array === 'M5');
+    return node && node.pose ? node.pose.centre_m[0] : null;
+  });
+  if (!(pairX > -60 + 3)) fail(`M5 should have driven east of x = -60 m, pose x ${pairX}`);
+  if (await page.locator('#plan [data-array-id="M5"].moving').count() !== 1) fail('M5 not drawn as a moving array');
+  await waitFor('the pair\'s cone drawn as two lines', async () =>
+    (await page.locator('#plan line.ray.cone[data-doa-array="M5"]').count()) === 2, 10000, 200);
+  log(`M5 at x = ${pairX.toFixed(1)} m with its path and its cone's two lines`);
 
   // The network drops before the drone enters the zone; the entry alert is sent on the stream
   // while the page cannot hear it. Once back, the page must catch up from /api/alerts.
@@ -239,7 +257,7 @@ try {
   if (!(Math.abs(((heading - 90 + 540) % 360) - 180) < 35)) fail(`heading ${heading} deg (truth 90, east)`);
   if (!(Math.abs(py - 10) < 25 && px > -160 && px < 120)) fail(`position (${px}, ${py}) off the flight line y = 10 m`);
   if (!(uncertainty > 0 && uncertainty < 50)) fail(`uncertainty ${uncertainty} m`);
-  if (heard.length < 2 || !heard.every((id) => ['N1', 'N2', 'N3', 'N4'].includes(id))) fail(`heard by '${heard}'`);
+  if (heard.length < 2 || !heard.every((id) => ['N1', 'N2', 'N3', 'N4', 'M5'].includes(id))) fail(`heard by '${heard}'`);
   // Its class (issue 14): the rotor's comb makes it a drone; the list shows it and filters by it.
   await waitFor('the track classified as a drone', async () =>
     (await field('class')).value === 'drone', 10000, 200);
