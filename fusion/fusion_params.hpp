@@ -53,6 +53,10 @@ struct OneArrayParams {
   // squared Mahalanobis distance below merge_d2. Two wide hypotheses that overlap along the
   // bearing (the range still open) do not merge: their merged Gaussian is wider than either.
   double merge_d2 = 1.0;
+  // Eq. 9's weights on each hypothesis's own innovation covariance S_i (seed 003 as printed)
+  // rather than the mixture's common S (gaussian_sum_filter.cpp: from a static array ln det S_i
+  // ranks the ranges by the motion prior, not by the data). Key single_array.own_spread_weights.
+  bool own_spread_weights = false;
   // The fastest a source moves (the engine sets it from init_max_speed_mps; not a key of its own).
   // A hypothesis whose velocity the bearings have placed above it (its mixture weight times the
   // probability that its speed is below it, along its velocity's direction) holds little of the

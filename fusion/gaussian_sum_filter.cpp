@@ -164,6 +164,9 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     // predicting the DOA worse than the others (the mirror side after a turn, a range the
     // platform's motion rules out).
     log_likelihood_[j] = -0.5 * d2;
+    if (settings_.one_array.own_spread_weights)  // seed 003's eq. 9 as printed
+      log_likelihood_[j] = -0.5 * residual.dot(own.covariance.ldlt().solve(residual)) -
+                           0.5 * std::log(own.covariance.determinant());
     best_log = std::max(best_log, log_likelihood_[j]);
   }
   if (!std::isfinite(best_log)) return FilterStatus::failed;
