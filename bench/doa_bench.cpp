@@ -99,9 +99,15 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // Arg 0: default DoaParams; 1: max_sources 1 (no SRP-PHAT); 2: also per_frame TDOAs; 3: default
 // DoaParams on the scene without the ground reflection (nothing for the echo removal to do);
 // 4: default DoaParams without the acoustic features (their cost is /0 minus /4).
+// 5: three bands (0.5-1.5, 1.5-3.5, 3.5-6 kHz) with per-band detection (issue 15: a node per
+// band); 6: the same bands as one union (per_band_detection false).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
   if (state.range(0) == 4) params.acoustic.enabled = false;
+  if (state.range(0) == 5 || state.range(0) == 6) {
+    params.bands_hz = {{500.0, 1500.0}, {1500.0, 3500.0}, {3500.0, 6000.0}};
+    params.per_band_detection = state.range(0) == 5;
+  }
   if (state.range(0) == 1 || state.range(0) == 2) params.max_sources = 1;
   if (state.range(0) == 2) params.tdoa_tracker = TdoaTracker::per_frame;
   NodePipeline pipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
@@ -136,7 +142,15 @@ void BM_NodePipeline(benchmark::State& state) {
   state.counters["doas_per_frame"] =
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
 }
-BENCHMARK(BM_NodePipeline)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Arg(4)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NodePipeline)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
+    ->Arg(3)
+    ->Arg(4)
+    ->Arg(5)
+    ->Arg(6)
+    ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.
 void transform_first_frame(MultichannelFft& fft) {

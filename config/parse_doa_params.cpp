@@ -62,6 +62,7 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
     if (params.bands_hz.empty())
       diagnostics.error(section.path_of("bands_hz"), "needs at least one band");
   }
+  params.per_band_detection = section.boolean("per_band_detection", params.per_band_detection);
   params.frame_s = section.number("frame_s", params.frame_s, 0.005, 2.0);
   params.hop_s = section.number("hop_s", params.hop_s, 0.001, 2.0);
   if (params.hop_s > params.frame_s) {

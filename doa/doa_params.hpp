@@ -39,6 +39,13 @@ enum class LagInterpolation { parabolic, band_limited };
 
 struct DoaParams {
   std::vector<FrequencyBand> bands_hz{FrequencyBand{}};  // seed 002: 1.5-3.5 kHz
+  // Several bands (issue 15, seed 003: sources separated by band): true runs the whole node once
+  // per band (its own detection gate, GCC over that band's bins, TDOA tracker, source search and
+  // cones) and publishes each band's sources as their own, source_index = band + bands x rank in
+  // the band, each band's lag grid at least correlation_oversample and >= 8 points a period of
+  // its centre (docs/doa.md stage 9, "Fringes"); false correlates the union of the bands as one
+  // (e.g. a band with a notch). One band: no difference.
+  bool per_band_detection = true;
   double frame_s = 0.17;  // analysis frame length; FFT size = next FFTW-friendly size >= frame
   double hop_s = 0.05;    // about 20 DOAs per second
   TdoaTracker tdoa_tracker = TdoaTracker::robust_regression;  // best on the scenes (docs/doa.md)

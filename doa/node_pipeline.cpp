@@ -5,6 +5,8 @@
 // and SourceTracks smooths each source's TDOAs over time on one time base before the final solve.
 // Beside the frames, ChannelHealth counts and judges every channel's samples as they come.
 // Everything is sized in the constructor; process() only appends to the caller's vector.
+// Several bands with per_band_detection (issue 15, seed 003: one source per band): PerBand runs
+// one such composition per band, each on its band alone, and merges their DOAs by time.
 #include "doa/node_pipeline.hpp"
 
 #include <algorithm>
@@ -34,6 +36,25 @@ namespace dronetrack::doa {
 namespace {
 
 constexpr int kMaxSources = 8;
+// Per-band detection: source_index = band + bands x rank < 64, the fusion's per-array source mask.
+constexpr int kMaxDetectionBands = 8;
+
+// A narrow band far from DC correlates as fringes one carrier period (1/f_c) apart under an
+// envelope ~1/B wide, the neighbours nearly as high as the peak (sinc(B / f_c): 0.89 for 30-39
+// kHz). The lag grid (2 f_high x correlation_oversample samples a second) finds the peak's
+// fringe, so it must sample the fringes densely enough that the true one is not undercut by
+// where its samples fall: at 2.3 samples a fringe (30-39 kHz, oversample 1) a neighbour won in
+// most frames at some angles (4.2 deg on a 0.6 m pair, BandSources.NarrowBandFarFromDc...); at
+// >= 8 a fringe, never. The oversample giving >= 8 grid samples per period of the band centre.
+int fringe_oversample(const FrequencyBand& band) {
+  const double centre_hz = 0.5 * (band.low_hz + band.high_hz);
+  return std::clamp(static_cast<int>(std::ceil(4.0 * centre_hz / band.high_hz)), 1, 16);
+}
+
+// A node per band: several bands listed, and the config asks for each on its own.
+bool splits_bands(const DoaParams& params) {
+  return params.per_band_detection && params.bands_hz.size() > 1;
+}
 // With SNR weighting the static null observes a plain-PHAT look every this many frames (0.1 s
 // at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left the
 // generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
@@ -81,6 +102,18 @@ std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params
     (void)band_runs(params.bands_hz, sample_rate_hz, fftw_friendly_size(frame_length));
   } catch (const std::invalid_argument& error) {
     return error.what();
+  }
+  if (!splits_bands(params)) return problem;
+  if (params.bands_hz.size() > static_cast<std::size_t>(kMaxDetectionBands))
+    return "per_band_detection takes at most " + std::to_string(kMaxDetectionBands) +
+           " bands, got " + std::to_string(params.bands_hz.size()) +
+           " (per_band_detection false: their union as one band)";
+  for (std::size_t b = 0; b < params.bands_hz.size(); ++b) {
+    try {
+      (void)band_runs({params.bands_hz[b]}, sample_rate_hz, fftw_friendly_size(frame_length));
+    } catch (const std::invalid_argument& error) {
+      return "bands_hz[" + std::to_string(b) + "] (per_band_detection): " + error.what();
+    }
   }
   return problem;
 }
@@ -717,9 +750,87 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   }
 }
 
+// Per-band detection: a node per band, each a whole NodePipeline on that band's bins alone (its
+// own framer, FFT, GCC, detection gate, TDOA tracker, multi-source search, cone peaks and source
+// tracks; FFTW plans made in their constructors). Every band's DOAs of one process() call are
+// collected in that band's reused vector and merged into the caller's oldest first (one frame's
+// sources: band order). The cost is the single-band node's per band, FFT included (docs/doa.md).
+struct NodePipeline::PerBand {
+  std::vector<NodePipeline> nodes;
+  std::vector<std::vector<DoaMeasurement>> outputs;  // per band, this call's DOAs
+  std::vector<std::size_t> next;                     // per band, the merge's cursor
+  NodeDiagnostics diagnostics;
+
+  void process(const AudioBlockView& block, std::vector<DoaMeasurement>& out);
+  void merge_diagnostics();
+};
+
+void NodePipeline::PerBand::process(const AudioBlockView& block, std::vector<DoaMeasurement>& out) {
+  const auto bands = static_cast<int>(nodes.size());
+  for (std::size_t b = 0; b < nodes.size(); ++b) {
+    outputs[b].clear();
+    nodes[b].process(block, outputs[b]);
+    for (DoaMeasurement& doa : outputs[b])
+      doa.source_index = static_cast<int>(b) + bands * doa.source_index;
+    next[b] = 0;
+  }
+  for (;;) {
+    std::size_t oldest = nodes.size();
+    for (std::size_t b = 0; b < nodes.size(); ++b) {
+      if (next[b] >= outputs[b].size()) continue;
+      if (oldest == nodes.size() ||
+          outputs[b][next[b]].time_s < outputs[oldest][next[oldest]].time_s)
+        oldest = b;
+    }
+    if (oldest == nodes.size()) break;
+    out.push_back(std::move(outputs[oldest][next[oldest]++]));
+  }
+  merge_diagnostics();
+}
+
+// The samples' counters are every band's (each node sees every sample): the first band's. The
+// DOAs' counters add up; the node detects when any band does, at the best band's SNR, over the
+// bands' noise floors together.
+void NodePipeline::PerBand::merge_diagnostics() {
+  diagnostics = nodes.front().diagnostics();
+  diagnostics.doas_published = 0;
+  diagnostics.below_horizon_rejected = 0;
+  diagnostics.static_sources_nulled = 0;
+  diagnostics.unposed_doas = 0;
+  diagnostics.detecting = false;
+  diagnostics.snr_db = -1e300;
+  double floor_power = 0.0;
+  for (const NodePipeline& node : nodes) {
+    const NodeDiagnostics& band = node.diagnostics();
+    diagnostics.doas_published += band.doas_published;
+    diagnostics.below_horizon_rejected += band.below_horizon_rejected;
+    diagnostics.static_sources_nulled += band.static_sources_nulled;
+    diagnostics.unposed_doas += band.unposed_doas;
+    diagnostics.detecting = diagnostics.detecting || band.detecting;
+    diagnostics.snr_db = std::max(diagnostics.snr_db, band.snr_db);
+    floor_power += std::pow(10.0, band.noise_floor_dbfs / 10.0);
+  }
+  diagnostics.noise_floor_dbfs = 10.0 * std::log10(std::max(floor_power, 1e-30));
+}
+
 NodePipeline::NodePipeline(ArrayGeometry geometry, int array_index, const DoaParams& params,
                            double sample_rate_hz, double speed_of_sound_mps) {
   validate(geometry, params, sample_rate_hz, speed_of_sound_mps);
+  if (splits_bands(params)) {
+    per_band_ = std::make_unique<PerBand>();
+    for (const FrequencyBand& band : params.bands_hz) {
+      DoaParams one_band = params;
+      one_band.bands_hz = {band};
+      one_band.correlation_oversample =
+          std::max(params.correlation_oversample, fringe_oversample(band));
+      per_band_->nodes.emplace_back(geometry, array_index, one_band, sample_rate_hz,
+                                    speed_of_sound_mps);
+    }
+    per_band_->outputs.resize(params.bands_hz.size());
+    per_band_->next.assign(params.bands_hz.size(), 0);
+    per_band_->merge_diagnostics();
+    return;
+  }
   impl_ = std::make_unique<Impl>(std::move(geometry), array_index, params, sample_rate_hz,
                                  speed_of_sound_mps);
   impl_->sound_speed_mps = speed_of_sound_mps;
@@ -729,6 +840,10 @@ NodePipeline::NodePipeline(NodePipeline&&) noexcept = default;
 NodePipeline& NodePipeline::operator=(NodePipeline&&) noexcept = default;
 
 void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasurement>& out) {
+  if (per_band_) {
+    per_band_->process(block, out);
+    return;
+  }
   Impl& impl = *impl_;
   // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
   impl.health.scan(block);
@@ -740,16 +855,45 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
   impl.diagnostics.rejected_blocks = counters.rejected_blocks;
 }
 
-void NodePipeline::set_pose_track(PoseTrack track) { impl_->pose_track = std::move(track); }
+void NodePipeline::set_pose_track(PoseTrack track) {
+  if (per_band_) {
+    for (NodePipeline& node : per_band_->nodes) node.set_pose_track(track);
+    return;
+  }
+  impl_->pose_track = std::move(track);
+}
 
-void NodePipeline::finish() { impl_->health.finish(); }
+void NodePipeline::finish() {
+  if (per_band_) {
+    for (NodePipeline& node : per_band_->nodes) node.finish();
+    return;
+  }
+  impl_->health.finish();
+}
 
-const NodeDiagnostics& NodePipeline::diagnostics() const { return impl_->diagnostics; }
-const ChannelHealth& NodePipeline::health() const { return impl_->health; }
-const ArrayGeometry& NodePipeline::geometry() const { return impl_->geometry; }
-int NodePipeline::frame_length_samples() const { return impl_->frame_length; }
-int NodePipeline::hop_samples() const { return impl_->hop; }
+// Per band: every band's node frames the same samples with the same frame and hop.
+const NodeDiagnostics& NodePipeline::diagnostics() const {
+  return per_band_ ? per_band_->diagnostics : impl_->diagnostics;
+}
+const ChannelHealth& NodePipeline::health() const {
+  return per_band_ ? per_band_->nodes.front().health() : impl_->health;
+}
+const ArrayGeometry& NodePipeline::geometry() const {
+  return per_band_ ? per_band_->nodes.front().geometry() : impl_->geometry;
+}
+int NodePipeline::frame_length_samples() const {
+  return per_band_ ? per_band_->nodes.front().frame_length_samples() : impl_->frame_length;
+}
+int NodePipeline::hop_samples() const {
+  return per_band_ ? per_band_->nodes.front().hop_samples() : impl_->hop;
+}
 double NodePipeline::output_latency_s() const {
+  if (per_band_) {
+    double latency_s = 0.0;
+    for (const NodePipeline& node : per_band_->nodes)
+      latency_s = std::max(latency_s, node.output_latency_s());
+    return latency_s;
+  }
   return (0.5 * impl_->frame_length + 1.0) / impl_->sample_rate_hz + impl_->output_delay_s();
 }
 

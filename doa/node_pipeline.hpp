@@ -44,7 +44,10 @@ class NodePipeline {
   static std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
                                    double sample_rate_hz, double speed_of_sound_mps);
 
-  // Feeds any number of samples; appends to `out` the DOAs of every analysis frame completed.
+  // Feeds any number of samples; appends to `out` the DOAs of every analysis frame completed,
+  // oldest first. Several bands with DoaParams::per_band_detection: each band is a node of its
+  // own (its detection, GCC, tracker and source search on its bins), and its k-th source of a
+  // frame is published as source_index band + bands x k (seed 003: source i is band i).
   // Never throws on odd audio (silence, clipping, NaN, dropouts): counts it in diagnostics().
   void process(const AudioBlockView& block, std::vector<DoaMeasurement>& out);
 
@@ -70,7 +73,10 @@ class NodePipeline {
 
  private:
   struct Impl;
+  // Several bands with per_band_detection: a whole node per band, their DOAs merged (impl_ null).
+  struct PerBand;
   std::unique_ptr<Impl> impl_;
+  std::unique_ptr<PerBand> per_band_;
 };
 
 }  // namespace dronetrack::doa

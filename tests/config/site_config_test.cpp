@@ -76,6 +76,7 @@ TEST(SiteConfig, ParsesTheSpecExampleWithDefaults) {
   // Defaults for every processing parameter.
   EXPECT_DOUBLE_EQ(site.doa.bands_hz.at(0).low_hz, 1500.0);
   EXPECT_DOUBLE_EQ(site.doa.bands_hz.at(0).high_hz, 3500.0);
+  EXPECT_TRUE(site.doa.per_band_detection);
   EXPECT_DOUBLE_EQ(site.fusion.output_rate_hz, 10.0);
   EXPECT_EQ(site.dds.domain_id, 0);
   EXPECT_EQ(site.http.bind, "127.0.0.1:8080");
@@ -206,6 +207,18 @@ TEST(SiteConfig, ProcessingSectionsValidated) {
       has("doa.tdoa_tracker: unknown value \"magic\", expected one of: per_frame, "
           "bayesian_grid, multi_peak, robust_regression"));
   EXPECT_TRUE(has("fusion.confirm_hits: must not exceed confirm_window"));
+}
+
+TEST(SiteConfig, PerBandDetectionKey) {
+  json site = two_array_site();
+  site["doa"] = {{"bands_hz", {{1000, 3000}, {4000, 6000}}}, {"per_band_detection", false}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_FALSE(parsed.doa.per_band_detection);
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_EQ(parsed.doa.bands_hz.size(), 2U);
+  site["doa"]["per_band_detection"] = "yes";
+  expect_problem(site, "doa.per_band_detection: expected true or false, got a string");
 }
 
 TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {

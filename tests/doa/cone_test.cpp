@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -543,6 +544,160 @@ TEST(ConeFromAudio, TwoSourcesGiveTwoPeaksAtTheirConeAngles) {
   std::printf("two sources: %d of %zu DOAs carry both cones among their peaks\n", both,
               doas.size());
   EXPECT_GE(both, static_cast<int>(doas.size() * 9 / 10));
+}
+
+// --- Several bands: a source per band (issue 15, seed 003) ------------------------------
+
+struct BandSource {
+  double low_hz;
+  double high_hz;
+  double angle_deg;   // on the pair's cone
+  double around_rad;  // where on the cone
+};
+
+// Three sources, each band noise in its own band at its own cone angle (seed 003's setting), heard
+// by one pair with ~10 dB in-band sensor noise; `silent` (-1: none) is left out.
+std::vector<DoaMeasurement> three_band_doas(const std::vector<BandSource>& sources, int silent) {
+  const ArrayGeometry geometry = mic_pair(25.0);
+  const Eigen::Vector3d axis = yaw_matrix(25.0) * Eigen::Vector3d::UnitX();
+  const auto frames = static_cast<std::size_t>(4.0 * kRate);
+  testing::Recording recording = testing::silent_recording(2, frames);
+  for (std::size_t i = 0; i < sources.size(); ++i) {
+    if (static_cast<int>(i) == silent) continue;
+    const BandSource& source = sources[i];
+    const testing::BandNoise noise(static_cast<int>(frames), kRate, source.low_hz, source.high_hz,
+                                   61 + static_cast<unsigned>(i));
+    testing::add_source(recording, geometry,
+                        on_cone(axis, radians(source.angle_deg), source.around_rad), noise, 0.05);
+  }
+  testing::add_sensor_noise(recording, kRate, 200.0, 16000.0, 0.045, 79);
+  DoaParams params;
+  params.bands_hz.clear();
+  for (const BandSource& source : sources)
+    params.bands_hz.push_back({source.low_hz, source.high_hz});
+  NodePipeline pipeline(geometry, 0, params, kRate, kSound);
+  std::vector<DoaMeasurement> doas = run(pipeline, recording);
+  for (std::size_t i = 1; i < doas.size(); ++i) {
+    EXPECT_GE(doas[i].time_s, doas[i - 1].time_s);  // oldest first
+  }
+  return doas;
+}
+
+const std::vector<BandSource> kThreeBandSources{
+    {1000.0, 4000.0, 40.0, 0.3}, {5000.0, 8000.0, 95.0, 2.0}, {9000.0, 12000.0, 140.0, -1.2}};
+
+TEST(BandSources, EveryFrameGivesEachBandsConeWithItsOwnIndex) {
+  const std::vector<DoaMeasurement> doas = three_band_doas(kThreeBandSources, -1);
+  ASSERT_GT(doas.size(), 90U);
+  // Per frame time: which sources it gave.
+  std::vector<double> times;
+  std::vector<int> masks;
+  std::vector<std::vector<double>> errors(3);
+  for (const DoaMeasurement& doa : doas) {
+    ASSERT_GE(doa.source_index, 0);
+    ASSERT_LT(doa.source_index, 3);  // one source per band, its index the band's
+    EXPECT_EQ(doa.ambiguity, DoaAmbiguity::cone);
+    const auto source = static_cast<std::size_t>(doa.source_index);
+    const double error_deg = degrees(doa.cone_angle_rad) - kThreeBandSources[source].angle_deg;
+    EXPECT_LT(std::abs(error_deg), 1.0) << "source " << source << " at " << doa.time_s;
+    errors[source].push_back(error_deg);
+    if (times.empty() || std::abs(doa.time_s - times.back()) > 1e-9) {
+      times.push_back(doa.time_s);
+      masks.push_back(0);
+    }
+    EXPECT_EQ(masks.back() & (1 << doa.source_index), 0) << "twice in a frame: " << doa.time_s;
+    masks.back() |= 1 << doa.source_index;
+  }
+  const auto all_three = std::count(masks.begin(), masks.end(), 7);
+  std::printf(
+      "three bands: %zu frames with DOAs, %td with all three; median errors %.3f / %.3f / "
+      "%.3f deg\n",
+      times.size(), all_three, median(errors[0]), median(errors[1]), median(errors[2]));
+  EXPECT_EQ(all_three, static_cast<std::ptrdiff_t>(times.size()));
+  for (const std::vector<double>& band : errors) EXPECT_LT(std::abs(median(band)), 0.3);
+}
+
+TEST(BandSources, ASilentBandGivesNoCone) {
+  const std::vector<DoaMeasurement> doas = three_band_doas(kThreeBandSources, 1);
+  ASSERT_GT(doas.size(), 60U);
+  std::array<int, 3> counts{};
+  for (const DoaMeasurement& doa : doas) {
+    ASSERT_GE(doa.source_index, 0);
+    ASSERT_LT(doa.source_index, 3);
+    const auto source = static_cast<std::size_t>(doa.source_index);
+    ++counts[source];
+    EXPECT_NEAR(degrees(doa.cone_angle_rad), kThreeBandSources[source].angle_deg, 1.0);
+  }
+  std::printf("band 1 silent: %d / %d / %d DOAs per band\n", counts[0], counts[1], counts[2]);
+  EXPECT_EQ(counts[1], 0);
+  EXPECT_GT(counts[0], 60);
+  EXPECT_GT(counts[2], 60);
+}
+
+TEST(BandSources, UnionOfTheBandsWhenAskedGivesOneConeAFrame) {
+  // per_band_detection false: the bands are one mask (today's behaviour before issue 15's
+  // deliverable 4), and a pair then reports one cone a frame.
+  const ArrayGeometry geometry = mic_pair();
+  DoaParams params;
+  params.bands_hz = {{1000.0, 4000.0}, {5000.0, 8000.0}};
+  params.per_band_detection = false;
+  const auto frames = static_cast<std::size_t>(2.0 * kRate);
+  testing::Recording recording = testing::silent_recording(2, frames);
+  const testing::BandNoise source(static_cast<int>(frames), kRate, 1000.0, 8000.0, 71);
+  testing::add_source(recording, geometry, on_cone(Eigen::Vector3d::UnitX(), radians(60.0), 0.5),
+                      source, 0.05);
+  testing::add_sensor_noise(recording, kRate, 200.0, 16000.0, 0.01, 72);
+  NodePipeline pipeline(geometry, 0, params, kRate, kSound);
+  const std::vector<DoaMeasurement> doas = run(pipeline, recording);
+  ASSERT_GT(doas.size(), 10U);
+  for (const DoaMeasurement& doa : doas) {
+    EXPECT_EQ(doa.source_index, 0);
+    EXPECT_NEAR(degrees(doa.cone_angle_rad), 60.0, 1.0);
+  }
+}
+
+TEST(BandSources, SetupNamesABandWithoutBins) {
+  DoaParams params;
+  params.bands_hz = {{1000.0, 4000.0}, {30000.0, 40000.0}};  // above 24 kHz's Nyquist
+  const std::string problem = NodePipeline::setup_problem(mic_pair(), params, kRate, kSound);
+  EXPECT_NE(problem.find("bands_hz[1]"), std::string::npos) << problem;
+  params.per_band_detection = false;
+  EXPECT_EQ(NodePipeline::setup_problem(mic_pair(), params, kRate, kSound), "");
+}
+
+TEST(BandSources, NarrowBandFarFromDcKeepsItsFringe) {
+  // Seed 003's setting: a 0.6 m hydrophone pair at 1500 m/s, 100 kHz, sources in 10-19 and
+  // 30-39 kHz. The 30-39 kHz correlation has fringes 29 us apart nearly as high as its peak; on
+  // a lag grid of 2.3 samples a fringe the neighbour won at 80 deg (median error 4.22 deg).
+  const double rate = 100000.0;
+  const double sound = 1500.0;
+  for (const double angle_deg : {72.0, 80.0, 90.0, 104.0}) {
+    const ArrayGeometry geometry = mic_pair();
+    const auto frames = static_cast<std::size_t>(3.0 * rate);
+    testing::Recording recording = testing::silent_recording(2, frames);
+    const testing::BandNoise low(static_cast<int>(frames), rate, 10000.0, 19000.0, 4);
+    const testing::BandNoise high(static_cast<int>(frames), rate, 30000.0, 39000.0, 5);
+    const Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+    testing::add_source(recording, geometry, on_cone(axis, radians(140.0 - 0.5 * angle_deg), 1.0),
+                        low, 0.05, sound);
+    testing::add_source(recording, geometry, on_cone(axis, radians(angle_deg), 0.4), high, 0.05,
+                        sound);
+    testing::add_sensor_noise(recording, rate, 200.0, 45000.0, 0.05, 79);  // ~7 dB in band
+    DoaParams params;
+    params.bands_hz = {{10000.0, 19000.0}, {30000.0, 39000.0}};
+    params.frame_s = 0.1;
+    params.tdoa_tracker = TdoaTracker::per_frame;
+    NodePipeline pipeline(geometry, 0, params, rate, sound);
+    std::vector<double> errors;
+    for (const DoaMeasurement& doa : run(pipeline, recording))
+      if (doa.source_index == 1)
+        errors.push_back(std::abs(degrees(doa.cone_angle_rad) - angle_deg));
+    ASSERT_GT(errors.size(), 50U);
+    std::printf("30-39 kHz at %.0f deg: %zu cones, median |error| %.3f deg, max %.3f\n", angle_deg,
+                errors.size(), median(errors), *std::max_element(errors.begin(), errors.end()));
+    EXPECT_LT(median(errors), 0.1);
+    EXPECT_LT(*std::max_element(errors.begin(), errors.end()), 1.0);
+  }
 }
 
 TEST(ConeFromAudio, SilentAndNanFramesGiveNoDoaAndNoCrash) {
