@@ -33,6 +33,9 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
     ObjectReader reader = section.object("single_array");
     one.hypothesis_spacing_m =
         reader.number("hypothesis_spacing_m", one.hypothesis_spacing_m, 0.1, 1e4);
+    one.hypothesis_range_ratio =
+        reader.number("hypothesis_range_ratio", one.hypothesis_range_ratio, 1.0, 4.0);
+    one.own_spread_weights = reader.boolean("own_spread_weights", one.own_spread_weights);
     one.hypotheses_per_side = reader.integer("hypotheses_per_side", one.hypotheses_per_side, 1, 64);
     one.max_range_m = reader.number("max_range_m", one.max_range_m, 1.0, 1e5);
     one.prune_gamma = reader.number("prune_gamma", one.prune_gamma, 1e-6, 0.999);

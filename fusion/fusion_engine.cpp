@@ -379,6 +379,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(one.hypotheses_per_side >= 1 && one.hypotheses_per_side <= 64,
         "single_array.hypotheses_per_side", "must be in [1, 64]");
   check(one.max_range_m > 0.0, "single_array.max_range_m", "must be > 0");
+  check(one.hypothesis_range_ratio >= 1.0 && one.hypothesis_range_ratio <= 4.0,
+        "single_array.hypothesis_range_ratio", "must be in [1, 4]");
   check(one.prune_gamma > 0.0 && one.prune_gamma < 1.0, "single_array.prune_gamma",
         "must be in (0, 1)");
   check(one.merge_d2 >= 0.0, "single_array.merge_d2", "must be >= 0");
@@ -434,6 +436,9 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.one_array_settings.motion.jerk_variance_m2ps6 = one.jerk_std_mps3 * one.jerk_std_mps3;
   s.one_array_settings.particle_count = one.particle_count;
   s.one_array_settings.one_array = one;
+  // No track is placed farther from every array than init_max_range_m: nor a hypothesis.
+  s.one_array_settings.one_array.max_range_m = std::min(one.max_range_m, params.init_max_range_m);
+  s.one_array_settings.one_array.max_speed_mps = params.init_max_speed_mps;
   for (const auto& model : s.models) s.last_centre_m.push_back(model.centre_m);
   s.likelihood.emplace(params.likelihood == DoaLikelihoodKind::student_t ? LikelihoodKind::student_t
                                                                          : LikelihoodKind::gaussian,

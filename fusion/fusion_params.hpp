@@ -30,18 +30,39 @@ enum class FilterKind {
 // How a track starts from one array's DOA alone, and how the one-array localisers run (issue 15;
 // seeds 000, 003, 004). Keys under fusion.single_array (docs/fusion.md).
 struct OneArrayParams {
-  // Seed 003: Gaussians every hypothesis_spacing_m along the bearing, hypotheses_per_side of them
-  // on each branch (a ray, or each mirror side), none beyond max_range_m. Each has a range std of
-  // half the spacing, so neighbours overlap and their sum is near flat in range.
+  // Seed 003: Gaussians along the bearing, the first at hypothesis_spacing_m, each next one
+  // max(hypothesis_spacing_m, (hypothesis_range_ratio - 1) r) further out (evenly spaced near the
+  // array, geometrically beyond: a range-parameterised sum, Peach 1995, whose every Gaussian has a
+  // range std of at most (ratio - 1) / 2 of its range, so each EKF is linearised within its own
+  // spread), hypotheses_per_side of them at most on each branch (a ray, or each mirror side), none
+  // beyond max_range_m (nor the fusion's init_max_range_m). Each has a range std of half the gap
+  // to the next and a weight in proportion to that gap, so the sum is near flat in range (seed
+  // 003 Fig. 3's uniform range prior) out to the last. A ratio of 1 is seed 003's even spacing.
   double hypothesis_spacing_m = 15.0;
-  int hypotheses_per_side = 6;
-  // Seed 004's particle region: a disc of this radius on the source plane (a ball without one).
-  double max_range_m = 100.0;
+  double hypothesis_range_ratio = 1.3;
+  int hypotheses_per_side = 24;
+  // The one-array localisers' region: no hypothesis beyond it; seed 004's particles on a disc of
+  // this radius on the source plane (a ball without one). The engine also bounds it by
+  // init_max_range_m (no track is placed farther from every array).
+  double max_range_m = 2000.0;
   // Seed 003 eq. 10: a hypothesis whose weight falls below gamma / N is pruned.
   double prune_gamma = 0.1;
-  // Hypotheses closer than this squared Mahalanobis distance (position, summed covariances) are
-  // merged into one (moment-matched): the range has been resolved between them.
+  // Two hypotheses merge into their moment-matched Gaussian when that loses little (Runnalls'
+  // bound on the Kullback-Leibler discrimination, position block): ln det P_merged - the weighted
+  // mean of ln det P_i below ln(1 + merge_d2 / 4), which for equal weights and covariances is a
+  // squared Mahalanobis distance below merge_d2. Two wide hypotheses that overlap along the
+  // bearing (the range still open) do not merge: their merged Gaussian is wider than either.
   double merge_d2 = 1.0;
+  // Eq. 9's weights on each hypothesis's own innovation covariance S_i (seed 003 as printed)
+  // rather than the mixture's common S (gaussian_sum_filter.cpp: from a static array ln det S_i
+  // ranks the ranges by the motion prior, not by the data). Key single_array.own_spread_weights.
+  bool own_spread_weights = false;
+  // The fastest a source moves (the engine sets it from init_max_speed_mps; not a key of its own).
+  // A hypothesis whose velocity the bearings have placed above it (its mixture weight times the
+  // probability that its speed is below it, along its velocity's direction) holds little of the
+  // reported mixture: a static array's bearings fix the angular rates, and the range only up to
+  // the speed those rates need.
+  double max_speed_mps = 25.0;
   // Seed 000 eqs. 15-16: r_init, sigma_r, sigma_theta (paper: 50 m, 25 m, 10 deg).
   double range_init_m = 50.0;
   double range_init_std_m = 25.0;

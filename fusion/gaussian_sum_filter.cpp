@@ -12,6 +12,12 @@ namespace {
 bool valid(const MeasurementCovariance& s) {
   return s.allFinite() && s(0, 0) > 0.0 && s.determinant() > 0.0;
 }
+// ln det of a covariance's position block (-inf when it is not positive definite).
+double log_det_position(const StateCovariance& covariance) {
+  const Eigen::LLT<Eigen::Matrix3d> llt(covariance.topLeftCorner<3, 3>());
+  if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
+  return 2.0 * llt.matrixLLT().diagonal().array().log().sum();
+}
 }  // namespace
 
 GaussianSumFilter::GaussianSumFilter(const FilterSettings& settings) : settings_(settings) {
@@ -27,6 +33,7 @@ GaussianSumFilter::GaussianSumFilter(const FilterSettings& settings) : settings_
   for (std::size_t i = 0; i < capacity; ++i)
     components_.push_back(make_track_filter(FilterKind::ekf, component));
   weight_.assign(capacity, 0.0);
+  effective_.assign(capacity, 0.0);
   branch_.assign(capacity, 0);
   log_likelihood_.assign(capacity, 0.0);
   innovations_.resize(capacity);
@@ -44,26 +51,34 @@ void GaussianSumFilter::initialise(const StateVector& mean, const StateCovarianc
 bool GaussianSumFilter::initialise_from_bearing(const BearingLocus& locus) {
   const OneArrayParams& p = settings_.one_array;
   count_ = 0;
+  double total = 0.0;
   for (int b = 0; b < locus.branch_count; ++b) {
-    for (int k = 1; k <= p.hypotheses_per_side; ++k) {
-      const double range_m = k * p.hypothesis_spacing_m;
-      if (range_m > p.max_range_m) break;
+    double range_m = p.hypothesis_spacing_m;
+    for (int k = 1; k <= p.hypotheses_per_side && range_m <= p.max_range_m; ++k) {
+      // Evenly spaced near the array, geometrically beyond (fusion_params.hpp).
+      const double gap_m =
+          std::max(p.hypothesis_spacing_m, (p.hypothesis_range_ratio - 1.0) * range_m);
       const auto offset = locus.offset_at(b, range_m);
+      range_m += gap_m;
       if (!offset || count_ >= static_cast<int>(components_.size())) continue;
-      // Range std of half the spacing: neighbours meet at 2 sigma, so the sum is near flat in
-      // range (seed 003 Fig. 3: a uniform range prior); across, the DOA's own angular std.
+      // Range std of half the gap: neighbours meet at 2 sigma, and a weight in proportion to the
+      // gap: the sum is near flat in range (seed 003 Fig. 3: a uniform range prior; eq. 6's equal
+      // weights when evenly spaced); across, the DOA's own angular std.
       StateVector mean;
       StateCovariance covariance;
       state_at(locus.model.centre_m + *offset,
-               range_bearing_covariance(*offset, 0.5 * p.hypothesis_spacing_m, locus.angle_std_rad),
-               p, mean, covariance);
-      components_[static_cast<std::size_t>(count_)]->initialise(mean, covariance);
-      branch_[static_cast<std::size_t>(count_)] = b;
+               range_bearing_covariance(*offset, 0.5 * gap_m, locus.angle_std_rad), p, mean,
+               covariance);
+      const auto j = static_cast<std::size_t>(count_);
+      components_[j]->initialise(mean, covariance);
+      branch_[j] = b;
+      weight_[j] = gap_m;
+      total += gap_m;
       ++count_;
     }
   }
   if (count_ == 0) return false;
-  for (int i = 0; i < count_; ++i) weight_[static_cast<std::size_t>(i)] = 1.0 / count_;  // eq. 6
+  for (int i = 0; i < count_; ++i) weight_[static_cast<std::size_t>(i)] /= total;
   combine();
   return true;
 }
@@ -86,8 +101,9 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
     innovation_ok_[j] = status != FilterStatus::failed;
     if (!innovation_ok_[j]) continue;
     if (status == FilterStatus::repaired) worst = FilterStatus::repaired;
-    if (reference < 0 || weight_[j] > weight_[static_cast<std::size_t>(reference)]) reference = i;
-    weight_sum += weight_[j];
+    if (reference < 0 || effective_[j] > effective_[static_cast<std::size_t>(reference)])
+      reference = i;
+    weight_sum += effective_[j];
   }
   if (reference < 0 || !(weight_sum > 0.0)) return FilterStatus::failed;
   noise_ = noise;
@@ -98,7 +114,7 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
   for (int i = 0; i < count_; ++i) {
     const auto j = static_cast<std::size_t>(i);
     if (innovation_ok_[j])
-      offset += weight_[j] / weight_sum * model.residual(innovations_[j].predicted, centre);
+      offset += effective_[j] / weight_sum * model.residual(innovations_[j].predicted, centre);
   }
   const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
   MeasurementCovariance s = MeasurementCovariance::Zero();
@@ -106,7 +122,7 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
   for (int i = 0; i < count_; ++i) {
     const auto j = static_cast<std::size_t>(i);
     if (!innovation_ok_[j]) continue;
-    const double w = weight_[j] / weight_sum;
+    const double w = effective_[j] / weight_sum;
     const Measurement dz = model.residual(innovations_[j].predicted, z_hat);
     s += w * (innovations_[j].covariance + dz * dz.transpose());
     cross += w * (innovations_[j].cross + (components_[j]->mean() - mean_) * dz.transpose());
@@ -122,6 +138,8 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
   // The tracker may have added the DOA's own covariance (and a Student-t reweighting) to S and R
   // after innovation(): every hypothesis takes the same.
   const MeasurementCovariance extra = innovation.noise - noise_;
+  if (!valid(innovation.covariance)) return FilterStatus::failed;
+  const Eigen::LDLT<MeasurementCovariance> common(innovation.covariance);
   FilterStatus worst = FilterStatus::ok;
   double best_log = -std::numeric_limits<double>::infinity();
   for (int i = 0; i < count_; ++i) {
@@ -132,13 +150,23 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     own.covariance += extra;
     own.noise = innovation.noise;
     if (!valid(own.covariance)) continue;
+    // Each hypothesis's own prediction, judged on the mixture's common spread (see below).
     const Measurement residual = own.residual(z);
-    const double d2 = residual.dot(own.covariance.ldlt().solve(residual));
+    const double d2 = residual.dot(common.solve(residual));
     const FilterStatus status = components_[j]->update(own, z);
     if (status == FilterStatus::failed) continue;
     if (status == FilterStatus::repaired) worst = FilterStatus::repaired;
-    // Eq. 9: the innovation's normal density (the cone's unit pad adds ln 1 = 0).
-    log_likelihood_[j] = -0.5 * d2 - 0.5 * std::log(own.covariance.determinant());
+    // Eq. 9 with the mixture's S for every hypothesis: N(nu_i; 0, S), S common. With each
+    // hypothesis's own S_i the term ln det S_i ranks the ranges by the bearing spread their motion
+    // prior predicts (a metric velocity and jerk prior is a wide angular one near the array, a
+    // narrow one far out): from a static array, whose bearings leave the range open, that is the
+    // prior choosing the range, not the data. On a common S a hypothesis loses weight only by
+    // predicting the DOA worse than the others (the mirror side after a turn, a range the
+    // platform's motion rules out).
+    log_likelihood_[j] = -0.5 * d2;
+    if (settings_.one_array.own_spread_weights)  // seed 003's eq. 9 as printed
+      log_likelihood_[j] = -0.5 * residual.dot(own.covariance.ldlt().solve(residual)) -
+                           0.5 * std::log(own.covariance.determinant());
     best_log = std::max(best_log, log_likelihood_[j]);
   }
   if (!std::isfinite(best_log)) return FilterStatus::failed;
@@ -174,6 +202,7 @@ void GaussianSumFilter::remove(int hypothesis) {
   const auto last = static_cast<std::size_t>(count_ - 1);
   std::swap(components_[j], components_[last]);  // a pointer swap: no allocation
   std::swap(weight_[j], weight_[last]);
+  std::swap(effective_[j], effective_[last]);
   std::swap(branch_[j], branch_[last]);
   std::swap(innovations_[j], innovations_[last]);
   std::swap(innovation_ok_[j], innovation_ok_[last]);
@@ -186,15 +215,12 @@ void GaussianSumFilter::prune_and_merge() {
   for (int i = count_ - 1; i >= 0 && count_ > 1; --i) {
     if (weight_[static_cast<std::size_t>(i)] < threshold) remove(i);
   }
+  // Runnalls' merge cost (fusion_params.hpp, merge_d2), position block.
+  const double max_cost = std::log1p(0.25 * settings_.one_array.merge_d2);
   for (int i = 0; i < count_; ++i) {
     for (int k = count_ - 1; k > i; --k) {
       const auto a = static_cast<std::size_t>(i);
       const auto b = static_cast<std::size_t>(k);
-      const Eigen::Vector3d difference =
-          position_of(components_[a]->mean()) - position_of(components_[b]->mean());
-      const Eigen::Matrix3d spread = components_[a]->covariance().topLeftCorner<3, 3>() +
-                                     components_[b]->covariance().topLeftCorner<3, 3>();
-      if (difference.dot(spread.ldlt().solve(difference)) >= settings_.one_array.merge_d2) continue;
       const double total = weight_[a] + weight_[b];
       const StateVector mean =
           (weight_[a] * components_[a]->mean() + weight_[b] * components_[b]->mean()) / total;
@@ -204,6 +230,11 @@ void GaussianSumFilter::prune_and_merge() {
           (weight_[a] * (components_[a]->covariance() + da * da.transpose()) +
            weight_[b] * (components_[b]->covariance() + db * db.transpose())) /
           total;
+      const double log_det_a = log_det_position(components_[a]->covariance());
+      const double log_det_b = log_det_position(components_[b]->covariance());
+      const double cost =
+          log_det_position(covariance) - (weight_[a] * log_det_a + weight_[b] * log_det_b) / total;
+      if (!(cost < max_cost)) continue;
       components_[a]->initialise(mean, covariance);
       weight_[a] = total;
       remove(k);
@@ -215,16 +246,48 @@ void GaussianSumFilter::prune_and_merge() {
     for (int i = 0; i < count_; ++i) weight_[static_cast<std::size_t>(i)] /= total;
 }
 
+double GaussianSumFilter::speed_plausibility(int hypothesis) const {
+  const double max_speed_mps = settings_.one_array.max_speed_mps;
+  if (!(max_speed_mps > 0.0)) return 1.0;
+  const TrackFilter& component = *components_[static_cast<std::size_t>(hypothesis)];
+  const Eigen::Vector3d velocity = velocity_of(component.mean());
+  const double speed_mps = velocity.norm();
+  if (!(speed_mps > max_speed_mps)) return 1.0;
+  // P(|v| <= max) along the mean velocity's direction (1-D: the spread across it only adds speed).
+  const Eigen::Vector3d along = velocity / speed_mps;
+  const double variance = along.dot(
+      component.covariance().block<3, 3>(StateBlock::velocity, StateBlock::velocity) * along);
+  if (!(variance > 0.0)) return 0.0;
+  return 0.5 * std::erfc((speed_mps - max_speed_mps) / std::sqrt(2.0 * variance));
+}
+
 void GaussianSumFilter::combine() {
+  // The reported mixture: each weight times its speed's plausibility (fusion_params.hpp,
+  // max_speed_mps); the stored weights stay the bearings' alone.
+  double total = 0.0;
+  for (int i = 0; i < count_; ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    effective_[j] = weight_[j] * speed_plausibility(i);
+    total += effective_[j];
+  }
+  // Every hypothesis too fast (a source faster than the bound): the bearings' weights.
+  const bool bounded = total > 1e-12;
+  if (!bounded) total = 0.0;
+  for (int i = 0; i < count_; ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    if (!bounded) effective_[j] = weight_[j];
+    if (!bounded) total += effective_[j];
+  }
+  for (int i = 0; i < count_; ++i) effective_[static_cast<std::size_t>(i)] /= total;
   mean_.setZero();
   for (int i = 0; i < count_; ++i)
     mean_ +=
-        weight_[static_cast<std::size_t>(i)] * components_[static_cast<std::size_t>(i)]->mean();
+        effective_[static_cast<std::size_t>(i)] * components_[static_cast<std::size_t>(i)]->mean();
   covariance_.setZero();
   for (int i = 0; i < count_; ++i) {
     const auto j = static_cast<std::size_t>(i);
     const StateVector d = components_[j]->mean() - mean_;
-    covariance_ += weight_[j] * (components_[j]->covariance() + d * d.transpose());
+    covariance_ += effective_[j] * (components_[j]->covariance() + d * d.transpose());
   }
   covariance_ = 0.5 * (covariance_ + covariance_.transpose()).eval();
   StateCovariance lower;

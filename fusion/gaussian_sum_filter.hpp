@@ -44,10 +44,13 @@ class GaussianSumFilter final : public TrackFilter {
   void remove(int hypothesis);
   void prune_and_merge();
   void combine();
+  // P(speed <= one_array.max_speed_mps) of a hypothesis, along its mean velocity.
+  double speed_plausibility(int hypothesis) const;
 
   FilterSettings settings_;
   std::vector<std::unique_ptr<TrackFilter>> components_;  // [0, count_) live
-  std::vector<double> weight_;
+  std::vector<double> weight_;                            // the bearings' (eq. 9, on a common S)
+  std::vector<double> effective_;  // weight_ times speed_plausibility, normalised: reported
   std::vector<int> branch_;
   std::vector<double> log_likelihood_;
   std::vector<Innovation> innovations_;

@@ -421,6 +421,8 @@ TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
                      {{"hypothesis_spacing_m", 50},
                       {"hypotheses_per_side", 10},
                       {"max_range_m", 600},
+                      {"hypothesis_range_ratio", 1.5},
+                      {"own_spread_weights", true},
                       {"range_init_m", 30}}}};
   std::vector<std::string> warnings;
   const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
@@ -431,6 +433,8 @@ TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
   EXPECT_EQ(parsed.fusion.single_array.hypothesis_spacing_m, 50.0);
   EXPECT_EQ(parsed.fusion.single_array.hypotheses_per_side, 10);
   EXPECT_EQ(parsed.fusion.single_array.max_range_m, 600.0);
+  EXPECT_EQ(parsed.fusion.single_array.hypothesis_range_ratio, 1.5);
+  EXPECT_TRUE(parsed.fusion.single_array.own_spread_weights);
   EXPECT_EQ(parsed.fusion.single_array.range_init_m, 30.0);
   EXPECT_EQ(parsed.fusion.single_array.prune_gamma, 0.1);  // default kept
   const SiteConfig plain =
