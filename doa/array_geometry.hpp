@@ -23,8 +23,8 @@ struct ArrayGeometry {
   // What a site calibration measured (docs/calibration.md). Per mic (empty: none): how late its
   // channel hears (s) and how loud (dB), both undone on its spectrum before the correlations;
   // and how far the node's clock runs ahead of the site's (s), taken off every DOA's time.
-  std::vector<double> channel_delay_s;
-  std::vector<double> channel_gain_db;
+  std::vector<double> channel_delay_s{};
+  std::vector<double> channel_gain_db{};
   double clock_offset_s = 0.0;
 
   Eigen::Matrix3d array_to_site() const;              // rotation only
