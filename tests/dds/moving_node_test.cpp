@@ -81,6 +81,9 @@ class Process {
     }
     return status_;
   }
+  void interrupt(int signal_number) {
+    if (pid_ > 0 && !status_) kill(pid_, signal_number);
+  }
 
  private:
   std::vector<std::string> copies_;
@@ -144,7 +147,8 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
     std::ofstream(dir / "site.json") << R"({"arrays": [{"id": "M1", "position_m": [0, 0, 1.5],
       "yaw_deg": 0, "recording": "M1.wav", "pose_topic": true,
       "mics_m": [[0,0,0.5], [0.4714,0,-0.1667], [-0.2357,0.4082,-0.1667], [-0.2357,-0.4082,-0.1667]]}],
-      "doa": {"tdoa_tracker": "per_frame", "ground_echo": false}})";
+      "doa": {"tdoa_tracker": "per_frame", "ground_echo": false},
+      "fusion": {"single_array_start": true}})";
   }
 
   namespace dds = dronetrack::dds;
@@ -162,6 +166,11 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
   Process poses({binary, "pose-publish", "--array", "M1", "--pose-file",
                  (dir / "pose.jsonl").string(), "--epoch", epoch_text, "--domain", domain},
                 dir / "pose.err");
+  // The fusion process takes the same stream: the poses travel inside the DOAs, it never reads
+  // ArrayPose.
+  Process fusion({binary, "fusion", (dir / "site.json").string(), "--domain", domain,
+                  "--tracks-out", (dir / "tracks.jsonl").string()},
+                 dir / "fusion.err");
   Process node({binary, "node", (dir / "site.json").string(), "--array", "M1", "--realtime",
                 "--epoch", epoch_text, "--domain", domain},
                dir / "node.err");
@@ -198,6 +207,29 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
   std::printf("%zu DOAs over DDS, worst error against the heading at their time %.3f deg\n",
               doas.size(), worst_deg);
   EXPECT_LT(worst_deg, 1.0);
+
+  // The fusion took every one of them as a valid moving-array DOA (pose checked on intake).
+  std::this_thread::sleep_for(1s);  // its reorder window
+  fusion.interrupt(SIGTERM);
+  ASSERT_EQ(fusion.wait_exit(10s), 128 + SIGTERM) << read_text(dir / "fusion.err");
+  const std::string fusion_log = read_text(dir / "fusion.err");
+  long received = -1;
+  long accepted = -1;
+  long malformed = -1;
+  const auto summary = fusion_log.find("DOAs received");
+  ASSERT_NE(summary, std::string::npos) << fusion_log;
+  const auto at = fusion_log.rfind("fusion: ", summary);
+  ASSERT_NE(at, std::string::npos) << fusion_log;
+  ASSERT_EQ(
+      std::sscanf(fusion_log.c_str() + at, "fusion: %ld DOAs received, %ld accepted, %ld malformed",
+                  &received, &accepted, &malformed),
+      3)
+      << fusion_log;
+  std::printf("fusion: %ld DOAs received, %ld accepted, %ld malformed\n", received, accepted,
+              malformed);
+  EXPECT_GE(received, static_cast<long>(doas.size()) - 2) << fusion_log;
+  EXPECT_EQ(accepted, received) << fusion_log;
+  EXPECT_EQ(malformed, 0) << fusion_log;
   fs::remove_all(dir);
 }
 
