@@ -12,7 +12,7 @@
 #include "apps/fusion_driver.hpp"
 #include "common/log.hpp"
 #include "config/config_reader.hpp"
-#include "doa/pose_sample.hpp"
+#include "doa/array_geometry.hpp"
 #include "eval/readers.hpp"
 
 namespace dronetrack::apps {
@@ -31,7 +31,8 @@ void copy_geometry(const eval::DoaRecord& record, const doa::ArrayGeometry& geom
   if (record.pose) {
     const Eigen::Vector3d& attitude = record.pose->attitude_deg;
     doa.pose = {record.pose->centre_m,
-                doa::rotation_from_attitude_deg(attitude(0), attitude(1), attitude(2)), true};
+                Eigen::Quaterniond(doa::attitude_to_site(attitude(0), attitude(1), attitude(2))),
+                true};
   } else {
     doa.pose = {geometry.centre_site_m(), Eigen::Quaterniond(geometry.array_to_site()), false};
   }

@@ -5,7 +5,6 @@
 #include <numbers>
 
 #include "doa/array_geometry.hpp"
-#include "doa/pose_sample.hpp"
 
 namespace dronetrack::apps {
 namespace {

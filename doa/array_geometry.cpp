@@ -16,6 +16,14 @@ Eigen::Matrix3d attitude_to_site(double yaw_deg, double pitch_deg, double roll_d
       .toRotationMatrix();
 }
 
+Eigen::Vector3d attitude_deg_of(const Eigen::Quaterniond& array_to_site) {
+  const Eigen::Matrix3d r = array_to_site.normalized().toRotationMatrix();
+  const double pitch = std::asin(std::clamp(-r(2, 0), -1.0, 1.0));
+  const double yaw = std::atan2(r(1, 0), r(0, 0));
+  const double roll = std::atan2(r(2, 1), r(2, 2));
+  return Eigen::Vector3d(yaw, pitch, roll) * kDegPerRad;
+}
+
 Eigen::Matrix3d ArrayGeometry::array_to_site() const {
   return attitude_to_site(yaw_deg, pitch_deg, roll_deg);
 }

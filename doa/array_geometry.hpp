@@ -36,6 +36,9 @@ struct ArrayGeometry {
 
 // Rz(yaw) Ry(pitch) Rx(roll): the rotation taking array-frame vectors to the site frame.
 Eigen::Matrix3d attitude_to_site(double yaw_deg, double pitch_deg, double roll_deg);
+// (yaw, pitch, roll) in degrees of a rotation: the inverse of attitude_to_site with pitch in
+// [-90, 90] (yaw and roll in (-180, 180]).
+Eigen::Vector3d attitude_deg_of(const Eigen::Quaterniond& array_to_site);
 
 // Azimuth = atan2(u_y, u_x), elevation = asin(u_z), degrees (SPEC section 2).
 double azimuth_deg(const Eigen::Vector3d& unit_direction);

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "doa/pose_sample.hpp"
+#include "doa/array_geometry.hpp"
 
 namespace dronetrack::http_api {
 namespace {

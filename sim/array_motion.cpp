@@ -14,13 +14,6 @@ constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
 }  // namespace
 
-Eigen::Matrix3d attitude_matrix(double yaw_deg, double pitch_deg, double roll_deg) {
-  return (Eigen::AngleAxisd(yaw_deg / kDegPerRad, Eigen::Vector3d::UnitZ()) *
-          Eigen::AngleAxisd(pitch_deg / kDegPerRad, Eigen::Vector3d::UnitY()) *
-          Eigen::AngleAxisd(roll_deg / kDegPerRad, Eigen::Vector3d::UnitX()))
-      .toRotationMatrix();
-}
-
 double ArrayMotion::yaw_at_deg(double t_s) const {
   if (yaw_mode == YawMode::fixed) return doa::wrap_deg_180(yaw_deg);
   const Eigen::Vector3d velocity = trajectory.at(t_s).velocity_mps;
@@ -49,7 +42,7 @@ TrajectoryState ArrayMotion::point_state(const Eigen::Vector3d& array_point_m, d
     if (horizontal_speed2 > 0.0)
       yaw_rate_rad_s = (v.x() * a.y() - v.y() * a.x()) / horizontal_speed2;
   }
-  const Eigen::Vector3d offset = attitude_matrix(yaw, pitch_deg, roll_deg) * array_point_m;
+  const Eigen::Vector3d offset = doa::attitude_to_site(yaw, pitch_deg, roll_deg) * array_point_m;
   TrajectoryState state;
   state.position_m = origin.position_m + offset;
   state.velocity_mps =

@@ -35,7 +35,4 @@ struct ArrayMotion {
   TrajectoryState point_state(const Eigen::Vector3d& array_point_m, double t_s) const;
 };
 
-// Rz(yaw) Ry(pitch) Rx(roll), degrees.
-Eigen::Matrix3d attitude_matrix(double yaw_deg, double pitch_deg, double roll_deg);
-
 }  // namespace dronetrack::sim

@@ -56,8 +56,8 @@ TEST(JsonLines, ConeAndPoseBlocksRoundTripThroughTheReader) {
   doa.cone_peak_count = 3;
   doa.cone_peak_angle_rad = {1.2, 0.4, 2.5, 0.0};
   doa.cone_peak_weight = {0.9, 0.5, 0.25, 0.0};
-  doa.pose = {Eigen::Vector3d(10.0, -20.0, -5.0), doa::rotation_from_attitude_deg(35.0, 5.0, -3.0),
-              true};
+  doa.pose = {Eigen::Vector3d(10.0, -20.0, -5.0),
+              Eigen::Quaterniond(doa::attitude_to_site(35.0, 5.0, -3.0)), true};
   doa.acoustic.valid = true;
   doa.acoustic.fundamental_hz = 120.0;
   char buffer[2048];

@@ -106,7 +106,7 @@ TEST(DdsConversions, ConeAndPoseRoundTripAndAreValidated) {
   measurement.cone_peak_angle_rad = {0.7, 2.0, 0.0, 0.0};
   measurement.cone_peak_weight = {0.8, 0.3, 0.0, 0.0};
   measurement.pose = {Eigen::Vector3d(5.0, 6.0, -7.0),
-                      doa::rotation_from_attitude_deg(-120.0, 2.0, 1.0), true};
+                      Eigen::Quaterniond(doa::attitude_to_site(-120.0, 2.0, 1.0)), true};
   dronetrack_Doa sample{};
   to_idl(measurement, 0, sample);
   doa::DoaMeasurement out;

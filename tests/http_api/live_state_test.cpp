@@ -223,8 +223,8 @@ TEST(LiveState, MovingArrayHasAPoseAPathAndConeDoas) {
     doa.ambiguity_axis = Eigen::Vector3d::UnitX();
     doa.cone_angle_rad = 1.0;
     doa.cone_angle_variance_rad2 = 1e-4;
-    doa.pose = {Eigen::Vector3d(40.0 + 0.15 * k, 0, -2), doa::rotation_from_attitude_deg(30, 0, 0),
-                true};
+    doa.pose = {Eigen::Vector3d(40.0 + 0.15 * k, 0, -2),
+                Eigen::Quaterniond(doa::attitude_to_site(30, 0, 0)), true};
     state.publish_doa(doa);
   }
   const json nodes = json::parse(state.nodes_json());
