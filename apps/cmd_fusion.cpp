@@ -58,11 +58,9 @@ int run(const FusionArguments& arguments) {
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     owned.push_back(std::make_unique<LiveStateObserver>(*live_state));
-    http_api::HttpOptions options;
-    options.bind = arguments.http;
-    options.web_root =
-        arguments.web_root.empty() ? default_web_root() : std::filesystem::path(arguments.web_root);
-    server = std::make_unique<http_api::HttpServer>(*live_state, options);
+    server = std::make_unique<http_api::HttpServer>(
+        *live_state,
+        http_options_for(site, arguments.http, std::filesystem::path(arguments.web_root)));
     server->start();
     log::info("fusion: serving ", server->url());
   }

@@ -42,6 +42,11 @@ struct DdsConfig {
 
 struct HttpConfig {
   std::string bind = "127.0.0.1:8080";
+  // Operator access beyond loopback (docs/http_api.md, "Access"): paths, relative to the site
+  // file; the secrets stay in those files, never in the config.
+  std::filesystem::path tls_certificate;  // PEM certificate chain
+  std::filesystem::path tls_private_key;  // PEM private key
+  std::filesystem::path users_file;       // `dronetrack passwd` lines
 };
 
 struct SiteConfig {

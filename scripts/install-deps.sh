@@ -16,11 +16,12 @@ packages=(
   cyclonedds-dev cyclonedds-tools           # DDS transport + idlc
   nlohmann-json3-dev                        # JSON config and outputs
   libcpp-httplib-dev                        # HTTP API for the web page
+  libssl-dev                                # HTTPS and the users file's PBKDF2 (OpenSSL)
   libcli11-dev                              # command line
   libgtest-dev libgmock-dev libbenchmark-dev # tests and benchmarks
 )
 if [[ "${1:-}" == "--tests" ]]; then
-  packages+=(chromium clang-format)
+  packages+=(chromium clang-format openssl)  # openssl: the browser test's HTTPS certificate
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)
 fi
