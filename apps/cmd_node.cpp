@@ -42,6 +42,7 @@ struct NodeArguments {
   bool realtime = false;
   std::optional<double> epoch_unix_s;
   std::optional<int> domain;
+  std::string identity;  // DDS Security identity; empty: the array id
   double sample_rate_hz = 48000.0;
   double block_s = 0.01;
   bool pose_topic = false;
@@ -184,13 +185,20 @@ int run(const NodeArguments& arguments) {
             : !array.pose.empty() ? ", pose file"
                                   : "");
 
-  // Participant first: destroyed last.
-  dds::Participant participant(domain);
+  // Participant first: destroyed last. A secure site: this array's identity (or --identity),
+  // writing in its own partition, the only one its permissions grant.
+  const auto security =
+      security_files(site, arguments.identity.empty() ? node.array_id() : arguments.identity);
+  dds::Participant participant(domain, security ? &*security : nullptr);
   dds::Topic<dronetrack_Doa> doa_topic(participant);
   dds::Topic<dronetrack_NodeStatus> status_topic(participant);
   dds::Qos doa_qos, status_qos;
   dds::doa_writer_qos(doa_qos);
   dds::status_writer_qos(status_qos);
+  if (site.dds.secure()) {
+    doa_qos.partitions({dds::array_partition(node.array_id())});
+    status_qos.partitions({dds::array_partition(node.array_id())});
+  }
   dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
   dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
   std::unique_ptr<dds::Topic<dronetrack_ArrayPose>> pose_topic;
@@ -199,6 +207,7 @@ int run(const NodeArguments& arguments) {
     pose_topic = std::make_unique<dds::Topic<dronetrack_ArrayPose>>(participant);
     dds::Qos pose_qos;
     dds::pose_reader_qos(pose_qos);
+    if (site.dds.secure()) pose_qos.partitions({dds::array_partition(node.array_id())});
     pose_reader =
         std::make_unique<dds::Reader<dronetrack_ArrayPose>>(participant, *pose_topic, pose_qos);
   }
@@ -342,6 +351,8 @@ void register_node(CLI::App& root, CommandTable& table) {
   command->add_flag("--pose-topic", arguments->pose_topic,
                     "Take the array's pose from the ArrayPose DDS topic (as the array's "
                     "\"pose_topic\": true does), not from its pose_file");
+  command->add_option("--identity", arguments->identity,
+                      "DDS Security identity in dds.security.directory (default: the array id)");
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
   command->add_option("--sample-rate", arguments->sample_rate_hz, "Live capture sample rate, Hz")

@@ -407,6 +407,17 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
     {
       ObjectReader dds = root.object("dds");
       site.dds.domain_id = dds.integer("domain_id", 0, 0, 232);
+      if (dds.has("security")) {
+        ObjectReader security = dds.object("security");
+        const std::string directory = security.string("directory", "");
+        if (directory.empty()) {
+          diagnostics.error(security.path_of("directory"),
+                            "the PKI directory made by scripts/site-pki.sh is required");
+        } else {
+          const std::filesystem::path path(directory);
+          site.dds.security_directory = path.is_absolute() ? path : base_dir / path;
+        }
+      }
     }
     {
       ObjectReader http = root.object("http");

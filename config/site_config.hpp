@@ -38,6 +38,11 @@ struct ArrayConfig {
 
 struct DdsConfig {
   int domain_id = 0;
+  // DDS Security on (docs/deployment.md, "DDS Security"): the directory scripts/site-pki.sh
+  // made (ca.crt, governance.p7s, NAME.crt/.key, NAME-permissions.p7s); relative to the site
+  // file. Empty: plain DDS.
+  std::filesystem::path security_directory;
+  bool secure() const { return !security_directory.empty(); }
 };
 
 struct HttpConfig {

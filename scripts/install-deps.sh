@@ -21,7 +21,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev # tests and benchmarks
 )
 if [[ "${1:-}" == "--tests" ]]; then
-  packages+=(chromium clang-format openssl)  # openssl: the browser test's HTTPS certificate
+  packages+=(chromium clang-format openssl tcpdump)  # openssl: test certificates; tcpdump: DDS capture
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)
 fi
