@@ -18,7 +18,7 @@ run("sim field" ${BIN} --log-level warn sim ${SCENARIOS}/seed002-field-errors.js
 run("sim ideal" ${BIN} --log-level warn sim ${SCENARIOS}/seed002-ideal-44k.json --out ${DIR}/ideal)
 run("calibrate" ${BIN} --log-level warn calibrate ${DIR}/flight/site.json
     --reference ${DIR}/flight/reference.jsonl --out ${DIR}/field/calibrated.json
-    --clock-offset-std-s 0.005)
+    --clock-offset-std-s 0.005 --array-position-std-m 0.01)
 message("${last_output}")
 # The calibrated site names the flight's recordings; the field scene is the same arrays.
 file(READ ${DIR}/field/calibrated.json calibrated)
