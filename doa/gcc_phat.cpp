@@ -14,7 +14,8 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
-#include "doa/lane_math.hpp"
+#include "doa/simd/dispatch.hpp"
+#include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
@@ -30,496 +31,15 @@ constexpr double kMinKeptShare = 0.02;
 // Smallest bin weight: a weighted phasor can be scaled back to plain PHAT (1 / w) exactly.
 constexpr double kMinWeight = 1e-3;
 // The lag grid is summed directly over the kept bins when kept bins x lags is below this times
-// N log2 N of the inverse FFT (N = correlation size); measured with doa_bench's
-// BM_PipelineStage (direct and FFT cost the same at about this ratio on x86-64 with FFTW 3.3).
-constexpr double kDirectProductsPerFftPoint = 0.25;
-// Lags per block of direct_grids(): 2 x kLagBlock running sums fit the SIMD registers.
-constexpr int kLagBlock = 8;
-// The lag table's rows are whole multiples of this (zeros after the last lag): the wide
-// kernel's lag block.
-constexpr int kLagStrideMultiple = 16;
+// N log2 N of the inverse FFT (N = correlation size), per double lane of the SIMD target;
+// measured with doa_bench's BM_PipelineStage (direct and FFT cost the same at about 0.25 with
+// two lanes and 1.0 with AVX-512's eight on x86-64 with FFTW 3.3: 342 bins x 31 lags x 6 pairs
+// in ~6.5 us against ~9 us for six single-precision c2r transforms of 2048 points).
+constexpr double kDirectProductsPerFftPointPerLane = 0.125;
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
 
-// prepare()'s per-bin pass, shared by every pair: the kept bins' sums (weights, their squares,
-// w^2 and w^4 terms for the normalisation, TDOA variance and Taylor bound) and each bin's scale
-// (keep x the weight, its inverse or 1) and keep as doubles.
-struct KeptSums {
-  double kept = 0.0;  // how many bins are kept (sums of 0 and 1: exact)
-  double w = 0.0;
-  double w2 = 0.0;
-  double omega2 = 0.0;
-  double w2_omega2 = 0.0;
-  double omega4 = 0.0;
-};
-enum class Rescale { none, weight, inverse };
-
-struct KeptRows {
-  const std::uint8_t* keep;
-  const double* weights;
-  const double* omega2;
-  bool weighted;
-  Rescale rescale;
-  double* scales;
-  double* keeps;
-};
-
-// Over V lanes of bins from `first` in whole vectors up to `count`; returns where it stopped.
-// Companion vector types of a vector of doubles (vector_size cannot depend on a template
-// parameter): shuffle selectors of its width, and one byte per lane.
-template <std::size_t kBytes>
-struct LaneCompanions;
-template <>
-struct LaneCompanions<16> {
-  using Selector = long long __attribute__((vector_size(16)));
-  using Bytes = std::uint8_t __attribute__((vector_size(2)));
-};
-template <>
-struct LaneCompanions<64> {
-  using Selector = long long __attribute__((vector_size(64)));
-  using Bytes = std::uint8_t __attribute__((vector_size(8)));
-};
-
-// V lanes of keep bytes (0 or 1) from `keep` as doubles. By reference and inlined: no vector
-// crosses a call.
-template <class V>
-[[gnu::always_inline]] inline void load_keep(const std::uint8_t* keep, V& out) {
-  typename LaneCompanions<sizeof(V)>::Bytes bytes;
-  std::memcpy(&bytes, keep, sizeof bytes);
-  out = __builtin_convertvector(bytes, V);
-}
-
-// The lanes' sum: a tree for eight (the order the wide kernels have always summed in).
-template <class V>
-[[gnu::always_inline]] inline double lane_sum(const V& v) {
-  if constexpr (sizeof(V) == 64) {
-    return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
-  } else {
-    return v[0] + v[1];
-  }
-}
-
-// |X| and X / |X| of V lanes of bins (re, im) stored at `level`, `unit_re`, `unit_im`.
-template <class V>
-[[gnu::always_inline]] inline void store_units(const V& re, const V& im, double* level,
-                                               double* unit_re, double* unit_im) {
-  const V power = re * re + im * im;
-  V inverse;
-  inverse_sqrt(power, inverse);
-  const V size = power * inverse;
-  const V unit_real = re * inverse;
-  const V unit_imag = im * inverse;
-  std::memcpy(level, &size, sizeof size);
-  std::memcpy(unit_re, &unit_real, sizeof unit_real);
-  std::memcpy(unit_im, &unit_imag, sizeof unit_imag);
-}
-
-// One pair's rows for pair_products(): unit phasors and levels of its two mics, the bins'
-// keep bytes (null: all kept) and weights (null: unweighted), and where the products go.
-struct PairRows {
-  const double* a_re;
-  const double* a_im;
-  const double* b_re;
-  const double* b_im;
-  const double* level_i;
-  const double* level_j;
-  const std::uint8_t* keep;
-  const double* weights;
-  double* out;  // (re, im) interleaved
-  double* magnitude;
-};
-
-// W = u_i u_j* (times live x w) and |G| = |X_i| |X_j| (times live) over V lanes of bins from
-// `first` in whole vectors up to `count`; adds the magnitudes (times w) to `magnitude_sum` and
-// returns where it stopped. Below kSilentBin a bin carries no phase: zero weight, as when a
-// channel is silent. One body for pair_phasors() and wide_pair_products().
-template <class V>
-[[gnu::always_inline]] inline std::size_t pair_products(const PairRows& rows, std::size_t first,
-                                                        std::size_t count, double& magnitude_sum) {
-  constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
-  using Selector = typename LaneCompanions<sizeof(V)>::Selector;
-  const V silent = V{} + kSilentBin;
-  const V one = V{} + 1.0;
-  const V zero = V{};
-  V total{};
-  std::size_t n = first;
-  for (; n + kLanes <= count; n += kLanes) {
-    V ar, ai, br, bi, li, lj;
-    std::memcpy(&ar, rows.a_re + n, sizeof ar);
-    std::memcpy(&ai, rows.a_im + n, sizeof ai);
-    std::memcpy(&br, rows.b_re + n, sizeof br);
-    std::memcpy(&bi, rows.b_im + n, sizeof bi);
-    std::memcpy(&li, rows.level_i + n, sizeof li);
-    std::memcpy(&lj, rows.level_j + n, sizeof lj);
-    const V size = li * lj;
-    V live = size > silent ? one : zero;
-    if (rows.keep != nullptr) {
-      V keep;
-      load_keep(rows.keep + n, keep);
-      live *= keep;
-    }
-    V w = one;
-    if (rows.weights != nullptr) std::memcpy(&w, rows.weights + n, sizeof w);
-    const V scale = live * w;
-    const V re = (ar * br + ai * bi) * scale;
-    const V im = (ai * br - ar * bi) * scale;
-    V low, high;  // bins' (re, im) pairs, first and second half of the lanes
-    if constexpr (kLanes == 8) {
-      low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
-      high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
-    } else {
-      low = __builtin_shuffle(re, im, Selector{0, 2});
-      high = __builtin_shuffle(re, im, Selector{1, 3});
-    }
-    const V sizes = size * live;
-    std::memcpy(rows.out + 2 * n, &low, sizeof low);
-    std::memcpy(rows.out + 2 * n + kLanes, &high, sizeof high);
-    std::memcpy(rows.magnitude + n, &sizes, sizeof sizes);
-    total += sizes * w;
-  }
-  magnitude_sum += lane_sum(total);
-  return n;
-}
-
-template <class V>
-[[gnu::always_inline]] inline std::size_t kept_sums(const KeptRows& rows, std::size_t first,
-                                                    std::size_t count, KeptSums& out) {
-  constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
-  V kept_sum{}, w_sum{}, w2_sum{}, omega2_sum{}, w2_omega2_sum{}, omega4_sum{};
-  std::size_t n = first;
-  for (; n + kLanes <= count; n += kLanes) {
-    V keep, w, omega2;
-    load_keep(rows.keep + n, keep);
-    std::memcpy(&w, rows.weights + n, sizeof w);
-    std::memcpy(&omega2, rows.omega2 + n, sizeof omega2);
-    const V used = rows.weighted ? w : V{} + 1.0;
-    const V kept_w = keep * used;
-    kept_sum += keep;
-    w_sum += kept_w;
-    w2_sum += kept_w * used;
-    omega2_sum += kept_w * omega2;
-    w2_omega2_sum += kept_w * used * omega2;
-    omega4_sum += keep * omega2 * omega2;
-    const V scale = rows.rescale == Rescale::none     ? keep
-                    : rows.rescale == Rescale::weight ? keep * w
-                                                      : keep / w;
-    std::memcpy(rows.scales + n, &scale, sizeof scale);
-    std::memcpy(rows.keeps + n, &keep, sizeof keep);
-  }
-  for (std::size_t l = 0; l < kLanes; ++l) {
-    out.kept += kept_sum[l];
-    out.w += w_sum[l];
-    out.w2 += w2_sum[l];
-    out.omega2 += omega2_sum[l];
-    out.w2_omega2 += w2_omega2_sum[l];
-    out.omega4 += omega4_sum[l];
-  }
-  return n;
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#define DRONETRACK_WIDE_SIMD 1
-// With AVX-512 the lag grid summed directly over the kept bins beats the inverse FFT even over
-// the whole band (doa_bench BM_PipelineStage 2 and 4 on a Zen 4: 342 bins x 31 lags x 6 pairs
-// in ~6.5 us against ~9 us for six single-precision c2r transforms of 2048 points, and 4x the
-// two-lane sums on a masked look): kWideProductsPerFftPoint instead of
-// kDirectProductsPerFftPoint. Chosen at run time; other machines keep the two-lane sums.
-constexpr double kWideProductsPerFftPoint = 1.0;
-constexpr int kWideGroup = 6;  // pairs per pass over the kept bins: 24 accumulators + 4 table
-
-struct WideJob {
-  const std::complex<double>* const* phasors;  // kWideGroup rows (unused slots: a zero row)
-  double* const* grids;                        // kWideGroup outputs (unused: nullptr)
-  const int* half_spans;                       // kWideGroup
-  int max_half;                                // largest of half_spans
-  const double* lag_table;                     // per band bin: stride cos, then stride sin
-  std::size_t stride;
-  const int* kept_indices;
-  int kept;
-  double normalisation;
-};
-
-// R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) for kWideGroup pairs
-// at once, 16 lags per block: every table row is loaded once for all the group's pairs.
-__attribute__((target("avx512f,fma"))) void wide_direct_grids(const WideJob& job) {
-  using Wide = double __attribute__((vector_size(64)));
-  constexpr int kBlock = 16;
-  for (int first = 0; first <= job.max_half; first += kBlock) {
-    Wide cosine_low[kWideGroup] = {};
-    Wide cosine_high[kWideGroup] = {};
-    Wide sine_low[kWideGroup] = {};
-    Wide sine_high[kWideGroup] = {};
-    for (int n = 0; n < job.kept; ++n) {
-      const auto index = static_cast<std::size_t>(job.kept_indices[n]);
-      const double* cosines = job.lag_table + index * 2 * job.stride + first;
-      const double* sines = cosines + job.stride;
-      Wide c_low, c_high, s_low, s_high;
-      std::memcpy(&c_low, cosines, sizeof c_low);
-      std::memcpy(&c_high, cosines + 8, sizeof c_high);
-      std::memcpy(&s_low, sines, sizeof s_low);
-      std::memcpy(&s_high, sines + 8, sizeof s_high);
-      for (int q = 0; q < kWideGroup; ++q) {
-        const std::complex<double> w = job.phasors[q][index];
-        const Wide re = Wide{} + w.real();
-        const Wide im = Wide{} + w.imag();
-        cosine_low[q] += re * c_low;
-        cosine_high[q] += re * c_high;
-        sine_low[q] += im * s_low;
-        sine_high[q] += im * s_high;
-      }
-    }
-    for (int q = 0; q < kWideGroup; ++q) {
-      if (job.grids[q] == nullptr) continue;
-      const int half = job.half_spans[q];
-      double* grid_values = job.grids[q];
-      const int last = std::min(half, first + kBlock - 1);
-      for (int m = first; m <= last; ++m) {
-        const int lane = m - first;
-        const double a = lane < 8 ? cosine_low[q][lane] : cosine_high[q][lane - 8];
-        const double b = lane < 8 ? sine_low[q][lane] : sine_high[q][lane - 8];
-        grid_values[half + m] = (a - b) * job.normalisation;
-        grid_values[half - m] = (a + b) * job.normalisation;
-      }
-    }
-  }
-}
-
-// whiten()'s per-mic pass eight bins per vector (same steps as the two-lane loop): returns
-// how many bins it did (whole vectors); the caller finishes the rest.
-__attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex<double>* x,
-                                                              const int* fft_bins,
-                                                              std::size_t count, double* level,
-                                                              double* unit_re, double* unit_im) {
-  using Wide = double __attribute__((vector_size(64)));
-  using Selector = long long __attribute__((vector_size(64)));
-  std::size_t index = 0;
-  for (; index + 8 <= count; index += 8) {
-    Wide re, im;
-    if (fft_bins[index + 7] - fft_bins[index] == 7) {
-      // Eight consecutive FFT bins (within one band run): two loads, split re / im.
-      Wide first_half, second_half;
-      std::memcpy(&first_half, x + fft_bins[index], sizeof first_half);
-      std::memcpy(&second_half, x + fft_bins[index] + 4, sizeof second_half);
-      re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
-      im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
-    } else {
-      for (int l = 0; l < 8; ++l) {
-        re[l] = x[fft_bins[index + l]].real();
-        im[l] = x[fft_bins[index + l]].imag();
-      }
-    }
-    store_units(re, im, level + index, unit_re + index, unit_im + index);
-  }
-  return index;
-}
-
-// pair_phasors()'s products eight bins per vector: returns how many bins it did.
-__attribute__((target("avx512f,fma"))) std::size_t wide_pair_products(const PairRows& rows,
-                                                                      std::size_t count,
-                                                                      double& magnitude_sum) {
-  using Wide = double __attribute__((vector_size(64)));
-  return pair_products<Wide>(rows, 0, count, magnitude_sum);
-}
-
-// prepare()'s pass over one pair's band eight bins per vector: phasors times `scales` and
-// magnitudes times `keeps` (when `scale`), and the sum of the magnitudes (times `weights` when
-// given) in eight partial sums. Returns how many bins it did (whole vectors); the caller
-// finishes the rest.
-__attribute__((target("avx512f,fma"))) std::size_t wide_scale_and_sum(
-    std::complex<double>* phasors, double* magnitudes, const double* scales, const double* keeps,
-    const double* weights, bool scale, std::size_t count, double& sum) {
-  using Wide = double __attribute__((vector_size(64)));
-  using Selector = long long __attribute__((vector_size(64)));
-  auto* phasor = reinterpret_cast<double*>(phasors);
-  Wide total{};
-  std::size_t n = 0;
-  for (; n + 8 <= count; n += 8) {
-    Wide magnitude;
-    std::memcpy(&magnitude, magnitudes + n, sizeof magnitude);
-    if (scale) {
-      Wide factor, keep, low, high;
-      std::memcpy(&factor, scales + n, sizeof factor);
-      std::memcpy(&keep, keeps + n, sizeof keep);
-      std::memcpy(&low, phasor + 2 * n, sizeof low);
-      std::memcpy(&high, phasor + 2 * n + 8, sizeof high);
-      // Each bin's factor on its (re, im) pair.
-      low *= __builtin_shuffle(factor, Selector{0, 0, 1, 1, 2, 2, 3, 3});
-      high *= __builtin_shuffle(factor, Selector{4, 4, 5, 5, 6, 6, 7, 7});
-      magnitude *= keep;
-      std::memcpy(phasor + 2 * n, &low, sizeof low);
-      std::memcpy(phasor + 2 * n + 8, &high, sizeof high);
-      std::memcpy(magnitudes + n, &magnitude, sizeof magnitude);
-    }
-    if (weights != nullptr) {
-      Wide w;
-      std::memcpy(&w, weights + n, sizeof w);
-      total += magnitude * w;
-    } else {
-      total += magnitude;
-    }
-  }
-  sum = ((total[0] + total[1]) + (total[2] + total[3])) +
-        ((total[4] + total[5]) + (total[6] + total[7]));
-  return n;
-}
-
-__attribute__((target("avx512f,fma"))) std::size_t wide_kept_sums(const KeptRows& rows,
-                                                                  std::size_t count,
-                                                                  KeptSums& out) {
-  using Wide = double __attribute__((vector_size(64)));
-  return kept_sums<Wide>(rows, 0, count, out);
-}
-
-bool wide_simd_supported() { return __builtin_cpu_supports("avx512f") != 0; }
-#else
-bool wide_simd_supported() { return false; }
-#endif
-
-// R(tau) = sum Re(W_k e^{j w_k tau}) and its first four derivatives at one lag (r[n] = sum
-// w_k^n Re(j^n W_k e^{j w_k tau})), and the |G|-weighted sum with its first two derivatives
-// (coherence): one pass over the band (GccPhat::refine_band_limited).
-struct TaylorSums {
-  double r[5] = {};
-  double weighted = 0.0;
-  double slope = 0.0;
-  double bend = 0.0;
-};
-
-// The Taylor sums over V lanes (two or eight bins, or one): each lane adds its bin's
-// t = W_k e^{j w_k tau} weighted by w_k^n, and by |G_k| for the coherence sums. One body for
-// taylor_sums() and wide_taylor_sums(); inlined into each (by reference: no vector ABI across a
-// call).
-template <class V>
-struct TaylorLanes {
-  V sum0{}, weighted{}, sum1{}, sum2{}, slope{}, sum3{}, sum4{}, bend{};
-  [[gnu::always_inline]] void add(const V& w_re, const V& w_im, const V& size, const V& rotation_re,
-                                  const V& rotation_im, const V& omega) {
-    const V t_re = w_re * rotation_re - w_im * rotation_im;
-    const V t_im = w_re * rotation_im + w_im * rotation_re;
-    const V omega2 = omega * omega;
-    sum0 += t_re;
-    weighted += size * t_re;
-    sum1 -= omega * t_im;
-    slope -= omega * size * t_im;
-    sum2 -= omega2 * t_re;
-    bend -= omega2 * size * t_re;
-    sum3 += omega2 * omega * t_im;
-    sum4 += omega2 * omega2 * t_re;
-  }
-};
-
-TaylorSums taylor_sums(const std::vector<BandRun>& runs, double bin_omega,
-                       const std::complex<double>* phasor, const double* magnitude, double lag) {
-  // Two interleaved phasors (even and odd bins, each advanced by step^2) in real arithmetic,
-  // as the two lanes of one vector: half the latency chain through the complex product, two
-  // bins per instruction, no complex-multiply NaN checks.
-  TaylorLanes<Lanes> lanes;
-  TaylorLanes<double> odd;  // each run's odd bin out
-  int index = 0;
-  Lanes step2_re, step2_im;
-  unit_phasor<Lanes>(Lanes{} + 2.0 * bin_omega * lag, step2_re, step2_im);
-  const Lanes omega_step{2.0 * bin_omega, 2.0 * bin_omega};
-  for (const BandRun& run : runs) {
-    Lanes omega{run.first_bin * bin_omega, (run.first_bin + 1) * bin_omega};
-    Lanes rotation_re, rotation_im;
-    unit_phasor<Lanes>(omega * lag, rotation_re, rotation_im);
-    const int bins = run.last_bin - run.first_bin + 1;
-    int k = 0;
-    for (; k + 2 <= bins; k += 2, index += 2) {
-      const Lanes w_re{phasor[index].real(), phasor[index + 1].real()};
-      const Lanes w_im{phasor[index].imag(), phasor[index + 1].imag()};
-      const Lanes size{magnitude[index], magnitude[index + 1]};
-      lanes.add(w_re, w_im, size, rotation_re, rotation_im, omega);
-      const Lanes next_re = rotation_re * step2_re - rotation_im * step2_im;
-      rotation_im = rotation_re * step2_im + rotation_im * step2_re;
-      rotation_re = next_re;
-      omega += omega_step;
-    }
-    if (k < bins) {
-      const double w_re = phasor[index].real();
-      const double w_im = phasor[index].imag();
-      const double rotation_re0 = rotation_re[0];
-      const double rotation_im0 = rotation_im[0];
-      const double omega0 = omega[0];
-      odd.add(w_re, w_im, magnitude[index], rotation_re0, rotation_im0, omega0);
-      ++index;
-    }
-  }
-  TaylorSums sums;
-  sums.r[0] = lanes.sum0[0] + lanes.sum0[1] + odd.sum0;
-  sums.r[1] = lanes.sum1[0] + lanes.sum1[1] + odd.sum1;
-  sums.r[2] = lanes.sum2[0] + lanes.sum2[1] + odd.sum2;
-  sums.r[3] = lanes.sum3[0] + lanes.sum3[1] + odd.sum3;
-  sums.r[4] = lanes.sum4[0] + lanes.sum4[1] + odd.sum4;
-  sums.weighted = lanes.weighted[0] + lanes.weighted[1] + odd.weighted;
-  sums.slope = lanes.slope[0] + lanes.slope[1] + odd.slope;
-  sums.bend = lanes.bend[0] + lanes.bend[1] + odd.bend;
-  return sums;
-}
-
-#ifdef DRONETRACK_WIDE_SIMD
-// taylor_sums() eight bins per vector: lane l holds bin first + l of a run (rotation e^{j w_k
-// tau} advanced by step^8), a run's last partial vector has zero phasors in the unused lanes.
-__attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
-    const std::vector<BandRun>& runs, double bin_omega, const std::complex<double>* phasor,
-    const double* magnitude, double lag) {
-  using Wide = double __attribute__((vector_size(64)));
-  constexpr int kLanes = 8;
-  TaylorLanes<Wide> lanes;
-  // The rotations by the polynomial sincos, all lanes at once (no libm call per lane).
-  Wide step8_re, step8_im;
-  unit_phasor<Wide>(Wide{} + kLanes * bin_omega * lag, step8_re, step8_im);
-  const Wide omega_step = Wide{} + kLanes * bin_omega;
-  const Wide lane_bins{0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0};
-  int index = 0;
-  for (const BandRun& run : runs) {
-    Wide omega = (lane_bins + run.first_bin) * bin_omega;
-    Wide rotation_re, rotation_im;
-    unit_phasor<Wide>(omega * lag, rotation_re, rotation_im);
-    const int bins = run.last_bin - run.first_bin + 1;
-    for (int k = 0; k < bins; k += kLanes, index += kLanes) {
-      Wide w_re, w_im, size;
-      if (k + kLanes <= bins) {
-        // Eight interleaved (re, im) pairs in two vectors, split into reals and imaginaries.
-        using Selector = long long __attribute__((vector_size(64)));
-        Wide first_half, second_half;
-        std::memcpy(&first_half, phasor + index, sizeof first_half);
-        std::memcpy(&second_half, phasor + index + 4, sizeof second_half);
-        w_re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
-        w_im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
-        std::memcpy(&size, magnitude + index, sizeof size);
-      } else {
-        for (int l = 0; l < kLanes; ++l) {
-          const bool inside = k + l < bins;
-          w_re[l] = inside ? phasor[index + l].real() : 0.0;
-          w_im[l] = inside ? phasor[index + l].imag() : 0.0;
-          size[l] = inside ? magnitude[index + l] : 0.0;
-        }
-      }
-      lanes.add(w_re, w_im, size, rotation_re, rotation_im, omega);
-      const Wide next_re = rotation_re * step8_re - rotation_im * step8_im;
-      rotation_im = rotation_re * step8_im + rotation_im * step8_re;
-      rotation_re = next_re;
-      omega += omega_step;
-    }
-    index -= (kLanes - bins % kLanes) % kLanes;  // back to the next run's first bin
-  }
-  const auto total = [](const Wide& v) {
-    return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
-  };
-  TaylorSums sums;
-  sums.r[0] = total(lanes.sum0);
-  sums.r[1] = total(lanes.sum1);
-  sums.r[2] = total(lanes.sum2);
-  sums.r[3] = total(lanes.sum3);
-  sums.r[4] = total(lanes.sum4);
-  sums.weighted = total(lanes.weighted);
-  sums.slope = total(lanes.slope);
-  sums.bend = total(lanes.bend);
-  return sums;
-}
-#endif
 }  // namespace
 
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
@@ -652,10 +172,10 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   // for +m and -m. Same sums as the inverse FFT, up to rounding. Per frame correlate() takes
   // the cheaper of the two from the count of kept bins (kDirectProductsPerFftPoint, measured).
   lag_rows_ = max_half_span + 1;
-  lag_stride_ = (lag_rows_ + kLagStrideMultiple - 1) / kLagStrideMultiple *
-                kLagStrideMultiple;  // whole blocks, zeros after
-  wide_simd_ = wide_simd_supported();
-  max_direct_products_ = direct_products_limit();
+  lag_stride_ = (lag_rows_ + simd::kLagStrideMultiple - 1) / simd::kLagStrideMultiple *
+                simd::kLagStrideMultiple;  // whole blocks, zeros after
+  max_direct_products_ = kDirectProductsPerFftPointPerLane * simd_double_lanes() *
+                         correlation_size_ * std::log2(static_cast<double>(correlation_size_));
   // No table when too few kept bins to correlate at all would already cost more than the FFT.
   if (max_direct_products_ / lag_rows_ >= std::max(1.0, kMinKeptShare * band_bins_)) {
     const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);
@@ -684,7 +204,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
     for (int k = run.first_bin; k <= run.last_bin; ++k)
       band_omega2_.push_back((k * bin_omega_) * (k * bin_omega_));
   bin_scales_.assign(static_cast<std::size_t>(band_bins_), 1.0);
-  zero_phasors_.assign(static_cast<std::size_t>(band_bins_), {0.0, 0.0});
   bin_keeps_.assign(static_cast<std::size_t>(band_bins_), 1.0);
   const std::lock_guard<std::mutex> lock(fftw_planner_mutex());
   inverse_->spectrum = fftwf_alloc_complex(static_cast<std::size_t>(correlation_size_ / 2 + 1));
@@ -694,26 +213,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   inverse_->plan = fftwf_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
                                          inverse_->correlation, FFTW_MEASURE);
   if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
-}
-
-double GccPhat::direct_products_limit() const {
-#ifdef DRONETRACK_WIDE_SIMD
-  const double products_per_fft_point =
-      wide_simd_ ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint;
-#else
-  const double products_per_fft_point = kDirectProductsPerFftPoint;
-#endif
-  return products_per_fft_point * correlation_size_ *
-         std::log2(static_cast<double>(correlation_size_));
-}
-
-bool GccPhat::wide_simd_available() { return wide_simd_supported(); }
-
-void GccPhat::set_wide_simd(bool on) {
-  wide_simd_ = on && wide_simd_supported();
-  // Without a lag table (built in the constructor when direct sums could ever pay) the FFT
-  // stays the only way.
-  if (!lag_table_.empty()) max_direct_products_ = direct_products_limit();
 }
 
 GccPhat::~GccPhat() {
@@ -791,27 +290,9 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     double* unit_re = unit_re_.data() + row;
     double* unit_im = unit_im_.data() + row;
     double* level = levels_.data() + row;
-    // One pass per mic, two bins per step: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit
-    // X / |X|. A silent bin (X = 0) gets the unit phasor 0.
-    std::size_t index = 0;
-#ifdef DRONETRACK_WIDE_SIMD
-    if (wide_simd_) index = wide_units(x, band_fft_bins_.data(), bins, level, unit_re, unit_im);
-#endif
-    for (; index + 2 <= bins; index += 2) {
-      const std::complex<double> x0 = x[band_fft_bins_[index]];
-      const std::complex<double> x1 = x[band_fft_bins_[index + 1]];
-      const Lanes re{x0.real(), x1.real()};
-      const Lanes im{x0.imag(), x1.imag()};
-      store_units(re, im, level + index, unit_re + index, unit_im + index);
-    }
-    for (; index < bins; ++index) {
-      const std::complex<double> x0 = x[band_fft_bins_[index]];
-      const double size = std::sqrt(x0.real() * x0.real() + x0.imag() * x0.imag());
-      const double inverse = size > 0.0 ? 1.0 / size : 0.0;
-      level[index] = size;
-      unit_re[index] = x0.real() * inverse;
-      unit_im[index] = x0.imag() * inverse;
-    }
+    // One pass per mic: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit X / |X|. A silent
+    // bin (X = 0) gets the unit phasor 0.
+    simd::unit_phasors({x, band_fft_bins_.data(), bins, level, unit_re, unit_im});
   }
   uncorrect_units();
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
@@ -839,27 +320,9 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
     double* magnitude = magnitudes_.data() + p * bins;
-    const PairRows rows{
-        a_re,    a_im, b_re,     b_im, level_i, level_j, masked ? keep_.data() : nullptr,
-        weights, out,  magnitude};
-    // In vector lanes (the compiler cannot tell the rows from the output apart, so plain loops
-    // stay scalar): eight bins per step on AVX-512, then two, then the odd one out.
-    std::size_t n = 0;
-    double magnitude_sum = 0.0;
-#ifdef DRONETRACK_WIDE_SIMD
-    if (wide_simd_) n = wide_pair_products(rows, bins, magnitude_sum);
-#endif
-    n = pair_products<Lanes>(rows, n, bins, magnitude_sum);
-    for (; n < bins; ++n) {
-      const double size = level_i[n] * level_j[n];
-      const double live =
-          (size > kSilentBin ? 1.0 : 0.0) * (masked ? static_cast<double>(keep_[n]) : 1.0);
-      const double scale = weighted ? live * weights[n] : live;
-      out[2 * n] = (a_re[n] * b_re[n] + a_im[n] * b_im[n]) * scale;
-      out[2 * n + 1] = (a_im[n] * b_re[n] - a_re[n] * b_im[n]) * scale;
-      magnitude[n] = live * size;
-      magnitude_sum += magnitude[n] * (weighted ? weights[n] : 1.0);
-    }
+    const double magnitude_sum = simd::pair_products({a_re, a_im, b_re, b_im, level_i, level_j,
+                                                      masked ? keep_.data() : nullptr, weights,
+                                                      bins, kSilentBin, out, magnitude});
     magnitude_sums_[p] = magnitude_sum;
   }
   weights_applied_ = weighted;
@@ -886,35 +349,12 @@ bool GccPhat::prepare(bool weighted) {
   // Per bin, vectorised: the kept bins' sums and each bin's scale and keep (bin_scales_,
   // bin_keeps_; used below when bins are dropped or the weights change).
   const auto bins = static_cast<std::size_t>(band_bins_);
-  const KeptRows rows{keep_.data(),
-                      weights_.data(),
-                      band_omega2_.data(),
-                      weighted,
-                      !rescale   ? Rescale::none
-                      : weighted ? Rescale::weight
-                                 : Rescale::inverse,
-                      bin_scales_.data(),
-                      bin_keeps_.data()};
-  KeptSums totals;
-  std::size_t done = 0;
-#ifdef DRONETRACK_WIDE_SIMD
-  if (wide_simd_) done = wide_kept_sums(rows, bins, totals);
-#endif
-  done = kept_sums<Lanes>(rows, done, bins, totals);
-  for (; done < bins; ++done) {
-    const double keep = keep_[done];
-    const double w = weighted ? weights_[done] : 1.0;
-    const double omega2 = band_omega2_[done];
-    totals.kept += keep;
-    totals.w += keep * w;
-    totals.w2 += keep * w * w;
-    totals.omega2 += keep * w * omega2;
-    totals.w2_omega2 += keep * w * w * omega2;
-    totals.omega4 += keep * omega2 * omega2;
-    const double scale = !rescale ? 1.0 : weighted ? weights_[done] : 1.0 / weights_[done];
-    bin_scales_[done] = keep * scale;
-    bin_keeps_[done] = keep;
-  }
+  const simd::KeptSums totals =
+      simd::kept_sums({keep_.data(), weights_.data(), band_omega2_.data(), bins, weighted,
+                       !rescale   ? simd::Rescale::none
+                       : weighted ? simd::Rescale::weight
+                                  : simd::Rescale::inverse,
+                       bin_scales_.data(), bin_keeps_.data()});
   const int kept = static_cast<int>(totals.kept + 0.5);
   const double sum_w = totals.w;
   const double sum_w2 = totals.w2;
@@ -943,44 +383,12 @@ bool GccPhat::prepare(bool weighted) {
   // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
   // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
   // four partial sums (one would make every bin wait for the previous addition).
-  const auto scale_and_sum = [&]<bool kScale, bool kWeighted>() {
-    const double* w = weights_.data();
-    const double* scales = bin_scales_.data();
-    const double* keeps = bin_keeps_.data();
-    for (std::size_t p = 0; p < pairs_.size(); ++p) {
-      std::complex<double>* phasor = phasors_.data() + p * static_cast<std::size_t>(band_bins_);
-      double* magnitude = magnitudes_.data() + p * static_cast<std::size_t>(band_bins_);
-      double sums[4] = {0.0, 0.0, 0.0, 0.0};
-      int index = 0;
-#ifdef DRONETRACK_WIDE_SIMD
-      if (wide_simd_)
-        index = static_cast<int>(wide_scale_and_sum(phasor, magnitude, scales, keeps,
-                                                    kWeighted ? w : nullptr, kScale,
-                                                    static_cast<std::size_t>(band_bins_), sums[0]));
-#endif
-      for (; index + 4 <= band_bins_; index += 4) {
-        for (int lane = 0; lane < 4; ++lane) {
-          const int i = index + lane;
-          if constexpr (kScale) {
-            phasor[i] *= scales[i];
-            magnitude[i] *= keeps[i];
-          }
-          sums[lane] += kWeighted ? magnitude[i] * w[i] : magnitude[i];
-        }
-      }
-      for (; index < band_bins_; ++index) {
-        if constexpr (kScale) {
-          phasor[index] *= scales[index];
-          magnitude[index] *= keeps[index];
-        }
-        if constexpr (kWeighted) {
-          sums[index & 3] += magnitude[index] * w[index];
-        } else {
-          sums[0] += magnitude[index];
-        }
-      }
-      magnitude_sums_[p] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
-    }
+  const auto scale_and_sum = [&](bool scale, bool weighted_sum) {
+    for (std::size_t p = 0; p < pairs_.size(); ++p)
+      magnitude_sums_[p] =
+          simd::scale_and_sum({reinterpret_cast<double*>(phasors_.data() + p * bins),
+                               magnitudes_.data() + p * bins, bin_scales_.data(), bin_keeps_.data(),
+                               weighted_sum ? weights_.data() : nullptr, scale, bins});
   };
   // Dropped bins already zero in the phasors (made under this very mask) need no pass of
   // their own.
@@ -989,10 +397,7 @@ bool GccPhat::prepare(bool weighted) {
   if (scale) std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
   // Phasors made under this mask and weighting (pair_phasors()) came with their sums.
   const bool summed = !scale && masked_already && sums_weighted_ && *sums_weighted_ == weighted;
-  if (scale && weighted) scale_and_sum.operator()<true, true>();
-  if (scale && !weighted) scale_and_sum.operator()<true, false>();
-  if (!scale && !summed && weighted) scale_and_sum.operator()<false, true>();
-  if (!scale && !summed && !weighted) scale_and_sum.operator()<false, false>();
+  if (scale || !summed) scale_and_sum(scale, weighted);
   weights_applied_ = weighted;
   sums_weighted_ = weighted;
   enough_bins_ = enough_bins;
@@ -1104,63 +509,11 @@ void GccPhat::direct_grids(double normalisation) {
     kept_indices_[static_cast<std::size_t>(kept)] = index;
     kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
   }
-  const auto stride = static_cast<std::size_t>(lag_stride_);
-  const auto bins = static_cast<std::size_t>(band_bins_);
-#ifdef DRONETRACK_WIDE_SIMD
-  if (wide_simd_) {
-    for (std::size_t group = 0; group < pairs_.size(); group += kWideGroup) {
-      std::array<const std::complex<double>*, kWideGroup> rows{};
-      std::array<double*, kWideGroup> grids{};
-      std::array<int, kWideGroup> halves{};
-      int max_half = 0;
-      for (std::size_t q = 0; q < static_cast<std::size_t>(kWideGroup); ++q) {
-        const std::size_t p = group + q;
-        const bool real_pair = p < pairs_.size();
-        rows[q] = real_pair ? phasors_.data() + p * bins : zero_phasors_.data();
-        grids[q] =
-            real_pair ? grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_ : nullptr;
-        halves[q] = real_pair ? half_spans_[p] : 0;
-        max_half = std::max(max_half, halves[q]);
-      }
-      wide_direct_grids(WideJob{rows.data(), grids.data(), halves.data(), max_half,
-                                lag_table_.data(), stride, kept_indices_.data(), kept_bins_,
-                                normalisation});
-    }
-    return;
-  }
-#endif
-  constexpr int kVectors = kLagBlock / 2;
-  for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    const std::complex<double>* phasor = phasors_.data() + p * bins;
-    const int half = half_spans_[p];
-    double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
-    for (int first = 0; first <= half; first += kLagBlock) {
-      Lanes cosine_sums[kVectors] = {};
-      Lanes sine_sums[kVectors] = {};
-      for (int n = 0; n < kept_bins_; ++n) {
-        const auto index = static_cast<std::size_t>(kept_indices_[static_cast<std::size_t>(n)]);
-        const double* cosines = lag_table_.data() + index * 2 * stride + first;
-        const double* sines = cosines + stride;
-        const Lanes re{phasor[index].real(), phasor[index].real()};
-        const Lanes im{phasor[index].imag(), phasor[index].imag()};
-        for (int v = 0; v < kVectors; ++v) {
-          Lanes c;
-          Lanes si;
-          std::memcpy(&c, cosines + 2 * v, sizeof c);
-          std::memcpy(&si, sines + 2 * v, sizeof si);
-          cosine_sums[v] += re * c;
-          sine_sums[v] += im * si;
-        }
-      }
-      const int last = std::min(half, first + kLagBlock - 1);
-      for (int m = first; m <= last; ++m) {
-        const double a = cosine_sums[(m - first) / 2][(m - first) % 2];
-        const double b = sine_sums[(m - first) / 2][(m - first) % 2];
-        grid_values[half + m] = (a - b) * normalisation;
-        grid_values[half - m] = (a + b) * normalisation;
-      }
-    }
-  }
+  simd::direct_grids({phasors_.data(), static_cast<std::size_t>(band_bins_), grids_.data(),
+                      static_cast<std::size_t>(grid_stride_), half_spans_.data(),
+                      static_cast<int>(pairs_.size()), lag_table_.data(),
+                      static_cast<std::size_t>(lag_stride_), kept_indices_.data(), kept_bins_,
+                      normalisation});
 }
 
 void GccPhat::inverse_grid(std::size_t pair, double normalisation, double* grid_values) {
@@ -1309,12 +662,8 @@ int GccPhat::newton_peak(int pair, double start_lag_s, double anchor_lag_s, GccP
   // below kNewtonResidual_s the pass was the last (from the parabola's start, typically the
   // first), else the next pass starts from there.
   for (int iteration = 0; iteration < 6; ++iteration) {
-#ifdef DRONETRACK_WIDE_SIMD
-    const TaylorSums sums = wide_simd_ ? wide_taylor_sums(runs_, bin_omega_, phasor, magnitude, lag)
-                                       : taylor_sums(runs_, bin_omega_, phasor, magnitude, lag);
-#else
-    const TaylorSums sums = taylor_sums(runs_, bin_omega_, phasor, magnitude, lag);
-#endif
+    const simd::TaylorSums sums =
+        simd::taylor_sums({runs_.data(), runs_.size(), bin_omega_, phasor, magnitude, lag});
     const double r0 = sums.r[0];
     const double r1 = sums.r[1];
     const double r2 = sums.r[2];

@@ -22,15 +22,12 @@
 #include <span>
 #include <vector>
 
+#include "doa/band_run.hpp"
 #include "doa/doa_params.hpp"
 #include "doa/spectral_frame.hpp"
 
 namespace dronetrack::doa {
 
-struct BandRun {
-  int first_bin = 0;  // inclusive
-  int last_bin = 0;   // inclusive
-};
 // The union of `bands` as runs of FFT bins within [1, fft_size/2 - 1], sorted and merged.
 // Throws std::invalid_argument when no bin falls inside any band.
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
@@ -113,6 +110,10 @@ class GccPhat {
   double phasor_scale(int band_index) const {
     return weights_applied_ ? weights_[static_cast<std::size_t>(band_index)] : 1.0;
   }
+  // All of them: bin_weight() after a weighted correlate(), else empty (every scale 1).
+  std::span<const double> phasor_scales() const {
+    return weights_applied_ ? std::span<const double>(weights_) : std::span<const double>();
+  }
   // Effective number of band bins in the last correlate(): (sum w)^2 / sum w^2 over the kept
   // bins (the kept-bin count when unweighted).
   int kept_bin_count() const { return effective_bins_; }
@@ -140,13 +141,6 @@ class GccPhat {
   };
   UnitRows correct_units(int mic);
   void uncorrect_units();
-
-  // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
-  // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
-  // of other machines (the tests compare the two).
-  static bool wide_simd_available();
-  void set_wide_simd(bool on);
-  bool wide_simd() const { return wide_simd_; }
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
@@ -204,7 +198,6 @@ class GccPhat {
   void pair_phasors(bool masked, bool weighted = false);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
-  double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
 
   double sample_rate_hz_;
   int fft_size_;
@@ -263,8 +256,6 @@ class GccPhat {
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
-  bool wide_simd_ = false;  // AVX-512 kernels for the direct sums and refinement (run time)
-  std::vector<std::complex<double>> zero_phasors_;  // the wide kernel's unused pair slots
   std::unique_ptr<Inverse> inverse_;
   // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid
   // change. Makes refine() not safe to call concurrently on one GccPhat.

@@ -115,7 +115,6 @@ class GroundEcho {
   std::vector<double> echo_re_;
   std::vector<double> echo_im_;
   std::vector<int> candidates_;  // scratch: band indices with a large enough weight
-  bool wide_simd_ = false;       // the AVX-512 kernels (GccPhat::wide_simd())
 
   bool locked_ = false;
   double curvature_per_m_ = 0.0;
