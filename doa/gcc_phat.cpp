@@ -1,6 +1,6 @@
+// GccPhat, part 1: the band, the lag grid's layout, whitening and the cross-power of the pairs
+// (gcc_correlation.cpp: the lag grids; gcc_peaks.cpp: peak search and refinement).
 #include "doa/gcc_phat.hpp"
-
-#include <fftw3.h>
 
 #include <Eigen/Core>
 
@@ -14,33 +14,13 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
+#include "doa/gcc_phat_internal.hpp"
 #include "doa/simd/dispatch.hpp"
 #include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
-namespace {
-// Below this |X_i X_j*| a bin carries no phase (digital silence): it gets zero weight.
-constexpr double kSilentBin = 1e-30;
-constexpr double kMaxPeakRatio = 100.0;
-// A correlation from fewer kept bins than this share of the band (7 bins at 1.5-3.5 kHz and
-// 8192 points) cannot pin a delay down: a few scattered frequencies alias into many equal
-// peaks. Such a frame yields no peak. (Ground interferer, A1: 5 % -> 2 % found the drone in 30
-// more frames, same strays; no other bundled scene changes.)
-constexpr double kMinKeptShare = 0.02;
-// Smallest bin weight: a weighted phasor can be scaled back to plain PHAT (1 / w) exactly.
-constexpr double kMinWeight = 1e-3;
-// The lag grid is summed directly over the kept bins when kept bins x lags is below this times
-// N log2 N of the inverse FFT (N = correlation size), per double lane of the SIMD target;
-// measured with doa_bench's BM_PipelineStage (direct and FFT cost the same at about 0.25 with
-// two lanes and 1.0 with AVX-512's eight on x86-64 with FFTW 3.3: 342 bins x 31 lags x 6 pairs
-// in ~6.5 us against ~9 us for six single-precision c2r transforms of 2048 points).
-constexpr double kDirectProductsPerFftPointPerLane = 0.125;
-// The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
-// microseconds, the grid step tens of microseconds).
-constexpr double kNewtonResidual_s = 1e-9;
-
-}  // namespace
+using namespace gcc_internal;
 
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
                                int fft_size) {
@@ -67,16 +47,6 @@ std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double s
                                 std::to_string(sample_rate_hz / 2.0) + " Hz)");
   return runs;
 }
-
-// The inverse transform runs in single precision: its lag grid only locates the peaks (the
-// refinement maximises the continuous correlation from the double phasors) and feeds SRP's
-// look-ups, where float rounding (~1e-7 of a peak) is far below the noise; the transform is a
-// third of the whole-band correlation's cost in double.
-struct GccPhat::Inverse {
-  fftwf_complex* spectrum = nullptr;  // correlation_size/2 + 1
-  float* correlation = nullptr;       // correlation_size
-  fftwf_plan plan = nullptr;
-};
 
 GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
                  const std::vector<FrequencyBand>& bands, std::vector<MicPairSpec> pairs,
@@ -141,7 +111,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   magnitudes_.assign(static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0);
   magnitude_sums_.assign(pairs_.size(), 0.0);
   keep_.assign(static_cast<std::size_t>(band_bins_), 1);
-  saved_keep_.assign(keep_.size(), 1);
   kept_bins_ = band_bins_;
   kept_weight_ = band_bins_;
   effective_bins_ = band_bins_;
@@ -154,9 +123,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   unit_re_.assign(static_cast<std::size_t>(unit_channels_) * static_cast<std::size_t>(band_bins_),
                   0.0);
   unit_im_.assign(unit_re_.size(), 0.0);
-  corrected_re_.assign(unit_re_.size(), 0.0);
-  corrected_im_.assign(unit_re_.size(), 0.0);
-  corrected_.assign(static_cast<std::size_t>(unit_channels_), 0);
   phasor_keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   levels_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
@@ -239,36 +205,13 @@ std::span<const double> GccPhat::magnitudes(int pair) const {
           static_cast<std::size_t>(band_bins_)};
 }
 
-void GccPhat::save_whitened() { std::copy(keep_.begin(), keep_.end(), saved_keep_.begin()); }
+GccPhat::UnitsView GccPhat::units() const { return {unit_re_.data(), unit_im_.data(), band_bins_}; }
 
-void GccPhat::restore_whitened(bool weighted) {
+void GccPhat::cross_power(const UnitsView& units, std::span<const std::uint8_t> keep,
+                          bool weighted) {
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
-  std::copy(saved_keep_.begin(), saved_keep_.end(), keep_.begin());
-  // The frame's per-mic units and levels are still here: the pairs' phasors and magnitudes
-  // are made again exactly as whiten() made them, the saved mask's dropped bins zero (as
-  // correlate() had left them), instead of keeping a copy of every pair's band.
-  pair_phasors(true, weighted);
-}
-
-std::span<const double> GccPhat::unit_real(int mic) const {
-  return {unit_re_.data() + static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_),
-          static_cast<std::size_t>(band_bins_)};
-}
-
-std::span<const double> GccPhat::unit_imag(int mic) const {
-  return {unit_im_.data() + static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_),
-          static_cast<std::size_t>(band_bins_)};
-}
-
-GccPhat::UnitRows GccPhat::correct_units(int mic) {
-  const std::size_t row = static_cast<std::size_t>(mic) * static_cast<std::size_t>(band_bins_);
-  const auto bins = static_cast<std::size_t>(band_bins_);
-  corrected_[static_cast<std::size_t>(mic)] = 1;
-  return {{corrected_re_.data() + row, bins}, {corrected_im_.data() + row, bins}};
-}
-
-void GccPhat::uncorrect_units() {
-  std::fill(corrected_.begin(), corrected_.end(), std::uint8_t{0});
+  if (keep.data() != keep_.data()) std::copy(keep.begin(), keep.end(), keep_.begin());
+  pair_phasors(units, true, weighted);
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -294,12 +237,11 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     // bin (X = 0) gets the unit phasor 0.
     simd::unit_phasors({x, band_fft_bins_.data(), bins, level, unit_re, unit_im});
   }
-  uncorrect_units();
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
-  pair_phasors(false);
+  pair_phasors(units(), false, false);
 }
 
-void GccPhat::pair_phasors(bool masked, bool weighted) {
+void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
   // dropped in keep_ zero; `weighted`: the phasors times the bins' weights, as a weighted
   // prepare() would scale them (the same product: live x w is w or 0).
@@ -312,10 +254,10 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
     const auto mic_j = static_cast<std::size_t>(pairs_[p].mic_j);
     const std::size_t row_i = mic_i * bins;
     const std::size_t row_j = mic_j * bins;
-    const double* a_re = (corrected_[mic_i] != 0 ? corrected_re_ : unit_re_).data() + row_i;
-    const double* a_im = (corrected_[mic_i] != 0 ? corrected_im_ : unit_im_).data() + row_i;
-    const double* b_re = (corrected_[mic_j] != 0 ? corrected_re_ : unit_re_).data() + row_j;
-    const double* b_im = (corrected_[mic_j] != 0 ? corrected_im_ : unit_im_).data() + row_j;
+    const double* a_re = units.real + row_i;
+    const double* a_im = units.imag + row_i;
+    const double* b_re = units.real + row_j;
+    const double* b_im = units.imag + row_j;
     const double* level_i = levels_.data() + row_i;
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
@@ -326,448 +268,13 @@ void GccPhat::pair_phasors(bool masked, bool weighted) {
     magnitude_sums_[p] = magnitude_sum;
   }
   weights_applied_ = weighted;
+  prepared_ = false;
   sums_weighted_ = weighted;
   // The mask the phasors now carry: prepare() need not scale them again for it.
   if (masked)
     std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
   else
     std::fill(phasor_keep_.begin(), phasor_keep_.end(), std::uint8_t{1});
-}
-
-void GccPhat::prepare_phasors(bool weighted) {
-  prepare(weighted);
-  for (PairCorrelation& result : results_) result = PairCorrelation{};
-}
-
-bool GccPhat::prepare(bool weighted) {
-  // The phasors carry the weights of the last weighted correlate() until whiten() or
-  // restore_whitened() makes them again: a change of mind scales each bin by w or 1 / w.
-  const bool rescale = weighted != weights_applied_;
-  // Weights change only on plain phasors (bin_weight()): bounded once, as they go on.
-  if (rescale && weighted)
-    for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
-  // Per bin, vectorised: the kept bins' sums and each bin's scale and keep (bin_scales_,
-  // bin_keeps_; used below when bins are dropped or the weights change).
-  const auto bins = static_cast<std::size_t>(band_bins_);
-  const simd::KeptSums totals =
-      simd::kept_sums({keep_.data(), weights_.data(), band_omega2_.data(), bins, weighted,
-                       !rescale   ? simd::Rescale::none
-                       : weighted ? simd::Rescale::weight
-                                  : simd::Rescale::inverse,
-                       bin_scales_.data(), bin_keeps_.data()});
-  const int kept = static_cast<int>(totals.kept + 0.5);
-  const double sum_w = totals.w;
-  const double sum_w2 = totals.w2;
-  const double sum_omega2 = totals.omega2;
-  const double sum_w2_omega2 = totals.w2_omega2;
-  const double sum_omega4 = totals.omega4;
-  kept_bins_ = kept;
-  kept_weight_ = sum_w;
-  kept_sum_omega2_ = sum_omega2;
-  kept_sum_w2_omega2_ = sum_w2_omega2;
-  // An upper bound either way: weights are at most 1.
-  taylor_bound_ = runs_.back().last_bin * bin_omega_ * sum_omega4;
-  const double effective = sum_w2 > 0.0 ? sum_w * sum_w / sum_w2 : 0.0;
-  effective_bins_ = static_cast<int>(effective + 0.5);
-  const bool enough_bins = effective >= std::max(1.0, kMinKeptShare * band_bins_);
-  if (!enough_bins) {
-    kept_bins_ = std::max(kept_bins_, 1);
-    effective_bins_ = std::max(effective_bins_, 1);
-    kept_weight_ = std::max(kept_weight_, 1.0);
-    kept_sum_omega2_ = std::max(kept_sum_omega2_, bin_omega_ * bin_omega_);
-    kept_sum_w2_omega2_ = std::max(kept_sum_w2_omega2_, bin_omega_ * bin_omega_);
-  }
-  std::fill(refined_index_.begin(), refined_index_.end(), -1);
-  const bool all_kept = kept == band_bins_;
-  // Dropped bins leave the phasors too: refinement and coherence see the kept bins only.
-  // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
-  // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
-  // four partial sums (one would make every bin wait for the previous addition).
-  const auto scale_and_sum = [&](bool scale, bool weighted_sum) {
-    for (std::size_t p = 0; p < pairs_.size(); ++p)
-      magnitude_sums_[p] =
-          simd::scale_and_sum({reinterpret_cast<double*>(phasors_.data() + p * bins),
-                               magnitudes_.data() + p * bins, bin_scales_.data(), bin_keeps_.data(),
-                               weighted_sum ? weights_.data() : nullptr, scale, bins});
-  };
-  // Dropped bins already zero in the phasors (made under this very mask) need no pass of
-  // their own.
-  const bool masked_already = std::equal(keep_.begin(), keep_.end(), phasor_keep_.begin());
-  const bool scale = (!all_kept && !masked_already) || rescale;
-  if (scale) std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
-  // Phasors made under this mask and weighting (pair_phasors()) came with their sums.
-  const bool summed = !scale && masked_already && sums_weighted_ && *sums_weighted_ == weighted;
-  if (scale || !summed) scale_and_sum(scale, weighted);
-  weights_applied_ = weighted;
-  sums_weighted_ = weighted;
-  enough_bins_ = enough_bins;
-  return enough_bins;
-}
-
-void GccPhat::correlate(bool refine_peaks, bool weighted) {
-  const bool enough_bins = prepare(weighted);
-  const double normalisation = 1.0 / kept_weight_;
-  const bool direct = static_cast<double>(kept_bins_) * lag_rows_ <= max_direct_products_;
-  if (enough_bins && direct) direct_grids(normalisation);
-  for (std::size_t p = 0; p < pairs_.size(); ++p) {
-    PairCorrelation& result = results_[p];
-    result = PairCorrelation{};
-    if (!enough_bins) continue;
-    const int half = half_spans_[p];
-    double* grid_values = grids_.data() + static_cast<std::ptrdiff_t>(p) * grid_stride_;
-    if (!direct) inverse_grid(p, normalisation, grid_values);
-
-    if (!refine_peaks) continue;
-    // Highest and second-highest local maxima on the grid, and the peak_count_ highest.
-    int best = -1;
-    double best_value = -2.0;
-    double second_value = -2.0;
-    std::array<int, kMaxGccPeaks> top_index{};
-    std::array<double, kMaxGccPeaks> top_value{};
-    int top_count = 0;
-    for (int m = 0; m < 2 * half + 1; ++m) {
-      const double value = grid_values[m];
-      const bool left_ok = m == 0 || value >= grid_values[m - 1];
-      const bool right_ok = m == 2 * half || value > grid_values[m + 1];
-      if (!(left_ok && right_ok)) continue;
-      if (value > best_value) {
-        second_value = best_value;
-        best_value = value;
-        best = m;
-      } else if (value > second_value) {
-        second_value = value;
-      }
-      if (peak_count_ > 1 && value > 0.0) {
-        int position = top_count;
-        while (position > 0 && top_value[static_cast<std::size_t>(position - 1)] < value)
-          --position;
-        if (position >= peak_count_) continue;
-        for (int moved = std::min(top_count, peak_count_ - 1); moved > position; --moved) {
-          top_index[static_cast<std::size_t>(moved)] =
-              top_index[static_cast<std::size_t>(moved - 1)];
-          top_value[static_cast<std::size_t>(moved)] =
-              top_value[static_cast<std::size_t>(moved - 1)];
-        }
-        top_index[static_cast<std::size_t>(position)] = m;
-        top_value[static_cast<std::size_t>(position)] = value;
-        top_count = std::min(top_count + 1, peak_count_);
-      }
-    }
-    result = PairCorrelation{};
-    if (best < 0 || !(best_value > 0.0)) continue;
-    const double start_lag = (best - half) * lag_step_s_;
-    if (!refine(static_cast<int>(p), start_lag, result.peak)) {
-      result.peak = {start_lag, best_value};
-    }
-    const double limit = pairs_[p].max_lag_s + 1.0 / sample_rate_hz_;
-    result.peak.lag_s = std::clamp(result.peak.lag_s, -limit, limit);
-    result.second_value = std::max(second_value, 0.0);
-    result.peak_ratio = result.second_value > result.peak.value / kMaxPeakRatio
-                            ? result.peak.value / result.second_value
-                            : kMaxPeakRatio;
-    result.coherence = result.peak.coherence;
-    result.tdoa_variance_s2 = tdoa_variance_for_peak(result.peak.value);
-    result.peaks[0] = result.peak;
-    result.peak_count = 1;
-    // The further peaks (the first is `best`), refined without refine()'s one-per-pair cache,
-    // which keeps the main peak's answer for the trackers. Two grid maxima that refine to one
-    // peak count once.
-    for (int k = 1; k < top_count; ++k) {
-      const int m = top_index[static_cast<std::size_t>(k)];
-      GccPeak further;
-      const bool refined = interpolation_ == LagInterpolation::band_limited
-                               ? refine_band_limited(static_cast<int>(p), m, further)
-                               : refine_parabolic(static_cast<int>(p), m, further);
-      if (!refined) further = {(m - half) * lag_step_s_, top_value[static_cast<std::size_t>(k)]};
-      further.lag_s = std::clamp(further.lag_s, -limit, limit);
-      if (!(further.value > 0.0)) continue;
-      bool distinct = true;
-      for (int kept = 0; kept < result.peak_count; ++kept)
-        distinct = distinct && std::abs(result.peaks[static_cast<std::size_t>(kept)].lag_s -
-                                        further.lag_s) > 0.5 * lag_step_s_;
-      if (distinct) result.peaks[static_cast<std::size_t>(result.peak_count++)] = further;
-    }
-    // Refinement can reorder close values: highest first.
-    std::sort(result.peaks.begin() + 1, result.peaks.begin() + result.peak_count,
-              [](const GccPeak& a, const GccPeak& b) { return a.value > b.value; });
-  }
-}
-
-void GccPhat::set_peak_count(int count) {
-  if (count < 1 || count > kMaxGccPeaks)
-    throw std::invalid_argument("peak count must be in [1, " + std::to_string(kMaxGccPeaks) +
-                                "], got " + std::to_string(count));
-  peak_count_ = count;
-}
-
-void GccPhat::direct_grids(double normalisation) {
-  // R(+-m) = (1/K) sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)) over the kept
-  // bins. Per pair and block of kLagBlock lags the sums stay in registers over all kept bins.
-  // The kept bins' band indices first (only the direct sums use them), without a branch per bin.
-  int kept = 0;
-  for (int index = 0; index < band_bins_; ++index) {
-    kept_indices_[static_cast<std::size_t>(kept)] = index;
-    kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
-  }
-  simd::direct_grids({phasors_.data(), static_cast<std::size_t>(band_bins_), grids_.data(),
-                      static_cast<std::size_t>(grid_stride_), half_spans_.data(),
-                      static_cast<int>(pairs_.size()), lag_table_.data(),
-                      static_cast<std::size_t>(lag_stride_), kept_indices_.data(), kept_bins_,
-                      normalisation});
-}
-
-void GccPhat::inverse_grid(std::size_t pair, double normalisation, double* grid_values) {
-  auto* inverse_bins = reinterpret_cast<float*>(inverse_->spectrum);
-  // c2r transforms destroy their input: clear it for every pair.
-  std::fill_n(inverse_bins, correlation_size_ + 2, 0.0f);
-  const auto* phasor = reinterpret_cast<const double*>(phasors_.data() +
-                                                       pair * static_cast<std::size_t>(band_bins_));
-  int index = 0;
-  for (const BandRun& run : runs_)
-    for (int k = 2 * run.first_bin; k <= 2 * run.last_bin + 1; ++k, ++index)
-      inverse_bins[k] = static_cast<float>(phasor[index]);
-  fftwf_execute(inverse_->plan);
-  // The c2r sums both halves of the spectrum: 2 Re(...) per bin.
-  const int half = half_spans_[pair];
-  const double scale = 0.5 * normalisation;
-  for (int m = -half; m <= half; ++m) {
-    const int index_circular = m >= 0 ? m : correlation_size_ + m;
-    grid_values[m + half] = static_cast<double>(inverse_->correlation[index_circular]) * scale;
-  }
-}
-
-double GccPhat::tdoa_variance_for_peak(double peak_value) const {
-  // A peak value rho = mean_k cos(phase error_k) ~ exp(-sigma_phi^2 / 2): the mean phase-noise
-  // variance per bin. A least-squares phase slope through the origin over the band then has
-  // variance sigma_phi^2 / sum w_k^2, times the number of bins sharing one independent phase.
-  const double rho = std::clamp(peak_value, 0.02, 0.999);
-  const double phase_variance = -2.0 * std::log(rho);
-  // Weighted: the phase slope through the origin has variance
-  // sigma^2 sum w^2 w_k^2 / (sum w w_k^2)^2 (sigma^2 / sum w_k^2 when every w is 1).
-  return bin_correlation_ * phase_variance * kept_sum_w2_omega2_ /
-         (kept_sum_omega2_ * kept_sum_omega2_);
-}
-
-double GccPhat::phat_kernel(double offset_s) const {
-  const double position = std::abs(offset_s) / kernel_step_s_;
-  const auto below = static_cast<std::size_t>(position);
-  if (below + 1 >= kernel_table_.size()) return 0.0;
-  const double fraction = position - static_cast<double>(below);
-  return kernel_table_[below] * (1.0 - fraction) + kernel_table_[below + 1] * fraction;
-}
-
-double GccPhat::value_at(int pair, double lag_s) const {
-  const std::complex<double>* phasor =
-      phasors_.data() + static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
-  double sum = 0.0;
-  int index = 0;
-  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
-  for (const BandRun& run : runs_) {
-    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      sum += (phasor[index] * rotation).real();
-      rotation *= step;
-    }
-  }
-  return sum / kept_weight_;
-}
-
-double GccPhat::coherence_at(int pair, double lag_s) const {
-  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
-  const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-  if (!(total > 0.0)) return 0.0;
-  double sum = 0.0;
-  int index = 0;
-  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
-  for (const BandRun& run : runs_) {
-    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      sum += magnitudes_[offset + static_cast<std::size_t>(index)] *
-             (phasors_[offset + static_cast<std::size_t>(index)] * rotation).real();
-      rotation *= step;
-    }
-  }
-  return std::clamp(sum / total, 0.0, 1.0);
-}
-
-bool GccPhat::refine(int pair, double start_lag_s, GccPeak& out) const {
-  const int m = climb(pair, start_lag_s);
-  // The same grid maximum gives the same refined peak: the trackers, the static null and SRP
-  // ask again for peaks correlate() already refined.
-  const auto p = static_cast<std::size_t>(pair);
-  if (refined_index_[p] == m) {
-    out = refined_peaks_[p];
-    return refined_ok_[p] != 0;
-  }
-  const bool ok = interpolation_ == LagInterpolation::band_limited
-                      ? refine_band_limited(pair, m, out)
-                      : refine_parabolic(pair, m, out);
-  refined_index_[p] = m;
-  refined_peaks_[p] = out;
-  refined_ok_[p] = ok ? 1 : 0;
-  return ok;
-}
-
-int GccPhat::climb(int pair, double start_lag_s) const {
-  const std::span<const double> values = grid(pair);
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  int m = static_cast<int>(std::lround(start_lag_s / lag_step_s_)) + half;
-  m = std::clamp(m, 0, 2 * half);
-  for (int guard = 0; guard < 2 * half + 1; ++guard) {
-    if (m > 0 && values[static_cast<std::size_t>(m - 1)] > values[static_cast<std::size_t>(m)]) {
-      --m;
-    } else if (m < 2 * half &&
-               values[static_cast<std::size_t>(m + 1)] > values[static_cast<std::size_t>(m)]) {
-      ++m;
-    } else {
-      break;
-    }
-  }
-  return m;
-}
-
-bool GccPhat::refine_parabolic(int pair, int m, GccPeak& out) const {
-  refine_parabolic_grid_only(pair, m, out);
-  double unused = 0.0;
-  evaluate(pair, out.lag_s, unused, out.coherence);
-  return true;
-}
-
-bool GccPhat::refine_band_limited(int pair, int m, GccPeak& out) const {
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  const double grid_lag_s = (m - half) * lag_step_s_;
-  // Start from the parabola through the grid maximum: within a fraction of a grid step, so
-  // Newton (quadratic convergence) needs one or two passes over the band.
-  GccPeak start;
-  refine_parabolic_grid_only(pair, m, start);
-  const int found = newton_peak(pair, start.lag_s, grid_lag_s, out);
-  if (found < 0) return refine_parabolic(pair, m, out);
-  return found > 0;
-}
-
-bool GccPhat::refine_from(int pair, double start_lag_s, GccPeak& out) const {
-  return enough_bins_ && newton_peak(pair, start_lag_s, start_lag_s, out) > 0;
-}
-
-int GccPhat::newton_peak(int pair, double start_lag_s, double anchor_lag_s, GccPeak& out) const {
-  double lag = start_lag_s;
-  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
-  const std::complex<double>* phasor = phasors_.data() + offset;
-  const double* magnitude = magnitudes_.data() + offset;
-  // R(tau) = sum Re(W_k e^{j w_k tau}); its n-th derivative is sum w_k^n Re(j^n W_k e^{..}).
-  // One pass over the band gives R and its first four derivatives at the current lag (and the
-  // |G|-weighted sum with two), i.e. R's Taylor polynomial; the peak of that polynomial is
-  // found without touching the band again. The polynomial's R' is off by at most
-  // |R^(5)| d^4 / 24 <= w_top sum_kept w^4 d^4 / 24 (|W_k| <= 1), so the peak by that over R'':
-  // below kNewtonResidual_s the pass was the last (from the parabola's start, typically the
-  // first), else the next pass starts from there.
-  for (int iteration = 0; iteration < 6; ++iteration) {
-    const simd::TaylorSums sums =
-        simd::taylor_sums({runs_.data(), runs_.size(), bin_omega_, phasor, magnitude, lag});
-    const double r0 = sums.r[0];
-    const double r1 = sums.r[1];
-    const double r2 = sums.r[2];
-    const double r3 = sums.r[3];
-    const double r4 = sums.r[4];
-    if (!(r2 < 0.0)) return -1;
-    // Newton on the polynomial's R' = r1 + r2 d + r3 d^2/2 + r4 d^3/6, from the plain step.
-    const double reach = 0.5 * lag_step_s_;
-    double delta = std::clamp(-r1 / r2, -reach, reach);
-    double curvature = r2;
-    for (int polish = 0; polish < 4; ++polish) {
-      const double slope_at = r1 + delta * (r2 + delta * (0.5 * r3 + delta * r4 / 6.0));
-      curvature = r2 + delta * (r3 + 0.5 * delta * r4);
-      if (!(curvature < 0.0)) {
-        curvature = r2;
-        delta = std::clamp(-r1 / r2, -reach, reach);
-        break;
-      }
-      delta = std::clamp(delta - slope_at / curvature, -reach, reach);
-    }
-    const double delta2 = delta * delta;
-    const double residual_s = taylor_bound_ * delta2 * delta2 / (24.0 * std::abs(curvature));
-    lag += delta;
-    if (residual_s < kNewtonResidual_s || iteration == 5) {
-      if (std::abs(lag - anchor_lag_s) > 1.5 * lag_step_s_) return 0;
-      const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-      const double value =
-          r0 + delta * (r1 + delta * (0.5 * r2 + delta * (r3 / 6.0 + delta * r4 / 24.0)));
-      const double coherent = sums.weighted + delta * sums.slope + 0.5 * delta2 * sums.bend;
-      out = {lag, value / kept_weight_, total > 0.0 ? std::clamp(coherent / total, 0.0, 1.0) : 0.0};
-      return 1;
-    }
-  }
-  return 0;
-}
-
-void GccPhat::refine_parabolic_grid_only(int pair, int m, GccPeak& out) const {
-  const std::span<const double> values = grid(pair);
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  double offset = 0.0;
-  double value = values[static_cast<std::size_t>(m)];
-  if (m > 0 && m < 2 * half) {
-    const double left = values[static_cast<std::size_t>(m - 1)];
-    const double right = values[static_cast<std::size_t>(m + 1)];
-    const double curvature = left - 2.0 * value + right;
-    if (curvature < 0.0) {
-      offset = std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5);
-      value -= 0.25 * (left - right) * offset;
-    }
-  }
-  out = {(m - half + offset) * lag_step_s_, value, 0.0};
-}
-
-void GccPhat::evaluate(int pair, double lag_s, double& value, double& coherence) const {
-  const std::size_t offset = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_);
-  double sum = 0.0;
-  double weighted = 0.0;
-  int index = 0;
-  const std::complex<double> step = std::polar(1.0, bin_omega_ * lag_s);
-  for (const BandRun& run : runs_) {
-    std::complex<double> rotation = std::polar(1.0, bin_omega_ * run.first_bin * lag_s);
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      const double real = (phasors_[offset + static_cast<std::size_t>(index)] * rotation).real();
-      sum += real;
-      weighted += magnitudes_[offset + static_cast<std::size_t>(index)] * real;
-      rotation *= step;
-    }
-  }
-  value = sum / kept_weight_;
-  const double total = magnitude_sums_[static_cast<std::size_t>(pair)];
-  coherence = total > 0.0 ? std::clamp(weighted / total, 0.0, 1.0) : 0.0;
-}
-
-double GccPhat::grid_value(int pair, double lag_s) const {
-  const std::span<const double> values = grid(pair);
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  const double position = lag_s / lag_step_s_ + half;
-  if (!(position >= 0.0) || position > 2.0 * half) return 0.0;
-  const int below = std::min(static_cast<int>(position), 2 * half - 1);
-  const double fraction = position - below;
-  return values[static_cast<std::size_t>(below)] * (1.0 - fraction) +
-         values[static_cast<std::size_t>(below + 1)] * fraction;
-}
-
-int GccPhat::top_peaks(int pair, std::span<GccPeak> out) const {
-  const std::span<const double> values = grid(pair);
-  const int half = half_spans_[static_cast<std::size_t>(pair)];
-  int count = 0;
-  for (int m = 0; m < 2 * half + 1; ++m) {
-    const double value = values[static_cast<std::size_t>(m)];
-    const bool left_ok = m == 0 || value >= values[static_cast<std::size_t>(m - 1)];
-    const bool right_ok = m == 2 * half || value > values[static_cast<std::size_t>(m + 1)];
-    if (!(left_ok && right_ok) || !(value > 0.0)) continue;
-    // Insertion into the descending list of at most out.size().
-    int position = count;
-    while (position > 0 && out[static_cast<std::size_t>(position - 1)].value < value) --position;
-    if (position >= static_cast<int>(out.size())) continue;
-    const int last = std::min(count, static_cast<int>(out.size()) - 1);
-    for (int moved = last; moved > position; --moved)
-      out[static_cast<std::size_t>(moved)] = out[static_cast<std::size_t>(moved - 1)];
-    out[static_cast<std::size_t>(position)] = {(m - half) * lag_step_s_, value};
-    count = std::min(count + 1, static_cast<int>(out.size()));
-  }
-  return count;
 }
 
 }  // namespace dronetrack::doa

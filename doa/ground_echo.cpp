@@ -73,6 +73,8 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   aligned_im_.assign(aligned_re_.size(), 0.0);
   echo_re_.assign(aligned_re_.size(), 0.0);
   echo_im_.assign(aligned_re_.size(), 0.0);
+  corrected_re_.assign(band_omega_.size() * mics, 0.0);
+  corrected_im_.assign(corrected_re_.size(), 0.0);
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
   reset();
@@ -261,21 +263,22 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
   return locked_;
 }
 
-void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
-  if (!locked_) return;
+GccPhat::UnitsView GroundEcho::corrected(const GccPhat::UnitsView& units,
+                                         const Eigen::Vector3d& direction_site) {
+  if (!locked_) return units;
   paths(direction_site, curvature_per_m_);
+  const auto bins = static_cast<std::size_t>(units.bins);
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
     const int m = static_cast<int>(mic);
-    const GccPhat::UnitRows corrected = gcc.correct_units(m);
     // conj(c) / |c| with c = 1 + g e^{-j w Delta}; |c| >= 1 - kMaxGain.
-    simd::comb_divide({runs_.data(), runs_.size(), gcc.unit_real(m).data(), gcc.unit_imag(m).data(),
-                       corrected.real.data(), corrected.imag.data(), gain_ * level_[mic],
+    simd::comb_divide({runs_.data(),
+                       runs_.size(),
+                       {units.real_row(m).data(), units.imag_row(m).data()},
+                       {corrected_re_.data() + mic * bins, corrected_im_.data() + mic * bins},
+                       gain_ * level_[mic],
                        -bin_omega_ * delay_s_[mic]});
   }
-}
-
-void GroundEcho::restore(GccPhat& gcc) const {
-  if (locked_) gcc.uncorrect_units();
+  return {corrected_re_.data(), corrected_im_.data(), units.bins};
 }
 
 }  // namespace dronetrack::doa

@@ -15,6 +15,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "doa/acoustic_features.hpp"
 #include "doa/bin_snr_weight.hpp"
@@ -257,10 +258,13 @@ struct NodePipeline::Impl {
   bool already_found(const Eigen::Vector3d& direction_site) const;
   // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
   // a grid step): Newton from the known lags, no lag grids.
-  void remeasure(int source, bool near_known_lags = false);
+  void remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
   void remove_ground_echoes();
   // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
-  void only_bins_of(int source, bool weighted = false);
+  void only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);
+  // The mask as it stands (static null, sources below the horizon): what every later look of
+  // this frame starts from.
+  void keep_frame_mask();
   void remove_ground_echo(int source, GroundEcho& echo);
   void smooth_candidates(double time_s);
   // This frame's sources' spectra into their slots' acoustic histories (every few frames).
@@ -318,6 +322,8 @@ struct NodePipeline::Impl {
   std::array<FrameDetection, 64> recent_detections{};  // ring: was the gate open at that frame
   std::size_t next_detection = 0;
   std::vector<PairTdoa> tdoas;
+  std::vector<std::uint8_t> frame_mask = std::vector<std::uint8_t>(
+      static_cast<std::size_t>(gcc.band_bin_count()), 1);  // keep_frame_mask()
   std::array<Candidate, kMaxSources> candidates{};
   int candidate_count = 0;
   // This frame's static-null observation (SNR weighting on): wanted, made, and on what time and
@@ -349,9 +355,9 @@ void NodePipeline::Impl::null_observe() {
 }
 
 // The full band in plain PHAT with only the static null's mask, as whiten() and mask() left
-// it (save_whitened() in analyse()).
+// it (keep_frame_mask() in analyse()).
 void NodePipeline::Impl::null_own_look() {
-  gcc.restore_whitened();
+  gcc.cross_power(gcc.units(), frame_mask);
   gcc.correlate(true, false);
   null_observe();
 }
@@ -479,7 +485,7 @@ void NodePipeline::Impl::find_candidates() {
     primary.time_offset_s = 0.0;
     ++candidate_count;
   }
-  gcc.save_whitened();
+  keep_frame_mask();
   if (srp) find_further_sources();
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
@@ -525,12 +531,17 @@ void NodePipeline::Impl::find_further_sources() {
       srp->begin_frame(gcc);
     }
   }
-  if (candidate_count >= 2) remeasure(0);
+  if (candidate_count >= 2) remeasure(0, gcc.units());
 }
 
-// The frame's whitened phasors again, minus every other candidate's bins.
-void NodePipeline::Impl::only_bins_of(int source, bool weighted) {
-  gcc.restore_whitened(weighted);
+void NodePipeline::Impl::keep_frame_mask() {
+  const std::span<const std::uint8_t> keep = std::as_const(gcc).bin_keep();
+  std::copy(keep.begin(), keep.end(), frame_mask.begin());
+}
+
+// The frame's cross-power again from `units`, minus every other candidate's bins.
+void NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted) {
+  gcc.cross_power(units, frame_mask, weighted);
   for (int s = 0; s < candidate_count; ++s)
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
@@ -578,22 +589,18 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
   // The search reads this source's bins: the frame's, minus the other sources' (when there
   // are others: their bins found on the remade phasors).
   const bool others = candidate_count > 1;
-  if (others && echo.search_due(direction)) only_bins_of(source);
-  if (!echo.observe(gcc, direction, others ? gcc.bin_keep() : gcc.saved_bin_keep())) return;
-  echo.remove(gcc, direction);
-  remeasure(source, true);
-  echo.restore(gcc);
+  if (others && echo.search_due(direction)) only_bins_of(source, gcc.units());
+  if (!echo.observe(gcc, direction, others ? std::as_const(gcc).bin_keep() : frame_mask)) return;
+  remeasure(source, echo.corrected(gcc.units(), direction), true);
 }
 
 // A source was measured with every other source's bins in its correlation (the first), or on a
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
-void NodePipeline::Impl::remeasure(int source, bool near_known_lags) {
-  only_bins_of(source, true);
-  if (near_known_lags)
-    gcc.prepare_phasors();
-  else
-    gcc.correlate(false);
+void NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
+                                   bool near_known_lags) {
+  only_bins_of(source, units, true);
+  if (!near_known_lags) gcc.correlate(false);
   Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::array<PairTdoa, kMaxPairs> remeasured{};
   for (int p = 0; p < gcc.pair_count(); ++p) {
@@ -696,7 +703,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   null_observed = false;
   null_time_s = time_s;
   null_frame_clean = frame_clean;
-  if (null_wanted) gcc.save_whitened();  // for null_own_look()
+  if (null_wanted) keep_frame_mask();  // for null_own_look()
   gcc.correlate();
   if (cone_peaks) cone_peaks->record(time_s, gcc);
   double coherence_sum = 0.0;

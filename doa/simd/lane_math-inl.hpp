@@ -123,6 +123,13 @@ HWY_INLINE void StoreSomePairs(D d, V re, V im, double* target, std::size_t coun
 // `count` keep bytes (0 or 1) as doubles, zeros after them.
 template <class D, class V = hn::Vec<D>>
 HWY_INLINE V LoadKeep(D d, const std::uint8_t* keep, std::size_t count) {
+  if (count == hn::Lanes(d)) {
+    // Widened in registers: a row of doubles written lane by lane and loaded as a vector would
+    // stall on store forwarding.
+    const hn::Rebind<std::uint8_t, D> bytes;
+    const hn::Rebind<std::int32_t, D> words;
+    return hn::PromoteTo(d, hn::PromoteTo(words, hn::LoadU(bytes, keep)));
+  }
   HWY_ALIGN double row[kMaxLanes] = {};
   for (std::size_t l = 0; l < count; ++l) row[l] = keep[l];
   return hn::Load(d, row);

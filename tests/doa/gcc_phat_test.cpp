@@ -189,7 +189,7 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
             << what << " pair " << p << " lag index " << m;
     }
   };
-  gcc.save_whitened();
+  const std::vector<std::uint8_t> whitened_mask(gcc.bin_keep().begin(), gcc.bin_keep().end());
   gcc.correlate();  // every bin: inverse FFT
   check_grid("all bins kept", 1e-6);
   for (int p = 0; p < gcc.pair_count(); ++p) {
@@ -204,8 +204,8 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   gcc.correlate(false);
   EXPECT_LT(gcc.kept_bin_count(), gcc.band_bin_count() / 5);
   check_grid("few bins kept", 1e-12);
-  // Back to the saved whitening: the same grid and peaks as the first time.
-  gcc.restore_whitened();
+  // Back to the whitening's cross-power: the same grid and peaks as the first time.
+  gcc.cross_power(gcc.units(), whitened_mask);
   gcc.correlate();
   EXPECT_EQ(gcc.kept_bin_count(), gcc.band_bin_count());
   check_grid("restored", 1e-6);
@@ -260,10 +260,10 @@ TEST(GccPhat, EverySimdTargetAgrees) {
     const std::uint64_t calls_before = simd_dispatch_count(target);
     GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
     ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&gcc}));
-    gcc.save_whitened();
+    const std::vector<std::uint8_t> whitened_mask(gcc.bin_keep().begin(), gcc.bin_keep().end());
     gcc.correlate();
     Outcome outcome{target, look(gcc), {}};
-    gcc.restore_whitened();
+    gcc.cross_power(gcc.units(), whitened_mask);
     const std::span<std::uint8_t> keep = gcc.bin_keep();
     for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 5 == 0 ? 1 : 0;
     gcc.correlate(true, false);  // 20 % kept: direct sums on every target
@@ -293,7 +293,7 @@ TEST(GccPhat, EverySimdTargetAgrees) {
   }
 }
 
-// The grid-less re-measure (prepare_phasors + refine_from) finds the peak correlate() + refine()
+// The grid-less re-measure (refine_from) finds the peak correlate() + refine()
 // find, from a start a fraction of a grid step off, and gives up beyond its reach.
 TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   const int length = 2 * 8192;
@@ -308,7 +308,7 @@ TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   gcc.correlate();
   const GccPeak with_grid = gcc.pair(0).peak;
   EXPECT_NEAR(with_grid.lag_s, 4.37 / kRate, 0.2 / kRate);  // sensor noise at 14 dB
-  gcc.prepare_phasors();
+  gcc.cross_power(gcc.units(), std::vector<std::uint8_t>(gcc.bin_keep().size(), 1), true);
   for (const double offset_steps : {-0.4, 0.0, 0.3}) {
     GccPeak from_lag;
     ASSERT_TRUE(gcc.refine_from(0, with_grid.lag_s + offset_steps * gcc.lag_step_s(), from_lag));
