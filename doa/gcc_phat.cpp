@@ -140,8 +140,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   lag_rows_ = max_half_span + 1;
   lag_stride_ = (lag_rows_ + simd::kLagStrideMultiple - 1) / simd::kLagStrideMultiple *
                 simd::kLagStrideMultiple;  // whole blocks, zeros after
-  max_direct_products_ = kDirectProductsPerFftPointPerLane * simd_double_lanes() *
-                         correlation_size_ * std::log2(static_cast<double>(correlation_size_));
+  max_direct_products_ =
+      (simd_double_lanes() >= kWideLanes ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint) *
+      correlation_size_ * std::log2(static_cast<double>(correlation_size_));
   // No table when too few kept bins to correlate at all would already cost more than the FFT.
   if (max_direct_products_ / lag_rows_ >= std::max(1.0, kMinKeptShare * band_bins_)) {
     const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);

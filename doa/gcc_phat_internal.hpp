@@ -18,11 +18,14 @@ constexpr double kMinKeptShare = 0.02;
 // Smallest bin weight: a weighted phasor can be scaled back to plain PHAT (1 / w) exactly.
 constexpr double kMinWeight = 1e-3;
 // The lag grid is summed directly over the kept bins when kept bins x lags is below this times
-// N log2 N of the inverse FFT (N = correlation size), per double lane of the SIMD target;
-// measured with doa_bench's BM_PipelineStage (direct and FFT cost the same at about 0.25 with
-// two lanes and 1.0 with AVX-512's eight on x86-64 with FFTW 3.3: 342 bins x 31 lags x 6 pairs
-// in ~6.5 us against ~9 us for six single-precision c2r transforms of 2048 points).
-constexpr double kDirectProductsPerFftPointPerLane = 0.125;
+// N log2 N of the inverse FFT (N = correlation size); measured with doa_bench's
+// BM_PipelineStage (direct and FFT cost the same at about this ratio on x86-64 with FFTW 3.3
+// and two or four lanes). With AVX-512's eight lanes direct sums beat the FFT even over the
+// whole band (342 bins x 31 lags x 6 pairs in ~6.5 us against ~9 us for six single-precision
+// c2r transforms of 2048 points): kWideProductsPerFftPoint there.
+constexpr double kDirectProductsPerFftPoint = 0.25;
+constexpr double kWideProductsPerFftPoint = 1.0;
+constexpr int kWideLanes = 8;
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;
