@@ -433,6 +433,33 @@ int DropOwnedBins(const OwnedBinScan& scan) {
   return dropped;
 }
 
+// Frames as vectors of floats, split into the four channels and widened to doubles.
+int DeinterleaveFour(const FourChannelRows& rows) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const hn::Rebind<float, Full> floats;
+  const auto lanes = static_cast<int>(hn::Lanes(d));
+  V sum[4] = {hn::Zero(d), hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+  V peak[4] = {hn::Zero(d), hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+  int n = 0;
+  for (; n + lanes <= rows.count; n += lanes) {
+    hn::Vec<decltype(floats)> c0, c1, c2, c3;
+    hn::LoadInterleaved4(floats, rows.source + 4 * static_cast<std::ptrdiff_t>(n), c0, c1, c2, c3);
+    const V channels[4] = {hn::PromoteTo(d, c0), hn::PromoteTo(d, c1), hn::PromoteTo(d, c2),
+                           hn::PromoteTo(d, c3)};
+    for (int c = 0; c < 4; ++c) {
+      hn::StoreU(channels[c], d, rows.target + c * rows.stride + n);
+      sum[c] = hn::MulAdd(channels[c], channels[c], sum[c]);
+      peak[c] = hn::Max(peak[c], hn::Abs(channels[c]));
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    rows.sums[c] += SumLanes(d, sum[c]);
+    rows.peaks[c] = std::max(rows.peaks[c], hn::GetLane(hn::MaxOfLanes(d, peak[c])));
+  }
+  return n;
+}
+
 }  // namespace
 }  // namespace dronetrack::doa::simd::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
@@ -450,6 +477,7 @@ HWY_EXPORT(EchoCoherence);
 HWY_EXPORT(CombDivide);
 HWY_EXPORT(PhasorRowsKernel);
 HWY_EXPORT(DropOwnedBins);
+HWY_EXPORT(DeinterleaveFour);
 void unit_phasors(const UnitRows& rows) { HWY_DYNAMIC_DISPATCH(UnitPhasors)(rows); }
 double pair_products(const PairRows& rows) { return HWY_DYNAMIC_DISPATCH(PairProducts)(rows); }
 KeptSums kept_sums(const KeptRows& rows) { return HWY_DYNAMIC_DISPATCH(KeptBinSums)(rows); }
@@ -465,6 +493,10 @@ double echo_coherence(const CoherenceRows& rows, double gain) {
 void comb_divide(const CombRows& rows) { HWY_DYNAMIC_DISPATCH(CombDivide)(rows); }
 void phasor_rows(const PhasorRows& rows) { HWY_DYNAMIC_DISPATCH(PhasorRowsKernel)(rows); }
 int drop_owned_bins(const OwnedBinScan& scan) { return HWY_DYNAMIC_DISPATCH(DropOwnedBins)(scan); }
+
+int deinterleave_four(const FourChannelRows& rows) {
+  return HWY_DYNAMIC_DISPATCH(DeinterleaveFour)(rows);
+}
 
 }  // namespace dronetrack::doa::simd
 #endif

@@ -177,4 +177,19 @@ struct OwnedBinScan {
 };
 int drop_owned_bins(const OwnedBinScan& scan);
 
+// ---- framer ----
+
+// Four interleaved channels' `count` frames into each channel's run (channel c at
+// target + c * stride), whole vectors only: returns how many frames it did; adds each channel's
+// sum of squares to sums[c] and raises peaks[c] to its largest magnitude.
+struct FourChannelRows {
+  const float* source;
+  int count;
+  double* target;
+  std::ptrdiff_t stride;
+  double* sums;
+  double* peaks;
+};
+int deinterleave_four(const FourChannelRows& rows);
+
 }  // namespace dronetrack::doa::simd
