@@ -10,6 +10,7 @@ packages=(
   build-essential cmake pkg-config git      # toolchain
   libeigen3-dev                             # linear algebra of the DOA solver and filters
   libfftw3-dev                              # FFTs for GCC-PHAT
+  libhwy-dev                                # portable SIMD kernels (Google Highway)
   libceres-dev                              # the site calibration's least squares (calib/)
   libsndfile1-dev                           # reading/writing multichannel recordings
   portaudio19-dev                           # live capture
