@@ -8,8 +8,8 @@
 set(DRONETRACK_LINKER "lld" CACHE STRING "Linker for -fuse-ld= (lld, mold, gold); empty: system ld")
 if(DRONETRACK_LINKER)
   include(CheckLinkerFlag)
-  check_linker_flag(CXX "-fuse-ld=${DRONETRACK_LINKER}" DRONETRACK_LINKER_WORKS)
-  if(DRONETRACK_LINKER_WORKS)
+  check_linker_flag(CXX "-fuse-ld=${DRONETRACK_LINKER}" DRONETRACK_LINKER_WORKS_${DRONETRACK_LINKER})
+  if(DRONETRACK_LINKER_WORKS_${DRONETRACK_LINKER})
     target_link_options(dronetrack_options INTERFACE -fuse-ld=${DRONETRACK_LINKER})
     target_link_options(dronetrack_sanitize_only INTERFACE -fuse-ld=${DRONETRACK_LINKER})
   else()
@@ -38,7 +38,9 @@ function(_dronetrack_targets_below dir out)
 endfunction()
 
 function(dronetrack_build_speed)
-  if(NOT DRONETRACK_PCH)
+  # GCC only: it reads the headers as text where a PCH does not fit a target's flags; Clang
+  # refuses such a PCH (e.g. a fuzz target's -fsanitize=fuzzer), so Clang builds go without.
+  if(NOT DRONETRACK_PCH OR NOT CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
     return()
   endif()
   set(here ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
