@@ -68,6 +68,20 @@ function(dronetrack_build_speed)
        OR NOT "dronetrack_options" IN_LIST links OR target MATCHES "_pch$")
       continue()
     endif()
+    # -pthread (PortAudio's pkg-config flags, in dronetrack_capture) defines _REENTRANT, and GCC
+    # then refuses the PCH and reads every header of it as text: such a target goes without.
+    set(pthread FALSE)
+    foreach(lib IN LISTS links)
+      if(TARGET ${lib})
+        get_target_property(lib_options ${lib} INTERFACE_COMPILE_OPTIONS)
+        if("-pthread" IN_LIST lib_options)
+          set(pthread TRUE)
+        endif()
+      endif()
+    endforeach()
+    if(pthread)
+      continue()
+    endif()
     # Eigen's headers come through the PCH: every user gets its include directory.
     target_include_directories(${target} SYSTEM PRIVATE
                                $<TARGET_PROPERTY:Eigen3::Eigen,INTERFACE_INCLUDE_DIRECTORIES>)
