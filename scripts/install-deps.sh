@@ -8,6 +8,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 packages=(
   build-essential cmake pkg-config git      # toolchain
+  lld                                       # faster linker (cmake/BuildSpeed.cmake)
   libeigen3-dev                             # linear algebra of the DOA solver and filters
   libfftw3-dev                              # FFTs for GCC-PHAT
   libhwy-dev                                # portable SIMD kernels (Google Highway)
