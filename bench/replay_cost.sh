@@ -19,8 +19,8 @@ if [[ ! -f "$work/site.json" ]]; then
 fi
 
 kernel_us=$("$build/bench/doa_bench" --benchmark_filter='^BM_FftCrossSpectrumKernel$' \
-  --benchmark_repetitions=5 --benchmark_report_aggregates_only=true --benchmark_color=false 2>/dev/null |
-  awk '$1 == "BM_FftCrossSpectrumKernel_median" { print $4 }')
+  --benchmark_repetitions=5 --benchmark_report_aggregates_only=true 2>/dev/null |
+  sed 's/\x1b\[[0-9;]*m//g' | awk '$1 == "BM_FftCrossSpectrumKernel_median" { print $4 }')
 echo "FFT + cross-spectrum kernel: ${kernel_us} us CPU per frame (doa_bench, median of 5)"
 
 for ((run = 1; run <= runs; ++run)); do

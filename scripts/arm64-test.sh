@@ -15,7 +15,64 @@ start=$(date +%s)
 cmake --preset arm64 >/dev/null
 cmake --build --preset arm64 -j"$jobs"
 built=$(date +%s)
-ctest --preset arm64 -j"$jobs"
+# qemu's TCG emulates floating point in software: the core's tests run 100-300x slower than
+# natively (ChannelCorrections.ASkewedChannelIsUndoneAndTheClockOffsetTakenOff: 0.13 s CPU on
+# x86-64, 35 s under qemu). All of them would take over an hour of CI, so these are left out:
+# each took over 0.3 s natively (wall, on the shared 2-core machine at load ~20: ~40 ms CPU):
+# Monte-Carlo statistics over thousands of frames, long synthetic scenes, whole tracks through
+# the filters. The ~380 that run cover
+# the same stages (GCC-PHAT, tracker, LS DOA, SRP, ground echo, null, filters, fusion engine)
+# on shorter inputs; the doa_bench run below takes the whole pipeline through a 12 s scene.
+slow_under_emulation=(
+  AcousticFeatures.EachSourceCarriesItsOwnSpectrumsEvidence BandSources.ASilentBandGivesNoCone
+  BandSources.EveryFrameGivesEachBandsConeWithItsOwnIndex
+  BandSources.NarrowBandFarFromDcKeepsItsFringe
+  BinSnrWeight.WeightedCorrelationTimesAHarmonicSourceBetter
+  ChannelCorrections.ASkewedChannelIsUndoneAndTheClockOffsetTakenOff
+  Cone.AngleVarianceMatchesMonteCarloIncludingEndfire
+  FusionEngine.CorrelatedDoaErrorsScaledByEffectiveSampleSizeGiveAnHonestCovariance
+  FusionEngine.CrossingRaysOfTwoTracksMakeNoThirdTrack FusionEngine.EveryFilterKindTracks
+  FusionEngine.GroundReflectionImagesStartNoTrack
+  FusionEngine.OutOfOrderWithinTheWindowIsReordered
+  FusionEngine.QuietDroneHeardIntermittentlyByTwoArraysIsConfirmed
+  FusionEngine.TrackUnderTheGroundIsNeverConfirmed FusionEngine.TwoCrossingDronesKeepTheirIds
+  FusionEngineOneArray.TracksDoNotDependOnHowTheCallerBatchesTheFrames
+  GaussianSumFilter.ConvergesAndItsMirrorDiesOnlyAfterTheTurn
+  GccPhat.BandLimitedRefinementHasNegligibleBiasParabolicDoesNot
+  GccPhat.NoisyDelayStaysWithinItsPredictedSpread GroundEcho.EachOfTwoSourcesLosesItsOwnEcho
+  GroundEcho.FarSourceIsAPlaneWaveEcho GroundEcho.FindsTheReflectionsRangeAndStrength
+  GroundEcho.NoGroundNoEcho GroundEcho.RemovingItTakesTheBiasOutOfTheDoa
+  GroundEcho.SilenceAndTheHorizonFindNothing
+  HarmonicComb.FindsTheRotorFundamentalOnRealDroneRecordings
+  HarmonicComb.RejectsGeneratorCarAndNoiseAtTheSameSnr
+  MultipeakParticleFilter.ConvergesWithNoInitialGuess NodePipeline.CovarianceIsHonest
+  NodePipeline.CovarianceIsHonestWithOverlappingFramesAndTheRegression
+  NodePipeline.DropoutInsideASourceGivesNoDoaForSilentFrames
+  NodePipeline.EachBandFindsItsOwnSourceOnA3DArray
+  NodePipeline.FindsAPlaneWaveWithFrameCentreTimes
+  NodePipeline.NoiseAloneGivesNoDoaAndTheGateOpensForASource
+  NodePipeline.OddAudioNeverCrashesNorYieldsADoa
+  NodePipeline.SourcesBelowTheHorizonMaskAreNotReported
+  NodePipeline.SrpPhatFindsTwoSimultaneousSources
+  NodePipeline.WeakerSourceNextToALouderOneIsNotPulledByItsLobes
+  NodePipelinePose.ConstantPoseEqualsTheSameFixedPose
+  NodePipelinePose.DirectionFollowsTheHeadingAtEachFramesTime
+  RangeInitialisedEkf.ConvergesFromTheFirstBearing SeedFour.MultipeakLikelihoodRidesOutReflections
+  SeedFour.ParticleFilterNeedsNoGuessWhereTheEkfNeedsAGoodOne
+  StaticSourceNull.ForgetsAStaticSourceThatWentQuiet
+  StaticSourceNull.NodePipelineFindsTheRotorNextToTheGenerator
+  StaticSourceNull.StaticSourceInTheSkyIsNeverNulled
+  StaticSourceNull.WeakerHarmonicSourceIsFoundNextToALoudStaticGroundSource
+  TdoaTrackers.RemoveSingleFrameOutliersBetterThanPerFrame
+  TrackFilter.CoordinatedTurnModeImprovesTheImmInTheTurn
+  TrackFilter.CoordinatedTurnModeTracksACircleBetter
+  TrackFilter.InteractingMultipleModelFollowsCruiseAndManoeuvre
+  TrackFilter.SeedUkfAndParticleFilterTrack
+  TrackFilter.StaysFiniteAndPositiveDefiniteThroughGapsAndOutliers
+  TrackFilter.StudentLikelihoodRidesOutImpulsiveDoas
+)
+excluded="^($(IFS='|'; echo "${slow_under_emulation[*]}"))\$"
+ctest --preset arm64 -j"$jobs" -E "$excluded"
 tested=$(date +%s)
 
 # The pipeline and the kernel it is measured against, on the bench's scene, a few iterations
