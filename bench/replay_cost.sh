@@ -28,13 +28,16 @@ for ((run = 1; run <= runs; ++run)); do
   /usr/bin/time -f 'process %e %U %S' "$build/dronetrack" replay "$work/site.json" \
     --doa-out "$work/doas.jsonl" 2>"$log"
   awk -v kernel_us="$kernel_us" -v run="$run" '
-    /first frame analysed/ { for (i = 1; i <= NF; ++i) if ($i == "analysed") first = $(i + 1) }
+    /first frame analysed/ {
+      for (i = 1; i <= NF; ++i) if ($i == "analysed") first = $(i + 1)
+      first_cpu = $(NF - 2)
+    }
     /frames analysed/ { for (i = 1; i <= NF; ++i) if ($i == "frames") frames += $(i - 1) }
     $1 == "process" { wall = $2; cpu = $3 + $4 }
     END {
       kernel_s = frames * kernel_us * 1e-6
       printf "run %d: process %.2f s wall, %.2f s CPU; kernel over the same %d frames %.2f s CPU;" \
-             " process / kernel %.2f; first frame %.3f s after start\n",
-             run, wall, cpu, frames, kernel_s, cpu / kernel_s, first
+             " process / kernel %.2f; first frame %.3f s after start (%.3f s CPU)\n",
+             run, wall, cpu, frames, kernel_s, cpu / kernel_s, first, first_cpu
     }' "$log"
 done
