@@ -16,7 +16,8 @@ cmake --preset arm64 >/dev/null
 cmake --build --preset arm64 -j"$jobs"
 built=$(date +%s)
 # Under qemu the core's arithmetic runs ~20-50x slower than natively (TCG emulates floating
-# point in software), and all the core's tests would take ~15 CPU-minutes. These are left out:
+# point in software): the 410 tests that run take ~90 s of CPU, all of them would take ~15
+# minutes. These are left out:
 # each took over 1 s natively (wall on the shared 2-core machine at load ~20, ~0.12 s CPU):
 # Monte-Carlo statistics over thousands of frames, long synthetic scenes, whole tracks through
 # the particle and multi-model filters. The ~400 that run cover the same stages (GCC-PHAT,
