@@ -34,9 +34,15 @@ if [[ "${1:-}" == "--arm64" ]]; then
   dpkg --print-foreign-architectures | grep -qx arm64 || dpkg --add-architecture arm64
 fi
 
+# An unqualified name means the host's package; once arm64 is added (--arm64) dpkg-query would
+# list both architectures' copies, so ask for the host's (arch-all packages take no qualifier).
+native="$(dpkg --print-architecture)"
 missing=()
 for package in "${packages[@]}"; do
-  status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
+  query="$package"
+  arch=$(dpkg-query -W -f='${Architecture}\n' "$package" 2>/dev/null | head -n 1 || true)
+  [[ "$package" == *:* || -z "$arch" || "$arch" == all ]] || query="$package:$native"
+  status=$(dpkg-query -W -f='${Status}' "$query" 2>/dev/null || true)
   [[ "$status" == "install ok installed" ]] || missing+=("$package")
 done
 if ((${#missing[@]})); then
