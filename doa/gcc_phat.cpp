@@ -178,7 +178,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   if (inverse_->spectrum == nullptr || inverse_->correlation == nullptr) throw std::bad_alloc();
   std::fill_n(reinterpret_cast<float*>(inverse_->spectrum), correlation_size_ + 2, 0.0f);
   inverse_->plan = fftwf_plan_dft_c2r_1d(correlation_size_, inverse_->spectrum,
-                                         inverse_->correlation, FFTW_MEASURE);
+                                         inverse_->correlation, FFTW_ESTIMATE);
   if (inverse_->plan == nullptr) throw std::runtime_error("GccPhat: FFTW plan failed");
 }
 

@@ -278,9 +278,10 @@ MultichannelFft::MultichannelFft(int channels, int frame_length, int fft_size)
   plan_->output =
       fftw_alloc_complex(static_cast<std::size_t>(channels) * static_cast<std::size_t>(stride_));
   if (plan_->input == nullptr || plan_->output == nullptr) throw std::bad_alloc();
-  // FFTW_MEASURE times candidate algorithms once per size and process (FFTW keeps the wisdom),
-  // ~2x faster transforms than FFTW_ESTIMATE here. It scribbles on the arrays: zero after.
-  plan_->plan = fftw_plan_dft_r2c_1d(fft_size, plan_->input, plan_->output, FFTW_MEASURE);
+  // FFTW_ESTIMATE: the same algorithm every run, so a replay is bit-for-bit repeatable, and
+  // ~2 ms of planning instead of FFTW_MEASURE's ~0.25 s, whose timed choice differs between runs
+  // and so changes the last bits of every result (docs/doa.md, "FFT plans").
+  plan_->plan = fftw_plan_dft_r2c_1d(fft_size, plan_->input, plan_->output, FFTW_ESTIMATE);
   if (plan_->plan == nullptr) throw std::runtime_error("MultichannelFft: FFTW plan failed");
   std::fill_n(plan_->input, fft_size, 0.0);
 }

@@ -3,6 +3,8 @@
 # everything is present (no apt-get update unless something is missing).
 #   scripts/install-deps.sh          build + run dependencies
 #   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core)
+#   scripts/install-deps.sh --arm64  also the arm64 cross-build of the core (scripts/arm64-test.sh):
+#                                    Debian's cross compiler, qemu-user, multiarch arm64 libraries
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
@@ -27,10 +29,23 @@ if [[ "${1:-}" == "--tests" ]]; then
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)
 fi
+if [[ "${1:-}" == "--arm64" ]]; then
+  # Eigen and nlohmann-json are header-only: the host's serve both builds. libhwy-dev is the
+  # portable SIMD layer's library (issue 21), installed before that lands.
+  packages+=(g++-aarch64-linux-gnu qemu-user libfftw3-dev:arm64 libsndfile1-dev:arm64
+    libgtest-dev:arm64 libbenchmark-dev:arm64 libhwy-dev:arm64)
+  dpkg --print-foreign-architectures | grep -qx arm64 || dpkg --add-architecture arm64
+fi
 
+# An unqualified name means the host's package; once arm64 is added (--arm64) dpkg-query would
+# list both architectures' copies, so ask for the host's (arch-all packages take no qualifier).
+native="$(dpkg --print-architecture)"
 missing=()
 for package in "${packages[@]}"; do
-  status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
+  query="$package"
+  arch=$(dpkg-query -W -f='${Architecture}\n' "$package" 2>/dev/null | head -n 1 || true)
+  [[ "$package" == *:* || -z "$arch" || "$arch" == all ]] || query="$package:$native"
+  status=$(dpkg-query -W -f='${Status}' "$query" 2>/dev/null || true)
   [[ "$status" == "install ok installed" ]] || missing+=("$package")
 done
 if ((${#missing[@]})); then

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Every test: install what is missing, build, run ctest; then the same tests built with
-# AddressSanitizer + UndefinedBehaviorSanitizer. Also checks formatting and layering.
+# Every test: install what is missing, build, run ctest; the core's unit tests on arm64 (cross-built,
+# under qemu); then the same tests built with AddressSanitizer + UndefinedBehaviorSanitizer. Also
+# checks formatting and layering.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 jobs="$(nproc)"
@@ -11,6 +12,9 @@ echo "== release build + tests" >&2
 cmake --preset release >/dev/null
 cmake --build --preset release -j"$jobs"
 ctest --preset release -j"$jobs"
+
+# The core cross-built for arm64, its unit tests under qemu-user (issue 21).
+bash scripts/arm64-test.sh
 
 echo "== asan+ubsan build + tests" >&2
 cmake --preset asan >/dev/null
