@@ -12,11 +12,23 @@
 namespace dronetrack::fusion {
 namespace {
 
+// The DOA likelihood by a benchmark argument: 0 gaussian, 1 outlier_mixture, 2 student_t
+// (doa_likelihood.hpp, the engine's defaults otherwise).
+DoaLikelihoodKind likelihood_of(std::int64_t argument) {
+  return argument == 1   ? DoaLikelihoodKind::outlier_mixture
+         : argument == 2 ? DoaLikelihoodKind::student_t
+                         : DoaLikelihoodKind::gaussian;
+}
+
 // One asynchronous DOA step: predict 50 ms, innovation from one of three arrays, update.
 // imm: 0 single model, 1 the IMM over three jerk levels, 2 the same plus three
-// coordinated-turn modes.
-void filter_update(benchmark::State& state, FilterKind kind, int imm = 0) {
+// coordinated-turn modes. likelihood: likelihood_of; outliers: every 4th DOA is ~3 degrees off.
+void filter_update(benchmark::State& state, FilterKind kind, int imm = 0,
+                   std::int64_t likelihood = 0, bool outliers = false) {
   FilterSettings settings;
+  const FusionParams defaults;
+  settings.likelihood = DoaLikelihood(likelihood_of(likelihood), defaults.student_t_dof,
+                                      defaults.outlier_probability, defaults.gate_probability);
   settings.motion.jerk_variance_m2ps6 = 9.0;
   settings.particle_count = 1000;
   if (imm >= 1) settings.imm_jerk_std_mps3 = {0.2, 3.0, 30.0};
@@ -39,20 +51,25 @@ void filter_update(benchmark::State& state, FilterKind kind, int imm = 0) {
     truth = ConstantJerkModel::propagate(truth, 0.05);
     filter->predict(0.05);
     const DoaMeasurementModel& model = models[step++ % 3];
-    const Measurement z = model.predict(truth) + Measurement(normal(random), normal(random));
+    const double spread = outliers && step % 4 == 0 ? 6.0 : 1.0;
+    const Measurement z =
+        model.predict(truth) + spread * Measurement(normal(random), normal(random));
     filter->innovation(model, noise, innovation);
     benchmark::DoNotOptimize(filter->update(innovation, z));
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
 }
 
-void BM_UkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf); }
+// Arguments: likelihood (likelihood_of), outliers (0 or 1).
+void BM_UkfUpdate(benchmark::State& state) {
+  filter_update(state, FilterKind::ukf, 0, state.range(0), state.range(1) != 0);
+}
 void BM_UkfSeed002Update(benchmark::State& state) { filter_update(state, FilterKind::ukf_seed002); }
 void BM_EkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ekf); }
 void BM_ParticleUpdate(benchmark::State& state) { filter_update(state, FilterKind::particle); }
 void BM_ImmUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 1); }
 void BM_ImmTurnUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 2); }
-BENCHMARK(BM_UkfUpdate);
+BENCHMARK(BM_UkfUpdate)->ArgNames({"likelihood", "outliers"})->ArgsProduct({{0, 1, 2}, {0, 1}});
 BENCHMARK(BM_ImmUkfUpdate);
 BENCHMARK(BM_ImmTurnUkfUpdate);
 BENCHMARK(BM_UkfSeed002Update);
@@ -69,12 +86,12 @@ doa::ArrayGeometry tetrahedron(const char* id, Eigen::Vector3d position) {
 }
 
 // Whole engine: four arrays each reporting one drone every 50 ms (80 DOAs/s of scene time).
-// Arguments: imm_turn_mode off (0) or on (1); likelihood gaussian (0) or student_t (1); every
-// 4th DOA an outlier of ~3 degrees (1) or none (0); the rest default.
+// Arguments: imm_turn_mode off (0) or on (1); likelihood (likelihood_of); every 4th DOA an
+// outlier of ~3 degrees (1) or none (0); the rest default.
 void BM_EngineFourArrays(benchmark::State& state) {
   FusionParams params;
   params.imm_turn_mode = state.range(0) != 0;
-  if (state.range(1) != 0) params.likelihood = DoaLikelihoodKind::student_t;
+  params.likelihood = likelihood_of(state.range(1));
   const bool outliers = state.range(2) != 0;
   const std::vector<doa::ArrayGeometry> arrays{
       tetrahedron("N1", {-100, -100, 2}), tetrahedron("N2", {100, -100, 2}),
@@ -114,8 +131,10 @@ BENCHMARK(BM_EngineFourArrays)
     ->Args({0, 0, 0})
     ->Args({1, 0, 0})
     ->Args({1, 1, 0})
+    ->Args({1, 2, 0})
     ->Args({1, 0, 1})
     ->Args({1, 1, 1})
+    ->Args({1, 2, 1})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace

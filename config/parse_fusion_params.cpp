@@ -58,11 +58,14 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.reorder_window_s = section.number("reorder_window_s", params.reorder_window_s, 0.0, 10.0);
   params.gate_probability =
       section.number("gate_probability", params.gate_probability, 0.5, 0.999999);
-  params.likelihood =
-      section.choice("likelihood", "gaussian", {"gaussian", "student_t"}) == "student_t"
-          ? fusion::DoaLikelihoodKind::student_t
-          : fusion::DoaLikelihoodKind::gaussian;
+  const std::string likelihood =
+      section.choice("likelihood", "gaussian", {"gaussian", "student_t", "outlier_mixture"});
+  params.likelihood = likelihood == "gaussian"    ? fusion::DoaLikelihoodKind::gaussian
+                      : likelihood == "student_t" ? fusion::DoaLikelihoodKind::student_t
+                                                  : fusion::DoaLikelihoodKind::outlier_mixture;
   params.student_t_dof = section.number("student_t_dof", params.student_t_dof, 1.0, 100.0);
+  params.outlier_probability =
+      section.number("outlier_probability", params.outlier_probability, 0.0, 0.9);
   params.confirm_hits = section.integer("confirm_hits", params.confirm_hits, 1, 1000);
   params.confirm_window = section.integer("confirm_window", params.confirm_window, 1, 32);
   if (params.confirm_hits > params.confirm_window) {

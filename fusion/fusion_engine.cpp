@@ -351,6 +351,9 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(params.ukf_alpha * params.ukf_alpha * (kStateSize + params.ukf_kappa) > 0.0, "ukf_kappa",
         "alpha^2 (9 + kappa) must be > 0");
   check(params.particle_count >= 10, "particle_count", "must be >= 10");
+  check(params.student_t_dof >= 1.0, "student_t_dof", "must be >= 1");
+  check(params.outlier_probability >= 0.0 && params.outlier_probability < 1.0,
+        "outlier_probability", "must be in [0, 1)");
   check(params.doa_noise_floor_deg >= 0.0, "doa_noise_floor_deg", "must be >= 0");
   check(params.init_pair_window_s > 0.0, "init_pair_window_s", "must be > 0");
   check(params.init_max_range_m > 0.0, "init_max_range_m", "must be > 0");
@@ -413,8 +416,9 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.ukf_beta = params.ukf_beta;
   s.filter_settings.ukf_kappa = params.ukf_kappa;
   s.filter_settings.particle_count = params.particle_count;
-  if (params.likelihood == DoaLikelihoodKind::student_t)
-    s.filter_settings.student_t_dof = params.student_t_dof;
+  s.likelihood.emplace(params.likelihood, params.student_t_dof, params.outlier_probability,
+                       params.gate_probability);
+  s.filter_settings.likelihood = *s.likelihood;
   s.filter_settings.imm_jerk_std_mps3 = params.imm_jerk_std_mps3;
   if (params.imm_jerk_std_mps3.size() == 1) {  // one level: a single model at that level
     s.filter_settings.motion.jerk_variance_m2ps6 = std::pow(params.imm_jerk_std_mps3[0], 2);
@@ -440,9 +444,6 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.one_array_settings.one_array.max_range_m = std::min(one.max_range_m, params.init_max_range_m);
   s.one_array_settings.one_array.max_speed_mps = params.init_max_speed_mps;
   for (const auto& model : s.models) s.last_centre_m.push_back(model.centre_m);
-  s.likelihood.emplace(params.likelihood == DoaLikelihoodKind::student_t ? LikelihoodKind::student_t
-                                                                         : LikelihoodKind::gaussian,
-                       params.student_t_dof, params.gate_probability);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
   s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
@@ -644,11 +645,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     innovation.noise = track.inflation * noise_of(m);
     if (m.ambiguity == doa::DoaAmbiguity::cone) innovation.noise(1, 1) = 1.0;  // the pad
     const Measurement z = measured(m);
-    // The particle filters weigh their particles by the same Student-t themselves
-    // (FilterSettings).
-    const FilterKind kind = track.one_array ? params.single_array_filter : params.filter;
-    if (kind != FilterKind::particle && kind != FilterKind::particle_multipeak)
-      likelihood->reweight(innovation, z);
+    // The filter weighs z by the DOA likelihood itself (FilterSettings::likelihood).
     const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused

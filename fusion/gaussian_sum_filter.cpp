@@ -135,8 +135,8 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
 
 FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measurement& z) {
   if (!z.allFinite()) return FilterStatus::failed;
-  // The tracker may have added the DOA's own covariance (and a Student-t reweighting) to S and R
-  // after innovation(): every hypothesis takes the same.
+  // The tracker may have added the DOA's own covariance to S and R after innovation(): every
+  // hypothesis takes the same.
   const MeasurementCovariance extra = innovation.noise - noise_;
   if (!valid(innovation.covariance)) return FilterStatus::failed;
   const Eigen::LDLT<MeasurementCovariance> common(innovation.covariance);
@@ -163,10 +163,13 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     // prior choosing the range, not the data. On a common S a hypothesis loses weight only by
     // predicting the DOA worse than the others (the mirror side after a turn, a range the
     // platform's motion rules out).
-    log_likelihood_[j] = -0.5 * d2;
+    // Under the settings' DOA likelihood, as the IMM weighs its modes.
+    const DoaLikelihood& law = settings_.likelihood;
+    log_likelihood_[j] = -0.5 * law.assignment_cost(d2, 0.0, own.dimension());
     if (settings_.one_array.own_spread_weights)  // seed 003's eq. 9 as printed
-      log_likelihood_[j] = -0.5 * residual.dot(own.covariance.ldlt().solve(residual)) -
-                           0.5 * std::log(own.covariance.determinant());
+      log_likelihood_[j] =
+          -0.5 * law.assignment_cost(residual.dot(own.covariance.ldlt().solve(residual)),
+                                     std::log(own.covariance.determinant()), own.dimension());
     best_log = std::max(best_log, log_likelihood_[j]);
   }
   if (!std::isfinite(best_log)) return FilterStatus::failed;

@@ -67,13 +67,25 @@ class GaussianFilter : public TrackFilter {
     robust_cholesky(covariance_, lower);
     hold_to_plane();
   }
+  // The DOA likelihood weighs z first (doa_likelihood.hpp): the Student-t by widening R, the
+  // outlier mixture by the inlier probability beta. With beta the result is the mixture
+  // posterior's mean and covariance: x + beta K nu, and P - beta K S K' for the inlier branch plus
+  // beta (1 - beta) (K nu)(K nu)' for the spread between the two branches. R / beta instead would
+  // barely hold back a DOA when the prediction, not R, dominates S.
   FilterStatus update(const Innovation& innovation, const Measurement& z) override {
     if (!valid_innovation_covariance(innovation.covariance) || !z.allFinite()) {
       return FilterStatus::failed;
     }
-    const CrossCovariance gain = innovation.cross * innovation.covariance.inverse();
-    const StateVector mean = mean_ + gain * innovation.residual(z);
-    StateCovariance covariance = covariance_ - gain * innovation.covariance * gain.transpose();
+    Innovation weighed = innovation;
+    const double inlier = settings_.likelihood.weigh(weighed, z);
+    if (!valid_innovation_covariance(weighed.covariance)) return FilterStatus::failed;
+    const CrossCovariance gain = weighed.cross * weighed.covariance.inverse();
+    const StateVector correction = gain * weighed.residual(z);
+    const StateVector mean = mean_ + inlier * correction;
+    StateCovariance covariance =
+        covariance_ - inlier * gain * weighed.covariance * gain.transpose();
+    if (inlier < 1.0)
+      covariance.noalias() += inlier * (1.0 - inlier) * correction * correction.transpose();
     symmetrise(covariance);
     if (!mean.allFinite() || !covariance.allFinite()) return FilterStatus::failed;
     StateCovariance lower;
@@ -343,8 +355,6 @@ class ParticleFilter final : public TrackFilter {
   const StateCovariance& covariance() const override { return covariance_; }
 
  private:
-  static constexpr double kOutlierProbability = 0.05;
-
   // Multiplies every particle's weight by the likelihood of the readings (a mixture with the
   // given weights; one reading: the plain likelihood) and resamples when the cloud degenerates.
   template <class Readings, class Weights>
@@ -361,15 +371,10 @@ class ParticleFilter final : public TrackFilter {
     if (innovation.model != nullptr) jitter_centre_m_ = innovation.model->centre_m;
     jitter_angle_std_rad_ =
         std::sqrt(dimension == 1 ? innovation.noise(0, 0) : 0.5 * innovation.noise.trace());
-    // Mixture (1 - e) N(z; h(x), R) + e U (a DOA from anywhere: U = 1 / (4 pi) over the sphere for
-    // a direction, 1 / pi over [0, pi] for a cone angle), scaled by (2 pi)^(d/2) sqrt(det R) so
-    // the Gaussian part is the plain exponential. The pad of a cone's R is 1: det R = R_00.
-    const double floor =
-        dimension == 2 ? kOutlierProbability * std::sqrt(innovation.noise.determinant()) / 2.0
-                       : kOutlierProbability *
-                             std::sqrt(2.0 * std::numbers::pi * innovation.noise.determinant()) /
-                             std::numbers::pi;
-    const double dof = settings_.student_t_dof;
+    // The same DOA likelihood the Gaussian filters update with (doa_likelihood.hpp), scaled by
+    // (2 pi)^(d/2) sqrt(det R) for every particle alike.
+    const DoaLikelihood& law = settings_.likelihood;
+    const double floor = law.particle_floor(innovation);
     double total = 0.0;
     for (Eigen::Index i = 0; i < particles_.cols(); ++i) {
       double likelihood = 0.0;
@@ -377,13 +382,10 @@ class ParticleFilter final : public TrackFilter {
         const Measurement dz = innovation.model != nullptr
                                    ? innovation.model->residual(readings[k], predicted_.col(i))
                                    : azel_residual(readings[k], predicted_.col(i));
-        const double d2 = dz.dot(information * dz);
-        // Both up to the same factor for every particle: (2 pi)^(d/2) sqrt(det R).
-        const double own =
-            dof > 0.0 ? std::pow(1.0 + d2 / dof, -0.5 * (dof + dimension)) : std::exp(-0.5 * d2);
-        likelihood += reading_weights[k] / weight_sum * own;
+        likelihood += reading_weights[k] / weight_sum *
+                      law.particle_kernel(dz.dot(information * dz), dimension);
       }
-      if (!(dof > 0.0)) likelihood += floor;
+      likelihood += floor;
       weights_(i) *= likelihood;
       total += weights_(i);
     }
@@ -505,7 +507,7 @@ class InteractingFilter final : public TrackFilter {
  public:
   using Factory = std::unique_ptr<TrackFilter> (*)(FilterKind, const FilterSettings&);
   InteractingFilter(FilterKind kind, const FilterSettings& settings, Factory make)
-      : sojourn_s_(settings.imm_sojourn_s) {
+      : sojourn_s_(settings.imm_sojourn_s), likelihood_(settings.likelihood) {
     const std::size_t count =
         settings.imm_jerk_std_mps3.size() + settings.imm_turn_rate_std_radps2.size();
     models_.reserve(count);
@@ -641,7 +643,11 @@ class InteractingFilter final : public TrackFilter {
       const FilterStatus status = models_[j]->update(own, z);
       if (status == FilterStatus::failed) continue;
       if (status == FilterStatus::repaired) worst = FilterStatus::repaired;
-      log_likelihood_[j] = -0.5 * d2 - 0.5 * std::log(own.covariance.determinant());
+      // Each mode is judged by the same DOA likelihood, on its own prediction: under a robust law
+      // one wild DOA does not hand the weight to the widest mode, and a manoeuvre still moves it
+      // to the mode that predicted it (each mode weighs the DOA itself in its update, above).
+      log_likelihood_[j] = -0.5 * likelihood_.assignment_cost(
+                                      d2, std::log(own.covariance.determinant()), own.dimension());
       best_log = std::max(best_log, log_likelihood_[j]);
       any = true;
     }
@@ -694,6 +700,7 @@ class InteractingFilter final : public TrackFilter {
   }
 
   double sojourn_s_;
+  DoaLikelihood likelihood_;
   std::vector<std::unique_ptr<TrackFilter>> models_;
   std::vector<double> probability_;
   std::vector<double> predicted_probability_;

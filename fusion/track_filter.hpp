@@ -20,7 +20,9 @@
 
 #include "doa/doa_measurement.hpp"
 #include "fusion/bearing_prior.hpp"
+#include "fusion/doa_likelihood.hpp"
 #include "fusion/fusion_params.hpp"
+#include "fusion/innovation.hpp"
 #include "fusion/measurement_model.hpp"
 #include "fusion/motion_model.hpp"
 #include "fusion/state.hpp"
@@ -31,21 +33,6 @@ enum class FilterStatus : std::uint8_t {
   ok = 0,
   repaired,  // a covariance was not positive definite and was repaired (eigenvalue clamp)
   failed,    // non-finite or unrepairable; the filter kept its previous state
-};
-
-struct Innovation {
-  Measurement predicted = Measurement::Zero();                           // z_hat
-  MeasurementCovariance covariance = MeasurementCovariance::Identity();  // S = ... + R
-  CrossCovariance cross = CrossCovariance::Zero();                       // P_xz
-  MeasurementCovariance noise = MeasurementCovariance::Identity();       // R
-  const DoaMeasurementModel* model = nullptr;
-  // z - predicted in the model's space (wrapped azimuth, or the plain cone angle); azel when no
-  // model is set.
-  Measurement residual(const Measurement& z) const;
-  // Degrees of freedom of the measurement (1: cone, 2: a direction).
-  int dimension() const { return model != nullptr ? model->dimension() : kMeasurementSize; }
-  // Squared Mahalanobis distance of a measurement z under this innovation.
-  double mahalanobis2(const Measurement& z) const;
 };
 
 // The other readings of one DOA (seed 004's multi-peak GCC, SPEC 4.3): the GCC's strongest peaks as
@@ -69,10 +56,9 @@ struct FilterSettings {
   double ukf_kappa = 0.0;
   int particle_count = 1000;
   std::uint64_t random_seed = 1;
-  // The particle filter's DOA likelihood: Gaussian plus a uniform floor (0), or the multivariate
-  // Student-t of doa_likelihood.hpp with this many degrees of freedom (> 0), the same law the
-  // Gaussian filters' reweighted update follows.
-  double student_t_dof = 0.0;
+  // The DOA likelihood every filter weighs a DOA by in its own update (doa_likelihood.hpp); the
+  // tracker gates and assigns by the same.
+  DoaLikelihood likelihood;
   // Interacting multiple model (IMM) over jerk levels: with two or more levels, the Gaussian
   // filters (ukf, ukf_seed002, ekf) run one constant-jerk model per level and mix them
   // (Blom & Bar-Shalom); `motion` is then unused. A mode is kept for imm_sojourn_s on average.
@@ -104,7 +90,10 @@ class TrackFilter {
   // Predicted measurement and its covariance for this array, including the noise R.
   virtual FilterStatus innovation(const DoaMeasurementModel& model,
                                   const MeasurementCovariance& noise, Innovation& out) = 0;
-  // Commits z against the innovation computed last (same model, no predict in between).
+  // Commits z against the innovation computed last (same model, no predict in between), weighed
+  // by the settings' DOA likelihood: each filter applies it itself (a Gaussian filter by its
+  // inlier probability or reweighted R, the particle filter as each particle's density, the IMM
+  // in each mode and in the modes' weights).
   virtual FilterStatus update(const Innovation& innovation, const Measurement& z) = 0;
   virtual const StateVector& mean() const = 0;
   virtual const StateCovariance& covariance() const = 0;

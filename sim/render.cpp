@@ -160,7 +160,8 @@ class Renderer {
     RenderedArray out = blank(array_index);
     add_sources(array_index, true, out);
     const NoiseSpec& noise = scenario_.noise;
-    const bool needs_snr = noise.sensor.snr_db || noise.wind.snr_db || noise.ambient.snr_db;
+    const bool needs_snr =
+        noise.sensor.snr_db || noise.wind.snr_db || noise.ambient.snr_db || noise.impulsive.snr_db;
     double signal_power = 0.0;
     if (needs_snr) {
       std::size_t reference = array_index;
@@ -208,6 +209,20 @@ class Renderer {
     add(noise.sensor, NoiseKind::sensor);
     add(noise.wind, NoiseKind::wind);
     add(noise.ambient, NoiseKind::ambient);
+    if (noise.impulsive.enabled) {
+      // Scaled like white sensor noise: the RMS a Gaussian burst of the same c would have.
+      double rms = 0.0;
+      if (noise.impulsive.level_db_spl) {
+        rms = full_scale_rms(*noise.impulsive.level_db_spl, scenario_.full_scale_db_spl);
+      } else {
+        NoiseShape white;
+        white.sample_rate_hz = scenario_.sample_rate_hz;
+        const double inband_noise = signal_power / std::pow(10.0, *noise.impulsive.snr_db / 10.0);
+        rms = std::sqrt(inband_noise / white.inband_fraction(scenario_.site.doa.bands_hz));
+      }
+      add_impulsive_noise(noise.impulsive, rms, scenario_.sample_rate_hz, scenario_.seed,
+                          array_index, out.channels, out.frames(), out.samples.data());
+    }
     // A channel's gain scales all it records: the mic's sensitivity and its preamplifier.
     if (array_index < scenario_.array_errors.size() &&
         !scenario_.array_errors[array_index].channel_gain_db.empty()) {

@@ -290,6 +290,23 @@ void parse_noise(ObjectReader& reader, Scenario& scenario) {
   noise.wind_gust_depth = reader.number("wind_gust_depth", noise.wind_gust_depth, 0.0, 1.0);
   noise.ambient_coherent_below_hz =
       reader.number("ambient_coherent_below_hz", 0.0, 0.0, 0.4 * scenario.sample_rate_hz);
+  if (reader.has("impulsive")) {
+    ObjectReader impulsive = reader.object("impulsive");
+    ImpulsiveNoise& spec = noise.impulsive;
+    const bool has_snr = impulsive.has("snr_db");
+    const bool has_level = impulsive.has("level_db");
+    if (has_snr == has_level)
+      impulsive.diagnostics().error(impulsive.path(), "give exactly one of snr_db or level_db");
+    if (has_snr) spec.snr_db = impulsive.required_number("snr_db", -60.0, 100.0);
+    if (has_level) spec.level_db_spl = impulsive.required_number("level_db", -20.0, 160.0);
+    spec.share = impulsive.number("share", spec.share, 0.0, 1.0);
+    spec.burst_s = impulsive.number("burst_s", spec.burst_s, 1e-4, 10.0);
+    spec.alpha = impulsive.number("alpha", spec.alpha, 0.1, 2.0);
+    spec.per_channel = impulsive.boolean("per_channel", spec.per_channel);
+    spec.enabled = spec.snr_db.has_value() || spec.level_db_spl.has_value();
+  } else {
+    reader.accept("impulsive");
+  }
   noise.snr_reference_array = reader.string("snr_reference_array", "");
   if (!noise.snr_reference_array.empty() &&
       scenario.site.array_index(noise.snr_reference_array) < 0 && !scenario.site.arrays.empty()) {
@@ -537,8 +554,8 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       if (log.has("source") && !spec.source.empty() && !ids.contains(spec.source))
         diagnostics.error(log.path_of("source"), "no source with id \"" + spec.source + "\"");
     }
-    const bool needs_drone =
-        scenario.noise.sensor.snr_db || scenario.noise.wind.snr_db || scenario.noise.ambient.snr_db;
+    const bool needs_drone = scenario.noise.sensor.snr_db || scenario.noise.wind.snr_db ||
+                             scenario.noise.ambient.snr_db || scenario.noise.impulsive.snr_db;
     bool has_drone = false;
     for (const auto& source : scenario.sources) has_drone |= source.kind == SourceKind::drone;
     if (needs_drone && !has_drone && !scenario.sources.empty()) {

@@ -13,6 +13,7 @@
 #include "config/site_config.hpp"
 #include "sim/array_errors.hpp"
 #include "sim/array_motion.hpp"
+#include "sim/impulsive_noise.hpp"
 #include "sim/trajectory.hpp"
 
 namespace dronetrack::sim {
@@ -98,6 +99,7 @@ struct NoiseSpec {
   NoiseLevel ambient;  // diffuse: coherent within an array at low frequency, independent above
   double ambient_coherent_below_hz = 0.0;  // 0: c / (2 * largest mic spacing) of each array
   std::string snr_reference_array;         // empty: every array gets the SNR itself
+  ImpulsiveNoise impulsive;                // alpha-stable bursts (sim/impulsive_noise.hpp)
 };
 
 // An array that moves (site.arrays[i].trajectory): its motion, and how often its pose file

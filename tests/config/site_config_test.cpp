@@ -399,15 +399,22 @@ TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
   const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
   EXPECT_EQ(parsed.fusion.likelihood, fusion::DoaLikelihoodKind::student_t);
   EXPECT_EQ(parsed.fusion.student_t_dof, 6.0);
-  EXPECT_EQ(parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings())
-                .fusion.likelihood,
-            fusion::DoaLikelihoodKind::gaussian);
+  const SiteConfig defaults =
+      parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(defaults.fusion.likelihood, fusion::DoaLikelihoodKind::gaussian);
+  EXPECT_EQ(defaults.fusion.outlier_probability, 0.1);
+  site["fusion"] = {{"likelihood", "outlier_mixture"}, {"outlier_probability", 0.3}};
+  const SiteConfig chosen = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(chosen.fusion.likelihood, fusion::DoaLikelihoodKind::outlier_mixture);
+  EXPECT_EQ(chosen.fusion.outlier_probability, 0.3);
   site["fusion"] = {{"likelihood", "cauchy"}};
   const auto problems = problems_of(site);
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("fusion.likelihood"), std::string::npos) << problems[0];
   site["fusion"] = {{"student_t_dof", 0.5}};
   expect_problem(site, "fusion.student_t_dof: must be in [1, 100], got 0.5");
+  site["fusion"] = {{"outlier_probability", 0.95}};
+  expect_problem(site, "fusion.outlier_probability: must be in [0, 0.9], got 0.95");
 }
 
 }  // namespace

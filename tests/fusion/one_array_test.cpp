@@ -260,11 +260,11 @@ TEST(MirrorModel, FoldsThePredictionOntoTheReportedSide) {
 }
 
 TEST(DoaLikelihood, ConeGatesWithOneDegreeOfFreedom) {
-  const DoaLikelihood gaussian(LikelihoodKind::gaussian, 10.0, 0.99);
+  const DoaLikelihood gaussian(DoaLikelihoodKind::gaussian, 10.0, 0.0, 0.99);
   EXPECT_NEAR(gaussian.gate_d2(1), 6.6349, 1e-3);  // chi-square(1) 99 %
   EXPECT_NEAR(gaussian.gate_d2(2), 9.2103, 1e-3);
   // Student-t, 1-D: d^2 = t^2; the two-sided 99 % point of t(10) is 3.1693.
-  const DoaLikelihood student(LikelihoodKind::student_t, 10.0, 0.99);
+  const DoaLikelihood student(DoaLikelihoodKind::student_t, 10.0, 0.0, 0.99);
   EXPECT_NEAR(student.gate_d2(1), 3.1693 * 3.1693, 1e-2);
 }
 
