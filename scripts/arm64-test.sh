@@ -66,5 +66,12 @@ if ! awk -v d="${doas_per_frame:-0}" 'BEGIN { exit !(d > 0.5) }'; then
   echo "arm64-test: doa_bench published ${doas_per_frame:-no} DOAs per frame on arm64" >&2
   exit 1
 fi
+# Highway's run-time dispatch must have taken the NEON kernels (counts, not times).
+neon_calls=$(sed -n 's/^SIMD target NEON[^:]*: \([0-9]*\) kernel calls.*/\1/p' "$bench_log")
+if [[ -z "$neon_calls" || "$neon_calls" -eq 0 ]]; then
+  echo "arm64-test: the DSP kernels did not run on NEON: $(grep '^SIMD target' "$bench_log")" >&2
+  exit 1
+fi
+echo "arm64-test: $neon_calls DSP kernel calls dispatched to NEON" >&2
 echo "arm64-test: build $((built - start)) s, tests $((tested - built)) s," \
   "doa_bench $(($(date +%s) - tested)) s" >&2
