@@ -15,6 +15,7 @@
 
 #include "doa/fftw_lock.hpp"
 #include "doa/lane_math.hpp"
+#include "doa/vector_shuffle.hpp"
 
 namespace dronetrack::doa {
 
@@ -166,11 +167,11 @@ template <class V>
     const V im = (ai * br - ar * bi) * scale;
     V low, high;  // bins' (re, im) pairs, first and second half of the lanes
     if constexpr (kLanes == 8) {
-      low = __builtin_shuffle(re, im, Selector{0, 8, 1, 9, 2, 10, 3, 11});
-      high = __builtin_shuffle(re, im, Selector{4, 12, 5, 13, 6, 14, 7, 15});
+      low = DRONETRACK_SHUFFLE(re, im, Selector, 0, 8, 1, 9, 2, 10, 3, 11);
+      high = DRONETRACK_SHUFFLE(re, im, Selector, 4, 12, 5, 13, 6, 14, 7, 15);
     } else {
-      low = __builtin_shuffle(re, im, Selector{0, 2});
-      high = __builtin_shuffle(re, im, Selector{1, 3});
+      low = DRONETRACK_SHUFFLE(re, im, Selector, 0, 2);
+      high = DRONETRACK_SHUFFLE(re, im, Selector, 1, 3);
     }
     const V sizes = size * live;
     std::memcpy(rows.out + 2 * n, &low, sizeof low);
@@ -301,8 +302,8 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_units(const std::complex
       Wide first_half, second_half;
       std::memcpy(&first_half, x + fft_bins[index], sizeof first_half);
       std::memcpy(&second_half, x + fft_bins[index] + 4, sizeof second_half);
-      re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
-      im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+      re = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 0, 2, 4, 6, 8, 10, 12, 14);
+      im = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 1, 3, 5, 7, 9, 11, 13, 15);
     } else {
       for (int l = 0; l < 8; ++l) {
         re[l] = x[fft_bins[index + l]].real();
@@ -344,8 +345,8 @@ __attribute__((target("avx512f,fma"))) std::size_t wide_scale_and_sum(
       std::memcpy(&low, phasor + 2 * n, sizeof low);
       std::memcpy(&high, phasor + 2 * n + 8, sizeof high);
       // Each bin's factor on its (re, im) pair.
-      low *= __builtin_shuffle(factor, Selector{0, 0, 1, 1, 2, 2, 3, 3});
-      high *= __builtin_shuffle(factor, Selector{4, 4, 5, 5, 6, 6, 7, 7});
+      low *= DRONETRACK_SHUFFLE(factor, factor, Selector, 0, 0, 1, 1, 2, 2, 3, 3);
+      high *= DRONETRACK_SHUFFLE(factor, factor, Selector, 4, 4, 5, 5, 6, 6, 7, 7);
       magnitude *= keep;
       std::memcpy(phasor + 2 * n, &low, sizeof low);
       std::memcpy(phasor + 2 * n + 8, &high, sizeof high);
@@ -486,8 +487,8 @@ __attribute__((target("avx512f,fma"))) TaylorSums wide_taylor_sums(
         Wide first_half, second_half;
         std::memcpy(&first_half, phasor + index, sizeof first_half);
         std::memcpy(&second_half, phasor + index + 4, sizeof second_half);
-        w_re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
-        w_im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+        w_re = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 0, 2, 4, 6, 8, 10, 12, 14);
+        w_im = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 1, 3, 5, 7, 9, 11, 13, 15);
         std::memcpy(&size, magnitude + index, sizeof size);
       } else {
         for (int l = 0; l < kLanes; ++l) {
@@ -562,7 +563,6 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
                  const std::vector<FrequencyBand>& bands, std::vector<MicPairSpec> pairs,
                  LagInterpolation interpolation, int oversample)
     : sample_rate_hz_(sample_rate_hz),
-      fft_size_(fft_size),
       bin_omega_(2.0 * std::numbers::pi * sample_rate_hz / fft_size),
       runs_(band_runs(bands, sample_rate_hz, fft_size)),
       interpolation_(interpolation),

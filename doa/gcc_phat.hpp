@@ -207,7 +207,6 @@ class GccPhat {
   double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
 
   double sample_rate_hz_;
-  int fft_size_;
   double bin_omega_;  // rad/s per bin
   std::vector<BandRun> runs_;
   int band_bins_ = 0;

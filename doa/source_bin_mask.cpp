@@ -1,4 +1,5 @@
 #include "doa/source_bin_mask.hpp"
+#include "doa/vector_shuffle.hpp"
 
 #include <algorithm>
 #include <array>
@@ -113,8 +114,8 @@ __attribute__((target("avx512f,fma"))) int wide_scan_bins(const BinScan& scan, i
           Wide first_half, second_half;
           std::memcpy(&first_half, w, sizeof first_half);
           std::memcpy(&second_half, w + 4, sizeof second_half);
-          w_re = __builtin_shuffle(first_half, second_half, Selector{0, 2, 4, 6, 8, 10, 12, 14});
-          w_im = __builtin_shuffle(first_half, second_half, Selector{1, 3, 5, 7, 9, 11, 13, 15});
+          w_re = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 0, 2, 4, 6, 8, 10, 12, 14);
+          w_im = DRONETRACK_SHUFFLE(first_half, second_half, Selector, 1, 3, 5, 7, 9, 11, 13, 15);
         } else {
           for (int l = 0; l < kLanes; ++l) {
             w_re[l] = l < lanes ? w[l].real() : 0.0;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
+#include "doa/vector_shuffle.hpp"
 
 namespace dronetrack::doa {
 
@@ -51,8 +52,8 @@ __attribute__((target("avx512f"))) int wide_deinterleave4(const float* source, i
     const Wide low = __builtin_convertvector(first, Wide);    // frames n, n+1: c0 c1 c2 c3 ...
     const Wide high = __builtin_convertvector(second, Wide);  // frames n+2, n+3
     // Channels 0 and 1 of the four frames, then channels 2 and 3.
-    const Wide channels_01 = __builtin_shuffle(low, high, Selector{0, 4, 8, 12, 1, 5, 9, 13});
-    const Wide channels_23 = __builtin_shuffle(low, high, Selector{2, 6, 10, 14, 3, 7, 11, 15});
+    const Wide channels_01 = DRONETRACK_SHUFFLE(low, high, Selector, 0, 4, 8, 12, 1, 5, 9, 13);
+    const Wide channels_23 = DRONETRACK_SHUFFLE(low, high, Selector, 2, 6, 10, 14, 3, 7, 11, 15);
     Half run;
     run = Half{channels_01[0], channels_01[1], channels_01[2], channels_01[3]};
     std::memcpy(target + n, &run, sizeof run);
