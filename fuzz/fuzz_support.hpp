@@ -13,6 +13,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace dronetrack::fuzz {
 
@@ -21,6 +22,14 @@ namespace dronetrack::fuzz {
 [[noreturn]] inline void fail(const char* what) {
   std::fprintf(stderr, "fuzz property violated: %s\n", what);
   std::abort();
+}
+
+// Every problem a reader reports is printed as one line: none empty, none spanning two.
+inline void check_lines(const std::vector<std::string>& lines) {
+  for (const std::string& line : lines) {
+    if (line.empty()) fail("empty problem line");
+    if (line.find_first_of("\r\n") != std::string::npos) fail("problem spans several lines");
+  }
 }
 
 // The input as an in-memory file, reachable by path (/proc/self/fd/N) as long as this lives.

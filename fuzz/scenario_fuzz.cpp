@@ -13,17 +13,7 @@
 #include "fuzz/fuzz_support.hpp"
 #include "sim/scenario.hpp"
 
-namespace {
-
-void check_lines(const std::vector<std::string>& lines) {
-  for (const std::string& line : lines) {
-    if (line.empty()) dronetrack::fuzz::fail("empty problem line");
-    if (line.find_first_of("\r\n") != std::string::npos)
-      dronetrack::fuzz::fail("problem spans several lines");
-  }
-}
-
-}  // namespace
+using dronetrack::fuzz::check_lines;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using dronetrack::config::ConfigError;
