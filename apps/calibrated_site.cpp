@@ -132,6 +132,8 @@ std::string calibration_table(const calib::CalibrationResult& result) {
       row(out, "channel_gain_db[" + std::to_string(i) + "]", array.channel_gain_db[i], 1.0, "dB",
           3);
     row(out, "clock_offset_s", array.clock_offset_s, 1e3, "ms", 3);
+    if (array.ground_echo_pull.prior_std > 0.0)  // fitted only with --ground-echo
+      row(out, "ground_echo_pull", array.ground_echo_pull, 1.0, "", 3);
   }
   return out;
 }

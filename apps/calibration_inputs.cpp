@@ -128,8 +128,10 @@ std::vector<TdoaLine> read_tdoa_lines(const std::filesystem::path& file,
 std::vector<calib::ArrayNominal> nominal_arrays(const config::SiteConfig& site,
                                                 std::optional<double> mic_position_std_m) {
   std::vector<calib::ArrayNominal> out;
-  for (const auto& array : site.arrays) {
+  for (std::size_t a = 0; a < site.arrays.size(); ++a) {
+    const auto& array = site.arrays[a];
     calib::ArrayNominal nominal;
+    nominal.ground_height_m = site.doa_params(a).ground_height_m;
     nominal.id = array.geometry.id;
     nominal.position_m = array.geometry.position_m;
     nominal.yaw_deg = array.geometry.yaw_deg;

@@ -34,6 +34,7 @@ struct AlertArguments {
   std::string exec;
   int max_alerts = 0;
   double duration_s = 0.0;
+  std::string identity = "alert";
 };
 
 void run_program(const std::string& program, const fusion::ZoneEvent& event) {
@@ -106,7 +107,8 @@ int run(const AlertArguments& arguments) {
   for (const auto& warning : warnings) log::warn(warning);
   const int domain = resolve_domain(site, arguments.domain);
 
-  dds::Participant participant(domain);
+  const auto security = security_files(site, arguments.identity);
+  dds::Participant participant(domain, security ? &*security : nullptr);
   dds::Topic<dronetrack_Alert> topic(participant);
   dds::Qos qos;
   dds::alert_reader_qos(qos);
@@ -162,6 +164,8 @@ void register_alert(CLI::App& root, CommandTable& table) {
       ->check(CLI::ExistingFile);
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
+  command->add_option("--identity", arguments->identity,
+                      "DDS Security identity in dds.security.directory (default: alert)");
   command->add_option("--exec", arguments->exec,
                       "Run PROGRAM ZONE TRACK_ID entered|left TIME_S X Y Z per alert (no shell)");
   command->add_option("--max-alerts", arguments->max_alerts, "Exit after this many alerts")

@@ -35,6 +35,7 @@ struct CalibrateArguments {
   double direction_gate_deg = 30.0;
   double max_duration_s = 0.0;
   int passes = 2;
+  bool ground_echo = false;
 };
 
 // Every full-rank DOA's pair delays, as the nodes measured them, and every status's channel
@@ -119,6 +120,10 @@ int run(const CalibrateArguments& arguments) {
   const calib::ReferenceTrack reference(log.samples, arguments.settings.reference_max_gap_s);
   calib::CalibrationSettings settings = arguments.settings;
   settings.speed_of_sound_mps = site.speed_of_sound_mps;
+  if (arguments.ground_echo) {
+    for (const auto& band : site.doa.bands_hz)
+      settings.bands_hz.push_back({band.low_hz, band.high_hz});
+  }
   settings.reference_position_std_m =
       arguments.reference_std_m.value_or(log.position_std_m.value_or(1.0));
 
@@ -260,6 +265,8 @@ void register_calibrate(CLI::App& root, CommandTable& table) {
                    "previous pass found (1 with --tdoa)")
       ->capture_default_str()
       ->check(CLI::Range(1, 5));
+  command->add_flag("--ground-echo", arguments->ground_echo,
+                    "Fit each array's ground-echo pull on the GCC peaks (docs/calibration.md)");
   command
       ->add_option("--max-duration-s", arguments->max_duration_s,
                    "Stop reading the recordings after this many seconds")

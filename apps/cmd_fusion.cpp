@@ -29,6 +29,7 @@ struct FusionArguments {
   std::string web_root;
   std::optional<int> domain;
   double duration_s = 0.0;
+  std::string identity = "fusion";
 };
 
 int run(const FusionArguments& arguments) {
@@ -58,19 +59,20 @@ int run(const FusionArguments& arguments) {
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     owned.push_back(std::make_unique<LiveStateObserver>(*live_state));
-    http_api::HttpOptions options;
-    options.bind = arguments.http;
-    options.web_root =
-        arguments.web_root.empty() ? default_web_root() : std::filesystem::path(arguments.web_root);
-    server = std::make_unique<http_api::HttpServer>(*live_state, options);
+    server = std::make_unique<http_api::HttpServer>(
+        *live_state,
+        http_options_for(site, arguments.http, std::filesystem::path(arguments.web_root)));
     server->start();
     log::info("fusion: serving ", server->url());
   }
   std::vector<FusionObserver*> observers;
   for (auto& observer : owned) observers.push_back(observer.get());
 
-  dds::Participant participant(domain);  // first: destroyed last
-  DdsFusionService service(site, participant, observers);
+  const auto security = security_files(site, arguments.identity);
+  dds::Participant participant(domain, security ? &*security : nullptr);  // first: destroyed last
+  FusionServiceOptions service_options;
+  service_options.array_partitions = site.dds.secure();
+  DdsFusionService service(site, participant, observers, service_options);
   log::info("fusion: ", site.arrays.size(), " arrays, DDS domain ", domain);
   install_stop_handlers();
   const auto started = std::chrono::steady_clock::now();
@@ -114,6 +116,8 @@ void register_fusion(CLI::App& root, CommandTable& table) {
       ->check(CLI::ExistingDirectory);
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
+  command->add_option("--identity", arguments->identity,
+                      "DDS Security identity in dds.security.directory (default: fusion)");
   command
       ->add_option("--duration", arguments->duration_s,
                    "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")

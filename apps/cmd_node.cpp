@@ -12,6 +12,7 @@
 // waiting until the poses around its time have arrived (apps/live_pose_stamper.hpp).
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -40,8 +41,10 @@ struct NodeArguments {
   std::optional<int> device;
   std::string recording;
   bool realtime = false;
+  bool loop = false;
   std::optional<double> epoch_unix_s;
   std::optional<int> domain;
+  std::string identity;  // DDS Security identity; empty: the array id
   double sample_rate_hz = 48000.0;
   double block_s = 0.01;
   bool pose_topic = false;
@@ -83,6 +86,38 @@ class SkippingSource : public capture::AudioSource {
  private:
   std::unique_ptr<capture::AudioSource> inner_;
   double skip_to_s_;
+};
+
+// --loop: the recording again and again, its samples numbered on across the passes, so the
+// stream time keeps rising (a soak test's endless input; scripts/soak.sh). The file is opened
+// again at each pass: one allocation per pass, none per block.
+class LoopingSource : public capture::AudioSource {
+ public:
+  using Opener = std::function<std::unique_ptr<capture::AudioSource>()>;
+  explicit LoopingSource(Opener open) : open_(std::move(open)), inner_(open_()) {}
+  bool next(doa::AudioBlockView& block) override {
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      if (inner_->next(block)) {
+        block.first_sample += offset_;
+        end_ = block.first_sample + static_cast<std::int64_t>(block.frames);
+        return true;
+      }
+      if (end_ == offset_) return false;  // an empty pass: the file holds no audio
+      offset_ = end_;
+      inner_ = open_();
+    }
+    return false;
+  }
+  double sample_rate_hz() const override { return inner_->sample_rate_hz(); }
+  int channels() const override { return inner_->channels(); }
+  const capture::SourceCounters& counters() const override { return inner_->counters(); }
+  std::string describe() const override { return inner_->describe() + " (looped)"; }
+
+ private:
+  Opener open_;
+  std::unique_ptr<capture::AudioSource> inner_;
+  std::int64_t offset_ = 0;  // first sample number of the current pass
+  std::int64_t end_ = 0;     // one past the last sample delivered
 };
 
 // Every pose waiting on the reader into the stamper, moved to the node's stream clock (the wire
@@ -165,7 +200,13 @@ int run(const NodeArguments& arguments) {
           pose_span_problem(site, static_cast<std::size_t>(array_index), recording);
       if (!problem.empty()) throw UserError(problem);
     }
-    source = open_recording(array, recording, arguments.block_s);
+    if (arguments.loop) {
+      const double block_s = arguments.block_s;
+      source = std::make_unique<LoopingSource>(
+          [&array, recording, block_s] { return open_recording(array, recording, block_s); });
+    } else {
+      source = open_recording(array, recording, arguments.block_s);
+    }
     if (arguments.realtime) {
       epoch_unix_s = arguments.epoch_unix_s.value_or(unix_now_s());
       const double overdue_s = unix_now_s() - epoch_unix_s;
@@ -184,13 +225,20 @@ int run(const NodeArguments& arguments) {
             : !array.pose.empty() ? ", pose file"
                                   : "");
 
-  // Participant first: destroyed last.
-  dds::Participant participant(domain);
+  // Participant first: destroyed last. A secure site: this array's identity (or --identity),
+  // writing in its own partition, the only one its permissions grant.
+  const auto security =
+      security_files(site, arguments.identity.empty() ? node.array_id() : arguments.identity);
+  dds::Participant participant(domain, security ? &*security : nullptr);
   dds::Topic<dronetrack_Doa> doa_topic(participant);
   dds::Topic<dronetrack_NodeStatus> status_topic(participant);
   dds::Qos doa_qos, status_qos;
   dds::doa_writer_qos(doa_qos);
   dds::status_writer_qos(status_qos);
+  if (site.dds.secure()) {
+    doa_qos.partitions({dds::array_partition(node.array_id())});
+    status_qos.partitions({dds::array_partition(node.array_id())});
+  }
   dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
   dds::Writer<dronetrack_NodeStatus> status_writer(participant, status_topic, status_qos);
   std::unique_ptr<dds::Topic<dronetrack_ArrayPose>> pose_topic;
@@ -199,6 +247,7 @@ int run(const NodeArguments& arguments) {
     pose_topic = std::make_unique<dds::Topic<dronetrack_ArrayPose>>(participant);
     dds::Qos pose_qos;
     dds::pose_reader_qos(pose_qos);
+    if (site.dds.secure()) pose_qos.partitions({dds::array_partition(node.array_id())});
     pose_reader =
         std::make_unique<dds::Reader<dronetrack_ArrayPose>>(participant, *pose_topic, pose_qos);
   }
@@ -332,6 +381,8 @@ void register_node(CLI::App& root, CommandTable& table) {
                           "Replay this recording instead of the array's configured one");
   device->excludes(recording);
   recording->check(CLI::ExistingFile);
+  command->add_flag("--loop", arguments->loop,
+                    "Play the recording again and again, time running on (soak tests)");
   command->add_flag("--realtime", arguments->realtime,
                     "Pace a recording at real time (live capture is always real time)");
   command
@@ -342,6 +393,8 @@ void register_node(CLI::App& root, CommandTable& table) {
   command->add_flag("--pose-topic", arguments->pose_topic,
                     "Take the array's pose from the ArrayPose DDS topic (as the array's "
                     "\"pose_topic\": true does), not from its pose_file");
+  command->add_option("--identity", arguments->identity,
+                      "DDS Security identity in dds.security.directory (default: the array id)");
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
   command->add_option("--sample-rate", arguments->sample_rate_hz, "Live capture sample rate, Hz")

@@ -36,6 +36,9 @@ const char* doa_problem_text(SampleProblem problem) {
       return "Doa with an oversized TDOA sequence";
     case SampleProblem::bad_value:
       return "Doa with an invalid value (direction, covariance, enum)";
+    case SampleProblem::foreign_partition:
+      return "Doa naming an array other than its writer's partition (a node speaking for "
+             "another array)";
     case SampleProblem::none:
       break;
   }
@@ -55,6 +58,8 @@ const char* status_problem_text(SampleProblem problem) {
     case SampleProblem::oversized_sequence:
     case SampleProblem::bad_value:
       return "NodeStatus with an invalid value";
+    case SampleProblem::foreign_partition:
+      return "NodeStatus naming an array other than its writer's partition";
     case SampleProblem::none:
       break;
   }
@@ -147,9 +152,10 @@ class DdsFusionService::Outputs : public FusionObserver {
 
 namespace {
 template <class Fill>
-dds::Qos make_qos(Fill fill) {
+dds::Qos make_qos(Fill fill, bool array_partitions) {
   dds::Qos qos;
   fill(qos);
+  if (array_partitions) qos.partitions({dds::array_partition("*")});
   return qos;
 }
 }  // namespace
@@ -165,11 +171,12 @@ DdsFusionService::DdsFusionService(const config::SiteConfig& site,
       status_topic_(participant),
       track_topic_(participant),
       alert_topic_(participant),
-      doa_reader_(participant, doa_topic_, make_qos(dds::doa_reader_qos)),
-      status_reader_(participant, status_topic_, make_qos(dds::status_reader_qos),
+      doa_reader_(participant, doa_topic_, make_qos(dds::doa_reader_qos, options.array_partitions)),
+      status_reader_(participant, status_topic_,
+                     make_qos(dds::status_reader_qos, options.array_partitions),
                      DDS_LIVELINESS_CHANGED_STATUS),
-      track_writer_(participant, track_topic_, make_qos(dds::track_writer_qos)),
-      alert_writer_(participant, alert_topic_, make_qos(dds::alert_writer_qos)),
+      track_writer_(participant, track_topic_, make_qos(dds::track_writer_qos, false)),
+      alert_writer_(participant, alert_topic_, make_qos(dds::alert_writer_qos, false)),
       waitset_(participant),
       outputs_(std::make_unique<Outputs>(base_ns_, track_writer_, alert_writer_,
                                          std::move(observers), counters_)),
@@ -236,6 +243,10 @@ void DdsFusionService::take_doas() {
       if (!samples.info(i).valid_data) continue;  // instance changes: followed via NodeStatus
       ++counters_.doa_received;
       SampleProblem problem = dds::from_idl(samples.data(i), array_ids_, measurement_);
+      if (problem == SampleProblem::none &&
+          !from_own_partition(doa_reader_.handle(), samples.info(i), measurement_.array_id)) {
+        problem = SampleProblem::foreign_partition;
+      }
       if (problem == SampleProblem::none) plausible_time(samples.data(i).time_ns, problem);
       if (problem != SampleProblem::none) {
         ++counters_.doa_problems[static_cast<int>(problem)];
@@ -252,6 +263,34 @@ void DdsFusionService::take_doas() {
       }
     }
   }
+}
+
+bool DdsFusionService::from_own_partition(dds_entity_t reader, const dds_sample_info_t& info,
+                                          const std::string& array_id) {
+  if (!options_.array_partitions) return true;
+  auto found = writer_partitions_.find(info.publication_handle);
+  if (found == writer_partitions_.end()) {
+    std::vector<std::string> names;
+    if (dds_builtintopic_endpoint_t* writer =
+            dds_get_matched_publication_data(reader, info.publication_handle)) {
+      uint32_t count = 0;
+      char** partitions = nullptr;
+      if (writer->qos != nullptr && dds_qget_partition(writer->qos, &count, &partitions)) {
+        for (uint32_t k = 0; k < count; ++k) {
+          names.emplace_back(partitions[k]);
+          dds_free(partitions[k]);
+        }
+        dds_free(partitions);
+      }
+      dds_builtintopic_free_endpoint(writer);
+    }
+    found = writer_partitions_.emplace(info.publication_handle, std::move(names)).first;
+  }
+  const std::string own = dds::array_partition(array_id);
+  for (const std::string& name : found->second) {
+    if (name == own) return true;
+  }
+  return false;
 }
 
 void DdsFusionService::take_statuses() {
@@ -278,6 +317,10 @@ void DdsFusionService::take_statuses() {
       }
       ++counters_.status_received;
       SampleProblem problem = dds::from_idl(sample, array_ids_, status_);
+      if (problem == SampleProblem::none &&
+          !from_own_partition(status_reader_.handle(), info, status_.array_id)) {
+        problem = SampleProblem::foreign_partition;
+      }
       if (problem == SampleProblem::none) plausible_time(sample.time_ns, problem);
       if (problem != SampleProblem::none) {
         ++counters_.status_problems[static_cast<int>(problem)];

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "apps/dds_support.hpp"
@@ -49,6 +50,10 @@ struct FusionServiceOptions {
   // No NodeStatus for this long (wall time) while the writer is still alive: stale anyway
   // (a hung node whose DDS thread still asserts liveliness).
   std::chrono::milliseconds status_silence_limit{3500};
+  // Secure site (docs/deployment.md, "DDS Security"): read Doa and NodeStatus from the
+  // per-array partitions ("array.ID", each granted only to that array's identity) and refuse a
+  // sample whose array id is not the partition's it was written in.
+  bool array_partitions = false;
 };
 
 class DdsFusionService {
@@ -81,6 +86,9 @@ class DdsFusionService {
   void check_silent_nodes();
   bool plausible_time(std::int64_t time_ns, dds::SampleProblem& problem);
   void mark_stale(const std::string& array_id, const char* why);
+  // With array_partitions: true if the sample's writer publishes in `array_id`'s partition.
+  bool from_own_partition(dds_entity_t reader, const dds_sample_info_t& info,
+                          const std::string& array_id);
   double rebased(std::int64_t time_ns) const;
 
   const config::SiteConfig& site_;
@@ -105,6 +113,8 @@ class DdsFusionService {
   std::int64_t newest_ns_ = 0;
   doa::DoaMeasurement measurement_;  // reused: no allocation per sample
   doa::NodeStatus status_;
+  // Writer (publication handle) -> its partitions, looked up once per writer.
+  std::unordered_map<dds_instance_handle_t, std::vector<std::string>> writer_partitions_;
 
   struct NodeState {
     bool alive = false;

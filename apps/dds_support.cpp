@@ -14,6 +14,28 @@ int resolve_domain(const config::SiteConfig& site, std::optional<int> flag) {
   return domain;
 }
 
+std::optional<dds::SecurityFiles> security_files(const config::SiteConfig& site,
+                                                 const std::string& name) {
+  if (!site.dds.secure()) return std::nullopt;
+  const std::filesystem::path& dir = site.dds.security_directory;
+  dds::SecurityFiles files;
+  files.identity_ca = dir / "ca.crt";
+  files.permissions_ca = dir / "ca.crt";
+  files.governance = dir / "governance.p7s";
+  files.identity_certificate = dir / (name + ".crt");
+  files.private_key = dir / (name + ".key");
+  files.permissions = dir / (name + "-permissions.p7s");
+  for (const auto& file : {files.identity_ca, files.governance, files.identity_certificate,
+                           files.private_key, files.permissions}) {
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(file, error)) {
+      throw UserError("DDS security: " + file.string() + " not found (identity '" + name +
+                      "'; make it with scripts/site-pki.sh)");
+    }
+  }
+  return files;
+}
+
 std::vector<std::string> array_ids(const config::SiteConfig& site) {
   std::vector<std::string> ids;
   ids.reserve(site.arrays.size());

@@ -9,4 +9,15 @@ std::filesystem::path default_web_root() {
   return DRONETRACK_WEB_ROOT;
 }
 
+http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std::string& bind,
+                                       const std::filesystem::path& web_root) {
+  http_api::HttpOptions options;
+  options.bind = bind;
+  options.web_root = web_root.empty() ? default_web_root() : web_root;
+  options.tls_certificate = site.http.tls_certificate;
+  options.tls_private_key = site.http.tls_private_key;
+  options.users_file = site.http.users_file;
+  return options;
+}
+
 }  // namespace dronetrack::apps

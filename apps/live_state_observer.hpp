@@ -3,6 +3,8 @@
 #include <filesystem>
 
 #include "apps/fusion_observer.hpp"
+#include "config/site_config.hpp"
+#include "http_api/http_server.hpp"
 #include "http_api/live_state.hpp"
 
 namespace dronetrack::apps {
@@ -24,5 +26,10 @@ class LiveStateObserver : public FusionObserver {
 
 // The page's files: $DRONETRACK_WEB_ROOT, else the source tree's web/ this binary was built from.
 std::filesystem::path default_web_root();
+
+// The server's options for serving `site` on `bind`: its TLS files and users file, the page
+// from `web_root` (empty: default_web_root()).
+http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std::string& bind,
+                                       const std::filesystem::path& web_root = {});
 
 }  // namespace dronetrack::apps

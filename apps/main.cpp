@@ -32,6 +32,7 @@ int run(int argc, char** argv) {
   apps::register_demo(root, table);
   apps::register_pose_publish(root, table);
   apps::register_calibrate(root, table);
+  apps::register_passwd(root, table);
 
   try {
     root.parse(argc, argv);

@@ -76,10 +76,8 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     live_observer = std::make_unique<LiveStateObserver>(*live_state);
-    http_api::HttpOptions http_options;
-    http_options.bind = options.http;
-    http_options.web_root = default_web_root();
-    server = std::make_unique<http_api::HttpServer>(*live_state, http_options);
+    server =
+        std::make_unique<http_api::HttpServer>(*live_state, http_options_for(site, options.http));
     server->start();
   }
 

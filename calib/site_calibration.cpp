@@ -9,6 +9,7 @@
 
 #include <ceres/ceres.h>
 #include <ceres/normal_prior.h>
+#include <Eigen/Dense>
 
 #include "calib/tdoa_model.hpp"
 
@@ -17,6 +18,10 @@ namespace {
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 constexpr std::size_t kMaxMics = 8;  // as doa::kMaxPairs (28 pairs)
+// How far from the initial channel delays a frame's pair delays may be for the first solve:
+// wide enough for the uncalibrated geometry (a 2 degree yaw: 50 us on a 0.8 m pair) and the GPS
+// error at close range, narrow against the ~400 us between cycles of a 1.5-3.5 kHz band.
+constexpr double kInitialGate_s = 150e-6;
 // Consistency factor of the median absolute deviation for a Gaussian.
 constexpr double kMadToStd = 1.4826;
 
@@ -27,6 +32,7 @@ struct ArrayUnknowns {
   std::vector<double> mic_offsets_m;     // 3 per mic, array frame
   std::vector<double> delays_s;          // per mic; [0] held at 0
   double clock_s = 0.0;
+  double ground_echo_pull = 0.0;
 };
 
 // One frame's residuals, whitened: (predicted - measured) / tdoa_std. The source is where the
@@ -41,9 +47,10 @@ struct TdoaResidual {
   double clock_linearised_s = 0.0;
   double inverse_std = 1.0;
   double speed_of_sound_mps = 343.0;
+  const std::vector<std::array<double, 2>>* bands_hz = nullptr;
 
   // parameters: attitude(3), position(3), mic offsets(3n), delays(n), clock(1), lower(3),
-  // upper(3)
+  // upper(3), ground-echo pull(1)
   template <class T>
   bool operator()(T const* const* parameters, T* residuals) const {
     const T* attitude = parameters[0];
@@ -74,6 +81,15 @@ struct TdoaResidual {
                      T(velocity_mps(axis)) * clock_change;
     std::array<T, kMaxMics*(kMaxMics - 1) / 2> predicted;
     predict_tdoas(source, mic_site.data(), delays, mics, speed_of_sound_mps, predicted.data());
+    if (bands_hz != nullptr && !bands_hz->empty()) {
+      // The ground image: the source mirrored in the ground, heard through the same channels.
+      const T image[3] = {source[0], source[1], T(2.0 * array->ground_height_m) - source[2]};
+      std::array<T, kMaxMics*(kMaxMics - 1) / 2> mirrored;
+      predict_tdoas(image, mic_site.data(), delays, mics, speed_of_sound_mps, mirrored.data());
+      for (std::size_t p = 0; p < measured_s.size(); ++p)
+        predicted[p] += parameters[7][0] *
+                        peak_pull_s(mirrored[p] - predicted[p], bands_hz->data(), bands_hz->size());
+    }
     for (std::size_t p = 0; p < measured_s.size(); ++p)
       residuals[p] = (predicted[p] - T(measured_s[p])) * T(inverse_std);
     return true;
@@ -181,7 +197,8 @@ std::vector<PlacedFrame> place_frames(const std::vector<ArrayNominal>& arrays,
 
 TdoaResidual make_residual(const ArrayNominal& array, const TdoaFrame& frame,
                            const PlacedFrame& placed, double clock_s, double tdoa_std_s,
-                           double speed_of_sound_mps) {
+                           double speed_of_sound_mps,
+                           const std::vector<std::array<double, 2>>& bands_hz) {
   TdoaResidual residual;
   residual.array = &array;
   residual.measured_s = frame.tdoa_s;
@@ -190,6 +207,7 @@ TdoaResidual make_residual(const ArrayNominal& array, const TdoaFrame& frame,
   residual.clock_linearised_s = clock_s;
   residual.inverse_std = 1.0 / tdoa_std_s;
   residual.speed_of_sound_mps = speed_of_sound_mps;
+  residual.bands_hz = &bands_hz;
   return residual;
 }
 
@@ -199,22 +217,23 @@ std::vector<std::vector<double>> frame_residuals(const std::vector<ArrayNominal>
                                                  const std::vector<PlacedFrame>& placed,
                                                  const std::vector<ArrayUnknowns>& unknowns,
                                                  const std::vector<Eigen::Vector3d>& positions,
-                                                 double speed_of_sound_mps) {
+                                                 const CalibrationSettings& settings) {
   std::vector<std::vector<double>> out;
   out.reserve(placed.size());
   for (const auto& place : placed) {
     const TdoaFrame& frame = frames[place.frame];
     const auto a = static_cast<std::size_t>(frame.array);
-    const TdoaResidual residual =
-        make_residual(arrays[a], frame, place, unknowns[a].clock_s, 1.0, speed_of_sound_mps);
+    const TdoaResidual residual = make_residual(arrays[a], frame, place, unknowns[a].clock_s, 1.0,
+                                                settings.speed_of_sound_mps, settings.bands_hz);
     const auto lower = static_cast<std::size_t>(place.bracket.index);
-    const double* parameters[7] = {unknowns[a].attitude_rad.data(),
+    const double* parameters[8] = {unknowns[a].attitude_rad.data(),
                                    unknowns[a].position_m.data(),
                                    unknowns[a].mic_offsets_m.data(),
                                    unknowns[a].delays_s.data(),
                                    &unknowns[a].clock_s,
                                    positions[lower].data(),
-                                   positions[lower + 1].data()};
+                                   positions[lower + 1].data(),
+                                   &unknowns[a].ground_echo_pull};
     std::vector<double> values(frame.tdoa_s.size());
     residual(parameters, values.data());
     out.push_back(std::move(values));
@@ -227,6 +246,62 @@ double median(std::vector<double> values) {
   const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
   std::nth_element(values.begin(), middle, values.end());
   return *middle;
+}
+
+// The centre of the densest `width_s` window of `values`: the median of the values in it. When
+// a channel's skew makes the GCC take a wrong cycle of the rotor's harmonic on many frames, the
+// right cycle is still the largest cluster, though not always half of the frames.
+double densest_cluster_centre(std::vector<double> values, double width_s) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  std::size_t best_first = 0, best_count = 0, last = 0;
+  for (std::size_t first = 0; first < values.size(); ++first) {
+    last = std::max(last, first);
+    while (last + 1 < values.size() && values[last + 1] - values[first] <= width_s) ++last;
+    if (last + 1 - first > best_count) {
+      best_count = last + 1 - first;
+      best_first = first;
+    }
+  }
+  return values[best_first + best_count / 2];
+}
+
+// Starts each array's channel delays where its pair residuals at the nominal geometry cluster.
+// From zero delays, a skew of 0.2-0.3 ms leaves the robust loss a local minimum that fits half
+// the frames with a mic moved centimetres (field-error seeds 18 and 19); the geometry's own
+// errors (a 2 degree yaw, millimetres of mic offset, the GPS error) spread the right cluster's
+// residuals over tens of microseconds only.
+void initialise_delays(const std::vector<ArrayNominal>& arrays,
+                       const std::vector<TdoaFrame>& frames, const std::vector<PlacedFrame>& placed,
+                       const std::vector<std::vector<double>>& residuals,
+                       std::vector<ArrayUnknowns>& unknowns) {
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    const std::size_t mics = arrays[a].mics_m.size();
+    const std::size_t pairs = mics * (mics - 1) / 2;
+    std::vector<std::vector<double>> per_pair(pairs);
+    for (std::size_t k = 0; k < placed.size(); ++k) {
+      if (static_cast<std::size_t>(frames[placed[k].frame].array) != a) continue;
+      for (std::size_t p = 0; p < pairs; ++p) per_pair[p].push_back(residuals[k][p]);
+    }
+    if (per_pair[0].empty()) continue;
+    // residual_ij = predicted - measured, so the delays' correction has d_i - d_j = -centre_ij;
+    // channel 0 held, least squares over every pair.
+    Eigen::MatrixXd design = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(pairs),
+                                                   static_cast<Eigen::Index>(mics - 1));
+    Eigen::VectorXd target(static_cast<Eigen::Index>(pairs));
+    std::size_t p = 0;
+    for (std::size_t i = 0; i < mics; ++i) {
+      for (std::size_t j = i + 1; j < mics; ++j, ++p) {
+        const auto row = static_cast<Eigen::Index>(p);
+        if (i > 0) design(row, static_cast<Eigen::Index>(i - 1)) = 1.0;
+        design(row, static_cast<Eigen::Index>(j - 1)) = -1.0;
+        target(row) = -densest_cluster_centre(per_pair[p], kInitialGate_s);
+      }
+    }
+    const Eigen::VectorXd correction = design.colPivHouseholderQr().solve(target);
+    for (std::size_t i = 1; i < mics; ++i)
+      unknowns[a].delays_s[i] += correction(static_cast<Eigen::Index>(i - 1));
+  }
 }
 
 ResidualStats stats_of(const std::vector<std::vector<double>>& residuals,
@@ -357,6 +432,7 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
     problem.AddParameterBlock(u.delays_s.data(), static_cast<int>(mics),
                               new ceres::SubsetManifold(static_cast<int>(mics), {0}));
     problem.AddParameterBlock(&u.clock_s, 1);
+    problem.AddParameterBlock(&u.ground_echo_pull, 1);
     const ArrayUnknowns& mean = prior_means[a];
     const auto add_prior = [&](double* block, const double* centre, int size, double std) {
       if (std <= 0.0) {
@@ -375,6 +451,8 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
     add_prior(u.delays_s.data(), mean.delays_s.data(), static_cast<int>(mics),
               priors.channel_delay_std_s);
     add_prior(&u.clock_s, &mean.clock_s, 1, priors.clock_offset_std_s);
+    add_prior(&u.ground_echo_pull, &mean.ground_echo_pull, 1,
+              settings.bands_hz.empty() ? 0.0 : priors.ground_echo_pull_std);
   }
 
   std::vector<bool> used(positions.size(), false);
@@ -383,17 +461,17 @@ Solve solve_once(const std::vector<ArrayNominal>& arrays, const std::vector<Tdoa
     const auto a = static_cast<std::size_t>(frame.array);
     ArrayUnknowns& u = unknowns[a];
     const auto lower = static_cast<std::size_t>(place.bracket.index);
-    auto* cost =
-        new ceres::DynamicAutoDiffCostFunction<TdoaResidual, 8>(new TdoaResidual(make_residual(
-            arrays[a], frame, place, u.clock_s, tdoa_std_s, settings.speed_of_sound_mps)));
+    auto* cost = new ceres::DynamicAutoDiffCostFunction<TdoaResidual, 8>(
+        new TdoaResidual(make_residual(arrays[a], frame, place, u.clock_s, tdoa_std_s,
+                                       settings.speed_of_sound_mps, settings.bands_hz)));
     const std::size_t mics = arrays[a].mics_m.size();
-    for (int size : {3, 3, static_cast<int>(3 * mics), static_cast<int>(mics), 1, 3, 3})
+    for (int size : {3, 3, static_cast<int>(3 * mics), static_cast<int>(mics), 1, 3, 3, 1})
       cost->AddParameterBlock(size);
     cost->SetNumResiduals(static_cast<int>(frame.tdoa_s.size()));
     const std::vector<double*> blocks = {
-        u.attitude_rad.data(),      u.position_m.data(), u.mic_offsets_m.data(),
-        u.delays_s.data(),          &u.clock_s,          positions[lower].data(),
-        positions[lower + 1].data()};
+        u.attitude_rad.data(),       u.position_m.data(), u.mic_offsets_m.data(),
+        u.delays_s.data(),           &u.clock_s,          positions[lower].data(),
+        positions[lower + 1].data(), &u.ground_echo_pull};
     ceres::LossFunction* robust =
         loss == Loss::huber
             ? static_cast<ceres::LossFunction*>(new ceres::HuberLoss(settings.huber_threshold))
@@ -482,9 +560,9 @@ int free_parameters(const Solve& solve, const std::vector<ArrayNominal>& arrays,
                     std::vector<ArrayUnknowns>& unknowns, std::vector<Eigen::Vector3d>& positions) {
   int count = 0;
   for (std::size_t a = 0; a < arrays.size(); ++a) {
-    for (double* block :
-         {unknowns[a].attitude_rad.data(), unknowns[a].position_m.data(),
-          unknowns[a].mic_offsets_m.data(), unknowns[a].delays_s.data(), &unknowns[a].clock_s}) {
+    for (double* block : {unknowns[a].attitude_rad.data(), unknowns[a].position_m.data(),
+                          unknowns[a].mic_offsets_m.data(), unknowns[a].delays_s.data(),
+                          &unknowns[a].clock_s, &unknowns[a].ground_echo_pull}) {
       if (!solve.problem->IsParameterBlockConstant(block))
         count += solve.problem->ParameterBlockTangentSize(block);
     }
@@ -561,22 +639,31 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     }
   }
 
-  const auto before =
-      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+  const auto before = frame_residuals(arrays, frames, placed, unknowns, positions, settings);
   result.before = stats_of(before, placed, frames, -1);
   std::vector<ResidualStats> before_per_array;
   for (std::size_t a = 0; a < arrays.size(); ++a)
     before_per_array.push_back(stats_of(before, placed, frames, static_cast<int>(a)));
 
-  // The first weights come from the nominal misfit (too wide: it holds the errors to be found);
+  initialise_delays(arrays, frames, placed, before, unknowns);
+  const auto initial_residuals =
+      frame_residuals(arrays, frames, placed, unknowns, positions, settings);
+  const ResidualStats initialised = stats_of(initial_residuals, placed, frames, -1);
+  // The first solve sees only the frames near the initial delays: those whose GCC took another
+  // cycle (about 400 us away in this band) fit the nominal geometry with zero delays, as the
+  // uncorrected node chose them for, and where they are most of an array's frames they pull
+  // its tilt degrees off instead (seed 18's A2: 7.5 degrees of pitch, delays back at zero).
+  placed = inliers(placed, initial_residuals, kInitialGate_s);
+  // The first weights come from the misfit at the initial delays (too wide: it holds the
+  // geometry's errors to be found);
   // each pass re-places the frames at the new clocks and, unless given, re-estimates the TDOA
   // noise from what the calibrated model leaves.
   const bool estimate_std = settings.tdoa_std_s <= 0.0;
   double tdoa_std_s = estimate_std
-                          ? std::max(1e-9, kMadToStd * std::max(result.before.median_abs_s, 1e-9))
+                          ? std::max(1e-9, kMadToStd * std::max(initialised.median_abs_s, 1e-9))
                           : settings.tdoa_std_s;
   const auto frames_residuals_of = [&](const std::vector<PlacedFrame>& some) {
-    return frame_residuals(arrays, frames, some, unknowns, positions, settings.speed_of_sound_mps);
+    return frame_residuals(arrays, frames, some, unknowns, positions, settings);
   };
   // Early passes use a redescending loss (Cauchy), so a frame whose GCC took the wrong cycle of
   // the rotor's harmonic (hundreds of microseconds off on every pair of one mic) pulls nothing;
@@ -597,8 +684,7 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     solve = solve_once(arrays, frames, placed, unknowns, prior_means, reference, positions,
                        settings, tdoa_std_s, last ? Loss::huber : Loss::cauchy);
     if (estimate_std && !last) {
-      const auto residuals =
-          frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+      const auto residuals = frame_residuals(arrays, frames, placed, unknowns, positions, settings);
       const ResidualStats stats = stats_of(residuals, placed, frames, -1);
       // The fit absorbs part of the noise (every reference sample moves to meet the TDOAs):
       // scale by sqrt(n / (n - free parameters)), counting them all (a slight overestimate).
@@ -611,8 +697,7 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
   // Correlated frames carry less than their count: weigh them as fewer independent ones
   // (the priors keep their full weight, so no std can exceed its prior's).
   {
-    const auto residuals =
-        frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+    const auto residuals = frame_residuals(arrays, frames, placed, unknowns, positions, settings);
     result.correlation_inflation =
         correlation_inflation(residuals, placed, frames, tdoa_std_s, settings.huber_threshold);
     if (result.correlation_inflation > 1.05) {
@@ -637,7 +722,8 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
          {static_cast<const double*>(u.attitude_rad.data()),
           static_cast<const double*>(u.position_m.data()),
           static_cast<const double*>(u.mic_offsets_m.data()),
-          static_cast<const double*>(u.delays_s.data()), static_cast<const double*>(&u.clock_s)}) {
+          static_cast<const double*>(u.delays_s.data()), static_cast<const double*>(&u.clock_s),
+          static_cast<const double*>(&u.ground_echo_pull)}) {
       if (!solve.problem->IsParameterBlockConstant(const_cast<double*>(block)))
         wanted.emplace_back(block, block);
     }
@@ -646,8 +732,7 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     throw CalibrationError(
         "the calibration's covariance could not be computed (a parameter no data or prior "
         "constrains)");
-  const auto after =
-      frame_residuals(arrays, frames, placed, unknowns, positions, settings.speed_of_sound_mps);
+  const auto after = frame_residuals(arrays, frames, placed, unknowns, positions, settings);
   const auto variances = [&](const double* block, int size) {
     Eigen::MatrixXd out = Eigen::MatrixXd::Zero(size, size);
     if (!solve.problem->IsParameterBlockConstant(const_cast<double*>(block)))
@@ -712,6 +797,9 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     out.clock_offset_s =
         make_estimate(centre.clock_offset_s, nominal.clock_offset_s + u.clock_s,
                       variances(&u.clock_s, 1)(0), priors.clock_offset_std_s, ratio);
+    out.ground_echo_pull =
+        make_estimate(0.0, u.ground_echo_pull, variances(&u.ground_echo_pull, 1)(0),
+                      settings.bands_hz.empty() ? 0.0 : priors.ground_echo_pull_std, ratio);
     out.frames = 0;
     for (const auto& place : placed) out.frames += frames[place.frame].array == static_cast<int>(a);
     out.distinct_directions =

@@ -34,6 +34,7 @@ struct ArrayNominal {
   // add to them.
   std::vector<double> channel_delay_s;  // per mic; empty: none
   double clock_offset_s = 0.0;
+  double ground_height_m = 0.0;  // site z of the reflecting ground under the array
 };
 
 // One analysis frame's pair delays from one array.
@@ -49,6 +50,9 @@ struct CalibrationPriors {
   double array_position_std_m = 0.05;  // each array's position
   double channel_delay_std_s = 1e-3;   // each channel's delay relative to channel 0
   double clock_offset_std_s = 0.05;    // each node's clock against the reference clock
+  // Each array's ground-echo pull (calib/tdoa_model.hpp), prior mean 0: how much the ground
+  // image's correlation peak drags the GCC's, per unit of its pull function.
+  double ground_echo_pull_std = 0.5;
 };
 
 struct CalibrationSettings {
@@ -70,6 +74,9 @@ struct CalibrationSettings {
   // the attitude needs two directions, a mic offset a third.
   int min_distinct_directions = 3;
   double min_direction_separation_deg = 10.0;
+  // The GCC's bands (low, high Hz): they shape the ground echo's pull on the measured peaks.
+  // Empty: the echo is not modelled.
+  std::vector<std::array<double, 2>> bands_hz;
 };
 
 // One scalar unknown: nominal (prior mean), estimate and both standard deviations.
@@ -95,7 +102,8 @@ struct ArrayCalibration {
   // Per mic, incl. the nominal (the corrections the nodes already applied); mic 0 is the
   // reference (0).
   std::vector<Estimate> channel_delay_s;
-  Estimate clock_offset_s;  // incl. the nominal
+  Estimate clock_offset_s;    // incl. the nominal
+  Estimate ground_echo_pull;  // the ground image's weight on the GCC peak (0 when not modelled)
   // Per mic, relative to the channels' mean: from levels (calib/channel_gains.hpp), filled by
   // the caller that has them; empty otherwise.
   std::vector<Estimate> channel_gain_db;

@@ -407,10 +407,37 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
     {
       ObjectReader dds = root.object("dds");
       site.dds.domain_id = dds.integer("domain_id", 0, 0, 232);
+      if (dds.has("security")) {
+        ObjectReader security = dds.object("security");
+        const std::string directory = security.string("directory", "");
+        if (directory.empty()) {
+          diagnostics.error(security.path_of("directory"),
+                            "the PKI directory made by scripts/site-pki.sh is required");
+        } else {
+          const std::filesystem::path path(directory);
+          site.dds.security_directory = path.is_absolute() ? path : base_dir / path;
+        }
+      }
     }
     {
       ObjectReader http = root.object("http");
       site.http.bind = http.string("bind", site.http.bind);
+      const auto file_key = [&](const char* key, std::filesystem::path& out) {
+        const std::string text = http.string(key, "");
+        if (http.has(key) && text.empty())
+          diagnostics.error(http.path_of(key), "must not be empty");
+        if (text.empty()) return;
+        const std::filesystem::path file(text);
+        out = file.is_absolute() ? file : base_dir / file;
+      };
+      file_key("tls_certificate", site.http.tls_certificate);
+      file_key("tls_private_key", site.http.tls_private_key);
+      file_key("users_file", site.http.users_file);
+      if (site.http.tls_certificate.empty() != site.http.tls_private_key.empty()) {
+        diagnostics.error(
+            http.path_of(site.http.tls_certificate.empty() ? "tls_certificate" : "tls_private_key"),
+            "tls_certificate and tls_private_key go together");
+      }
     }
     root.accept("description");
   }

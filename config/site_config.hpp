@@ -38,10 +38,20 @@ struct ArrayConfig {
 
 struct DdsConfig {
   int domain_id = 0;
+  // DDS Security on (docs/deployment.md, "DDS Security"): the directory scripts/site-pki.sh
+  // made (ca.crt, governance.p7s, NAME.crt/.key, NAME-permissions.p7s); relative to the site
+  // file. Empty: plain DDS.
+  std::filesystem::path security_directory;
+  bool secure() const { return !security_directory.empty(); }
 };
 
 struct HttpConfig {
   std::string bind = "127.0.0.1:8080";
+  // Operator access beyond loopback (docs/http_api.md, "Access"): paths, relative to the site
+  // file; the secrets stay in those files, never in the config.
+  std::filesystem::path tls_certificate;  // PEM certificate chain
+  std::filesystem::path tls_private_key;  // PEM private key
+  std::filesystem::path users_file;       // `dronetrack passwd` lines
 };
 
 struct SiteConfig {

@@ -115,6 +115,8 @@ const char* to_string(SampleProblem problem) {
       return "oversized_sequence";
     case SampleProblem::bad_value:
       return "bad_value";
+    case SampleProblem::foreign_partition:
+      return "foreign_partition";
   }
   return "unknown";
 }

@@ -33,8 +33,9 @@ enum class SampleProblem : std::uint8_t {
                        // samples (see the caller)
   oversized_sequence,  // more TDOAs than kMaxPairs, or a length beyond the buffer
   bad_value,           // not a unit vector, negative variance, enum out of range, ...
+  foreign_partition,   // secure site: written outside the partition of the array it names
 };
-inline constexpr int kSampleProblemCount = 7;
+inline constexpr int kSampleProblemCount = 8;
 const char* to_string(SampleProblem problem);
 
 // Copies a string into a fixed IDL string field, truncating to its bound (N-1 bytes).

@@ -2,6 +2,8 @@
 
 #include "dds_idl/topics.hpp"
 
+#include <memory>
+
 namespace dronetrack::dds {
 
 DdsError::DdsError(const std::string& call, dds_return_t code)
@@ -16,9 +18,62 @@ dds_duration_t to_dds(std::chrono::nanoseconds duration) {
   return static_cast<dds_duration_t>(duration.count());
 }
 
-Participant::Participant(dds_domainid_t domain)
-    : entity_(check(dds_create_participant(domain, nullptr, nullptr), "dds_create_participant")),
-      domain_(domain) {}
+std::string security_plugin_directory() { return DRONETRACK_DDS_SECURITY_PLUGIN_DIR; }
+
+namespace {
+
+std::string file_uri(const std::filesystem::path& file, const char* what) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(file, error)) {
+    throw std::runtime_error("DDS security: " + std::string(what) + " " + file.string() +
+                             " is not a readable file");
+  }
+  return "file:" + std::filesystem::absolute(file).string();
+}
+
+dds_entity_t create_participant(dds_domainid_t domain, const SecurityFiles* security) {
+  if (security == nullptr) {
+    return check(dds_create_participant(domain, nullptr, nullptr), "dds_create_participant");
+  }
+  struct QosDeleter {
+    void operator()(dds_qos_t* qos) const { dds_delete_qos(qos); }
+  };
+  std::unique_ptr<dds_qos_t, QosDeleter> qos(dds_create_qos());
+  const std::string plugins = security_plugin_directory() + "/";
+  const auto property = [&qos](const char* name, const std::string& value) {
+    dds_qset_prop(qos.get(), name, value.c_str());
+  };
+  property("dds.sec.auth.library.path", plugins + "libdds_security_auth.so");
+  property("dds.sec.auth.library.init", "init_authentication");
+  property("dds.sec.auth.library.finalize", "finalize_authentication");
+  property("dds.sec.auth.identity_ca", file_uri(security->identity_ca, "identity CA"));
+  property("dds.sec.auth.identity_certificate",
+           file_uri(security->identity_certificate, "identity certificate"));
+  property("dds.sec.auth.private_key", file_uri(security->private_key, "private key"));
+  property("dds.sec.access.library.path", plugins + "libdds_security_ac.so");
+  property("dds.sec.access.library.init", "init_access_control");
+  property("dds.sec.access.library.finalize", "finalize_access_control");
+  property("dds.sec.access.permissions_ca", file_uri(security->permissions_ca, "permissions CA"));
+  property("dds.sec.access.governance", file_uri(security->governance, "governance"));
+  property("dds.sec.access.permissions", file_uri(security->permissions, "permissions"));
+  property("dds.sec.crypto.library.path", plugins + "libdds_security_crypto.so");
+  property("dds.sec.crypto.library.init", "init_crypto");
+  property("dds.sec.crypto.library.finalize", "finalize_crypto");
+  const dds_entity_t participant = dds_create_participant(domain, qos.get(), nullptr);
+  if (participant < 0) {
+    throw DdsError("dds_create_participant with DDS security (identity " +
+                       security->identity_certificate.string() +
+                       "; a certificate not signed by the identity CA, a key that does not "
+                       "match, or documents not signed by the permissions CA are refused)",
+                   participant);
+  }
+  return participant;
+}
+
+}  // namespace
+
+Participant::Participant(dds_domainid_t domain, const SecurityFiles* security)
+    : entity_(create_participant(domain, security)), domain_(domain) {}
 
 namespace {
 

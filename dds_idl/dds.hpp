@@ -6,9 +6,11 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <dds/dds.h>
 
@@ -102,16 +104,46 @@ class Qos {
     dds_qset_writer_data_lifecycle(qos_, autodispose);
     return *this;
   }
+  // Publisher/subscriber partitions (wildcards '*' and '?' match on the reader side). The
+  // secure site puts each array's Doa/NodeStatus/ArrayPose in partition "array.ID", which its
+  // permissions grant only to that array's identity.
+  Qos& partitions(const std::vector<std::string>& names) {
+    std::vector<const char*> pointers;
+    for (const std::string& name : names) pointers.push_back(name.c_str());
+    dds_qset_partition(qos_, static_cast<uint32_t>(pointers.size()), pointers.data());
+    return *this;
+  }
   const dds_qos_t* get() const { return qos_; }
 
  private:
   dds_qos_t* qos_;
 };
 
+// The partition of one array's samples on a secure site.
+inline std::string array_partition(const std::string& array_id) { return "array." + array_id; }
+
+// DDS Security (the OMG builtin plugins Debian's Cyclone ships: authentication, access control,
+// cryptography) for one participant: its identity and the site's signed documents, as made by
+// scripts/site-pki.sh. docs/deployment.md, "DDS Security".
+struct SecurityFiles {
+  std::filesystem::path identity_ca;           // PEM: the CA that signed every identity
+  std::filesystem::path identity_certificate;  // PEM: this participant's certificate
+  std::filesystem::path private_key;           // PEM: its key
+  std::filesystem::path permissions_ca;        // PEM: the CA that signed the documents below
+  std::filesystem::path governance;            // S/MIME-signed governance document (.p7s)
+  std::filesystem::path permissions;           // S/MIME-signed permissions of this identity
+};
+
+// Where Debian's Cyclone keeps the plugins (not on the loader's default path).
+std::string security_plugin_directory();
+
 class Participant {
  public:
-  // The domain's network settings come from CYCLONEDDS_URI (config/cyclonedds-*.xml).
-  explicit Participant(dds_domainid_t domain);
+  // The domain's network settings come from CYCLONEDDS_URI (config/cyclonedds-*.xml). With
+  // `security`, the participant authenticates with that identity and only talks to peers the
+  // site CA vouches for, within the permissions signed for it; a file that is missing or does
+  // not verify makes the constructor throw naming it.
+  explicit Participant(dds_domainid_t domain, const SecurityFiles* security = nullptr);
   dds_entity_t handle() const { return entity_.handle(); }
   dds_domainid_t domain() const { return domain_; }
 

@@ -22,15 +22,12 @@
 #include <span>
 #include <vector>
 
+#include "doa/band_run.hpp"
 #include "doa/doa_params.hpp"
 #include "doa/spectral_frame.hpp"
 
 namespace dronetrack::doa {
 
-struct BandRun {
-  int first_bin = 0;  // inclusive
-  int last_bin = 0;   // inclusive
-};
 // The union of `bands` as runs of FFT bins within [1, fft_size/2 - 1], sorted and merged.
 // Throws std::invalid_argument when no bin falls inside any band.
 std::vector<BandRun> band_runs(const std::vector<FrequencyBand>& bands, double sample_rate_hz,
@@ -86,10 +83,6 @@ class GccPhat {
   // bin_weight() (normalised by the weights' sum); false: every kept bin counts the same
   // (plain PHAT).
   void correlate(bool refine_peaks = true, bool weighted = true);
-  // The phasors made ready (mask, weights, normalisation) as correlate() makes them, without
-  // the lag grids: for peaks that only move a little from known lags (refine_from()). Until the
-  // next correlate(), the grids (grid(), refine(), top_peaks(), grid_value()) are stale.
-  void prepare_phasors(bool weighted = true);
 
   // The band's bins, in the order of phasors()/bin_keep(): runs of FFT bins, ascending.
   const std::vector<BandRun>& band() const { return runs_; }
@@ -100,53 +93,58 @@ class GccPhat {
   // |G_k| of one pair over the band bins (after whiten()).
   std::span<const double> magnitudes(int pair) const;
   // 1 = bin used by correlate(), 0 = dropped for every pair. whiten() sets all to 1.
-  std::span<std::uint8_t> bin_keep() { return keep_; }
+  std::span<std::uint8_t> bin_keep() {
+    prepared_ = false;  // the caller may drop bins: the next correlation applies them
+    return keep_;
+  }
   std::span<const std::uint8_t> bin_keep() const { return keep_; }
   // Per band bin weight in (0, 1] (order of bin_keep()) that a weighted correlate() puts on the
   // phasors: an SNR weight (BinSnrWeight) so bins with only noise do not dilute the correlation.
   // All 1 (plain PHAT) unless set; kept across frames. Set them while the phasors are plain:
-  // after whiten(), restore_whitened() or an unweighted correlate().
-  std::span<double> bin_weight() { return weights_; }
+  // after whiten(), an unweighted cross_power() or an unweighted correlate().
+  std::span<double> bin_weight() {
+    prepared_ = false;
+    return weights_;
+  }
   std::span<const double> bin_weight() const { return weights_; }
   // What each band bin's phasors are scaled by now: its weight after a weighted correlate(),
   // else 1 (SourceBinMask judges phases, whatever the weight).
   double phasor_scale(int band_index) const {
     return weights_applied_ ? weights_[static_cast<std::size_t>(band_index)] : 1.0;
   }
+  // All of them: bin_weight() after a weighted correlate(), else empty (every scale 1).
+  std::span<const double> phasor_scales() const {
+    return weights_applied_ ? std::span<const double>(weights_) : std::span<const double>();
+  }
   // Effective number of band bins in the last correlate(): (sum w)^2 / sum w^2 over the kept
   // bins (the kept-bin count when unweighted).
   int kept_bin_count() const { return effective_bins_; }
-  // correlate() drops masked bins from the phasors themselves; these return to the phasors,
-  // magnitudes and mask as they were at save_whitened() (the mask is kept, the phasors made
-  // again from the frame's per-mic units) to correlate the same frame under another mask
-  // (several sources: each measured without the others' bins). `weighted`: the phasors made
-  // with bin_weight() on them, as a weighted correlate() would scale them (it then need not).
-  void save_whitened();
-  void restore_whitened(bool weighted = false);
-  // The mask as at save_whitened() (what restore_whitened() returns to).
-  std::span<const std::uint8_t> saved_bin_keep() const { return saved_keep_; }
-  // whiten()'s unit phasors X / |X| of one mic over the band bins (real and imaginary rows).
-  std::span<const double> unit_real(int mic) const;
-  std::span<const double> unit_imag(int mic) const;
-  // A per-mic phase correction (GroundEcho) kept apart from whiten()'s units, so that nothing
-  // has to be copied back: correct_units(mic) marks the mic corrected and hands out its second
-  // rows (real, imaginary; band bins) for the caller to fill with the corrected units. From the
-  // next restore_whitened() on, the pairs' phasors are made from those rows, until
-  // uncorrect_units() (or whiten()) returns to whiten()'s units. unit_real()/unit_imag() are
-  // always whiten()'s.
-  struct UnitRows {
-    std::span<double> real;
-    std::span<double> imag;
+  // whiten()'s unit phasors X / |X| of every mic over the band bins: the frame's whitening,
+  // unchanged until the next whiten(). A stage that corrects the mics' phases (GroundEcho) takes
+  // this view and returns a corrected one over its own rows.
+  struct UnitsView {
+    const double* real = nullptr;  // mic m's row at m * bins
+    const double* imag = nullptr;
+    int bins = 0;
+    std::span<const double> real_row(int mic) const {
+      return {real + static_cast<std::size_t>(mic) * static_cast<std::size_t>(bins),
+              static_cast<std::size_t>(bins)};
+    }
+    std::span<const double> imag_row(int mic) const {
+      return {imag + static_cast<std::size_t>(mic) * static_cast<std::size_t>(bins),
+              static_cast<std::size_t>(bins)};
+    }
   };
-  UnitRows correct_units(int mic);
-  void uncorrect_units();
-
-  // The AVX-512 kernels (direct lag sums, refinement, whitening) run where the CPU has them
-  // (checked at run time); set_wide_simd(false) keeps to the two-lane code and the FFT threshold
-  // of other machines (the tests compare the two).
-  static bool wide_simd_available();
-  void set_wide_simd(bool on);
-  bool wide_simd() const { return wide_simd_; }
+  UnitsView units() const;
+  std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
+  std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
+  // The band-limited cross-power of every pair from the given units under the given mask:
+  // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| (whiten()'s levels), the mask's dropped bins zero,
+  // times bin_weight() when `weighted`. bin_keep() becomes `keep`. whiten() does this with its
+  // own units and every bin kept; a frame is correlated again under another mask (several
+  // sources: each measured without the others' bins) or on corrected units by calling it again.
+  void cross_power(const UnitsView& units, std::span<const std::uint8_t> keep,
+                   bool weighted = false);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
@@ -164,13 +162,14 @@ class GccPhat {
   double value_at(int pair, double lag_s) const;
   // Climbs the grid from `start_lag_s` to a local maximum and refines it (Newton on the
   // continuous correlation, or parabolic on the grid, per the interpolation chosen). The last
-  // answer per pair is kept until the next whiten()/correlate()/restore_whitened(): asking
+  // answer per pair is kept until the next whiten()/correlate()/cross_power(): asking
   // again for a peak already refined (trackers, static null, SRP) costs a grid climb.
   bool refine(int pair, double start_lag_s, GccPeak& out) const;
   // The peak near `start_lag_s` by Newton steps on the continuous correlation alone (no grid,
   // band-limited refinement only): within 1.5 grid steps of the start, else false. For a peak
-  // known to have moved little (after prepare_phasors()).
-  bool refine_from(int pair, double start_lag_s, GccPeak& out) const;
+  // known to have moved little (a small phase correction). Applies the current mask and
+  // weighting first when no correlation has since they changed.
+  bool refine_from(int pair, double start_lag_s, GccPeak& out);
   // How many of each pair's strongest local maxima correlate() refines into pair().peaks, in
   // [1, kMaxGccPeaks]; 1 (the default) costs nothing beyond the main peak. Each further peak
   // costs a refinement (a few passes over the band) per pair and correlate().
@@ -189,6 +188,9 @@ class GccPhat {
 
  private:
   struct Inverse;
+  // Highest, second and the peak_count_ highest local maxima of one pair's grid, refined into
+  // pair(p).
+  void search_peaks(std::size_t pair);
   int climb(int pair, double start_lag_s) const;  // grid index of the local max uphill
   bool refine_band_limited(int pair, int grid_index, GccPeak& out) const;
   // The Taylor-polynomial Newton passes of refine_band_limited() from `start_lag_s`; false when
@@ -201,12 +203,12 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
-  void pair_phasors(bool masked, bool weighted = false);
+  void pair_phasors(const UnitsView& units, bool masked, bool weighted);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
-  double direct_products_limit() const;  // kept bins x lag rows below which direct sums pay
 
   double sample_rate_hz_;
+  int fft_size_;
   double bin_omega_;  // rad/s per bin
   std::vector<BandRun> runs_;
   int band_bins_ = 0;
@@ -216,11 +218,12 @@ class GccPhat {
   int kept_bins_ = 0;
   double kept_weight_ = 0.0;  // sum of the kept bins' weights (kept_bins_ unweighted): R's scale
   int effective_bins_ = 0;
-  double kept_sum_omega2_ = 0.0;           // sum_kept w w_k^2
-  double kept_sum_w2_omega2_ = 0.0;        // sum_kept w^2 w_k^2
-  std::vector<double> weights_;            // bin_weight()
-  bool weights_applied_ = false;           // the phasors carry weights_ (last correlate() weighted)
-  bool enough_bins_ = false;               // the last prepare() kept enough bins for a correlation
+  double kept_sum_omega2_ = 0.0;     // sum_kept w w_k^2
+  double kept_sum_w2_omega2_ = 0.0;  // sum_kept w^2 w_k^2
+  std::vector<double> weights_;      // bin_weight()
+  bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
+  bool enough_bins_ = false;         // the last prepare() kept enough bins for a correlation
+  bool prepared_ = false;  // prepare() has run since the phasors, mask or weights last changed
   std::vector<std::uint8_t> keep_;         // per band bin
   std::vector<std::uint8_t> phasor_keep_;  // the mask the phasors carry (its dropped bins zero)
   double taylor_bound_ = 0.0;              // w_top sum_kept w^4: bounds the fifth derivative of R
@@ -242,14 +245,10 @@ class GccPhat {
   int unit_channels_ = 0;
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
-  std::vector<double> corrected_re_;  // correct_units(): per mic over the band bins
-  std::vector<double> corrected_im_;
-  std::vector<std::uint8_t> corrected_;  // per mic: pairs made from corrected_re_/_im_
   std::vector<double> levels_;
-  std::vector<int> band_fft_bins_;        // FFT bin of each band bin
-  std::vector<double> band_omega2_;       // w_k^2 of each band bin
-  std::vector<std::uint8_t> saved_keep_;  // save_whitened()
-  std::vector<double> kernel_table_;      // phat_kernel at multiples of kernel_step_s_ from 0
+  std::vector<int> band_fft_bins_;    // FFT bin of each band bin
+  std::vector<double> band_omega2_;   // w_k^2 of each band bin
+  std::vector<double> kernel_table_;  // phat_kernel at multiples of kernel_step_s_ from 0
   double kernel_step_s_ = 0.0;
   std::vector<double> grids_;  // per pair, 2 * max_half_span + 1
   int grid_stride_ = 0;
@@ -262,8 +261,6 @@ class GccPhat {
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1
   double max_direct_products_ = 0.0;  // kept bins x lag_rows_ up to which direct is cheaper
-  bool wide_simd_ = false;  // AVX-512 kernels for the direct sums and refinement (run time)
-  std::vector<std::complex<double>> zero_phasors_;  // the wide kernel's unused pair slots
   std::unique_ptr<Inverse> inverse_;
   // refine()'s last answer per pair (grid index, -1 none): valid until the phasors or the grid
   // change. Makes refine() not safe to call concurrently on one GccPhat.

@@ -7,7 +7,7 @@
 #include <limits>
 #include <numbers>
 
-#include "doa/lane_math.hpp"
+#include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
@@ -41,173 +41,7 @@ double parabola_vertex(double left, double centre, double right, double limit) {
   return std::clamp(0.5 * (left - right) / curvature, -limit, limit);
 }
 
-// The search bins' rows for coherence(): per mic, kSearchBins aligned units and echoes.
-struct CoherenceRows {
-  const double* aligned_re;
-  const double* aligned_im;
-  const double* echo_re;
-  const double* echo_im;
-  const double* weight;
-  std::size_t mics;
-  int bins;  // search bins rounded up to whole vectors (the rest: zero units and weights)
-};
-
-// sum_bins weight |sum_mics aligned conj(c) / |c||^2 with c = 1 + gain echo, over V lanes of
-// bins. |c| >= 1 - gain level >= 1 - kMaxGain: the inverse square root needs no guard.
-template <class V>
-[[gnu::always_inline]] inline double coherence_sum(const CoherenceRows& rows, double gain) {
-  constexpr int kLanes = sizeof(V) / sizeof(double);
-  V total{};
-  for (int bin = 0; bin < rows.bins; bin += kLanes) {
-    V sum_re{};
-    V sum_im{};
-    for (std::size_t mic = 0; mic < rows.mics; ++mic) {
-      const std::size_t at = mic * kSearchBins + static_cast<std::size_t>(bin);
-      V a_re, a_im;
-      std::memcpy(&a_re, rows.aligned_re + at, sizeof a_re);
-      std::memcpy(&a_im, rows.aligned_im + at, sizeof a_im);
-      if (gain <= 0.0) {
-        sum_re += a_re;
-        sum_im += a_im;
-        continue;
-      }
-      V e_re, e_im;
-      std::memcpy(&e_re, rows.echo_re + at, sizeof e_re);
-      std::memcpy(&e_im, rows.echo_im + at, sizeof e_im);
-      const V c_re = 1.0 + gain * e_re;
-      const V c_im = gain * e_im;
-      V inverse;
-      inverse_sqrt(c_re * c_re + c_im * c_im, inverse);
-      sum_re += (a_re * c_re + a_im * c_im) * inverse;
-      sum_im += (a_im * c_re - a_re * c_im) * inverse;
-    }
-    V weight;
-    std::memcpy(&weight, rows.weight + bin, sizeof weight);
-    total += weight * (sum_re * sum_re + sum_im * sum_im);
-  }
-  double sum = 0.0;
-  for (int lane = 0; lane < kLanes; ++lane) sum += total[lane];
-  return sum;
-}
-
-// One mic's units times conj(c) / |c| over the band, c = 1 + level e^{j k phase_step} at FFT
-// bin k: the echo by V interleaved recurrences per run (each lane waits only for its own
-// previous product; the error after the band's few dozen steps per lane is ~1e-14).
-struct CombRows {
-  const BandRun* runs;
-  std::size_t run_count;
-  const double* unit_re;
-  const double* unit_im;
-  double* out_re;
-  double* out_im;
-  double level;
-  double phase_step;
-};
-
-template <class V>
-[[gnu::always_inline]] inline void comb_divide(const CombRows& rows) {
-  constexpr int kLanes = sizeof(V) / sizeof(double);
-  V step_re, step_im;
-  unit_phasor<V>(V{} + kLanes * rows.phase_step, step_re, step_im);
-  V lanes{};
-  for (int lane = 0; lane < kLanes; ++lane) lanes[lane] = lane;
-  std::size_t index = 0;
-  for (std::size_t r = 0; r < rows.run_count; ++r) {
-    const BandRun& run = rows.runs[r];
-    V echo_re, echo_im;
-    unit_phasor<V>((lanes + run.first_bin) * rows.phase_step, echo_re, echo_im);
-    const int count = run.last_bin - run.first_bin + 1;
-    int k = 0;
-    for (; k + kLanes <= count; k += kLanes, index += kLanes) {
-      const V c_re = 1.0 + rows.level * echo_re;
-      const V c_im = rows.level * echo_im;
-      V inverse;
-      inverse_sqrt(c_re * c_re + c_im * c_im, inverse);
-      V u_re, u_im;
-      std::memcpy(&u_re, rows.unit_re + index, sizeof u_re);
-      std::memcpy(&u_im, rows.unit_im + index, sizeof u_im);
-      const V out_re = (u_re * c_re + u_im * c_im) * inverse;
-      const V out_im = (u_im * c_re - u_re * c_im) * inverse;
-      std::memcpy(rows.out_re + index, &out_re, sizeof out_re);
-      std::memcpy(rows.out_im + index, &out_im, sizeof out_im);
-      const V next_re = echo_re * step_re - echo_im * step_im;
-      echo_im = echo_re * step_im + echo_im * step_re;
-      echo_re = next_re;
-    }
-    for (int lane = 0; k < count; ++k, ++lane, ++index) {
-      const double c_re = 1.0 + rows.level * echo_re[lane];
-      const double c_im = rows.level * echo_im[lane];
-      const double inverse = 1.0 / std::sqrt(c_re * c_re + c_im * c_im);
-      const double u_re = rows.unit_re[index];
-      const double u_im = rows.unit_im[index];
-      rows.out_re[index] = (u_re * c_re + u_im * c_im) * inverse;
-      rows.out_im[index] = (u_im * c_re - u_re * c_im) * inverse;
-    }
-  }
-}
-
-// Per bin (whole vectors of V lanes) out = level e^{j omega time}, times (in_re + j in_im) when
-// given.
-struct PhasorRows {
-  const double* omega;
-  int bins;
-  double time_s;
-  double level;
-  const double* in_re;  // nullptr: level e^{j omega time} alone
-  const double* in_im;
-  double* out_re;
-  double* out_im;
-};
-
-template <class V>
-[[gnu::always_inline]] inline void phasor_rows(const PhasorRows& rows) {
-  constexpr int kLanes = sizeof(V) / sizeof(double);
-  for (int bin = 0; bin < rows.bins; bin += kLanes) {
-    V omega;
-    std::memcpy(&omega, rows.omega + bin, sizeof omega);
-    V re, im;
-    unit_phasor<V>(omega * rows.time_s, re, im);
-    if (rows.in_re != nullptr) {
-      V a_re, a_im;
-      std::memcpy(&a_re, rows.in_re + bin, sizeof a_re);
-      std::memcpy(&a_im, rows.in_im + bin, sizeof a_im);
-      const V product_re = a_re * re - a_im * im;
-      im = a_re * im + a_im * re;
-      re = product_re;
-    }
-    re *= rows.level;
-    im *= rows.level;
-    std::memcpy(rows.out_re + bin, &re, sizeof re);
-    std::memcpy(rows.out_im + bin, &im, sizeof im);
-  }
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#define DRONETRACK_WIDE_SIMD 1
-using Wide = double __attribute__((vector_size(64)));
-__attribute__((target("avx512f,fma"))) double wide_coherence_sum(const CoherenceRows& rows,
-                                                                 double gain) {
-  return coherence_sum<Wide>(rows, gain);
-}
-__attribute__((target("avx512f,fma"))) void wide_comb_divide(const CombRows& rows) {
-  comb_divide<Wide>(rows);
-}
-__attribute__((target("avx512f,fma"))) void wide_phasor_rows(const PhasorRows& rows) {
-  phasor_rows<Wide>(rows);
-}
-#endif
-
-void phasors(bool wide_simd, const PhasorRows& rows) {
-#ifdef DRONETRACK_WIDE_SIMD
-  if (wide_simd) {
-    wide_phasor_rows(rows);
-    return;
-  }
-#else
-  (void)wide_simd;
-#endif
-  phasor_rows<Lanes>(rows);
-}
+void phasors(const simd::PhasorRows& rows) { simd::phasor_rows(rows); }
 
 // Search bins rounded up to whole vectors.
 int vector_bins(int bins) { return (bins + kVector - 1) / kVector * kVector; }
@@ -239,6 +73,8 @@ GroundEcho::GroundEcho(const ArrayGeometry& geometry, const GccPhat& gcc, double
   aligned_im_.assign(aligned_re_.size(), 0.0);
   echo_re_.assign(aligned_re_.size(), 0.0);
   echo_im_.assign(aligned_re_.size(), 0.0);
+  corrected_re_.assign(band_omega_.size() * mics, 0.0);
+  corrected_im_.assign(corrected_re_.size(), 0.0);
   min_sine_elevation_ = std::sin(settings_.min_elevation_deg * std::numbers::pi / 180.0);
   max_jump_cosine_ = std::cos(settings_.max_direction_jump_deg * std::numbers::pi / 180.0);
   reset();
@@ -297,7 +133,6 @@ void GroundEcho::prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
   const std::size_t mics = mics_m_.size();
   for (std::size_t mic = 0; mic < mics; ++mic)
     arrival_s_[mic] = -direction_site.dot(mics_m_[mic]) / speed_of_sound_mps_;
-  wide_simd_ = gcc.wide_simd();
   search_bins_ = 0;
   search_weight_sum_ = 0.0;
   std::fill(search_omega_.begin(), search_omega_.end(), 0.0);
@@ -318,9 +153,9 @@ void GroundEcho::prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
   // e^{+j w t_i} undoes the direct path's delay: aligned units add up in phase.
   for (std::size_t mic = 0; mic < mics; ++mic) {
     const std::size_t row = mic * kSearchBins;
-    phasors(wide_simd_, {search_omega_.data(), vector_bins(search_bins_), arrival_s_[mic], 1.0,
-                         aligned_re_.data() + row, aligned_im_.data() + row,
-                         aligned_re_.data() + row, aligned_im_.data() + row});
+    phasors({search_omega_.data(), vector_bins(search_bins_), arrival_s_[mic], 1.0,
+             aligned_re_.data() + row, aligned_im_.data() + row, aligned_re_.data() + row,
+             aligned_im_.data() + row});
   }
 }
 
@@ -328,23 +163,18 @@ void GroundEcho::candidate(const Eigen::Vector3d& direction_site, double curvatu
   paths(direction_site, curvature_per_m);
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
     const std::size_t row = mic * kSearchBins;
-    phasors(wide_simd_,
-            {search_omega_.data(), vector_bins(search_bins_), -delay_s_[mic], level_[mic], nullptr,
+    phasors({search_omega_.data(), vector_bins(search_bins_), -delay_s_[mic], level_[mic], nullptr,
              nullptr, echo_re_.data() + row, echo_im_.data() + row});
   }
 }
 
 double GroundEcho::coherence(double gain) const {
   const std::size_t mics = mics_m_.size();
-  const CoherenceRows rows{aligned_re_.data(),       aligned_im_.data(),    echo_re_.data(),
-                           echo_im_.data(),          search_weight_.data(), mics,
-                           vector_bins(search_bins_)};
-#ifdef DRONETRACK_WIDE_SIMD
   const double total =
-      wide_simd_ ? wide_coherence_sum(rows, gain) : coherence_sum<Lanes>(rows, gain);
-#else
-  const double total = coherence_sum<Lanes>(rows, gain);
-#endif
+      simd::echo_coherence({aligned_re_.data(), aligned_im_.data(), echo_re_.data(),
+                            echo_im_.data(), search_weight_.data(), mics,
+                            static_cast<std::size_t>(kSearchBins), vector_bins(search_bins_)},
+                           gain);
   const double scale = search_weight_sum_ * static_cast<double>(mics * mics);
   return scale > 0.0 ? total / scale : 0.0;
 }
@@ -433,34 +263,22 @@ bool GroundEcho::observe(const GccPhat& gcc, const Eigen::Vector3d& direction_si
   return locked_;
 }
 
-void GroundEcho::remove(GccPhat& gcc, const Eigen::Vector3d& direction_site) {
-  if (!locked_) return;
+GccPhat::UnitsView GroundEcho::corrected(const GccPhat::UnitsView& units,
+                                         const Eigen::Vector3d& direction_site) {
+  if (!locked_) return units;
   paths(direction_site, curvature_per_m_);
+  const auto bins = static_cast<std::size_t>(units.bins);
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
     const int m = static_cast<int>(mic);
-    const GccPhat::UnitRows corrected = gcc.correct_units(m);
     // conj(c) / |c| with c = 1 + g e^{-j w Delta}; |c| >= 1 - kMaxGain.
-    const CombRows rows{runs_.data(),
-                        runs_.size(),
-                        gcc.unit_real(m).data(),
-                        gcc.unit_imag(m).data(),
-                        corrected.real.data(),
-                        corrected.imag.data(),
-                        gain_ * level_[mic],
-                        -bin_omega_ * delay_s_[mic]};
-#ifdef DRONETRACK_WIDE_SIMD
-    if (gcc.wide_simd())
-      wide_comb_divide(rows);
-    else
-      comb_divide<Lanes>(rows);
-#else
-    comb_divide<Lanes>(rows);
-#endif
+    simd::comb_divide({runs_.data(),
+                       runs_.size(),
+                       {units.real_row(m).data(), units.imag_row(m).data()},
+                       {corrected_re_.data() + mic * bins, corrected_im_.data() + mic * bins},
+                       gain_ * level_[mic],
+                       -bin_omega_ * delay_s_[mic]});
   }
-}
-
-void GroundEcho::restore(GccPhat& gcc) const {
-  if (locked_) gcc.uncorrect_units();
+  return {corrected_re_.data(), corrected_im_.data(), units.bins};
 }
 
 }  // namespace dronetrack::doa

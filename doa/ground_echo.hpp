@@ -53,11 +53,11 @@ class GroundEcho {
   // Whether the next observe() searches (reads the units, the kept bins and their weights);
   // otherwise it only follows the direction.
   bool search_due(const Eigen::Vector3d& direction_site) const;
-  // Divides the locked echo, for the source's direction now, out of every mic's units (into
-  // GccPhat's corrected rows: whiten()'s units stay as they are).
-  void remove(GccPhat& gcc, const Eigen::Vector3d& direction_site);
-  // Undoes the last remove(): the units as whitened, for another source's look.
-  void restore(GccPhat& gcc) const;
+  // The mics' units with the locked echo, for the source's direction now, divided out: a view
+  // of this object's rows (valid until its next corrected()), or `units` itself when no echo is
+  // locked. `units` stay as they are.
+  GccPhat::UnitsView corrected(const GccPhat::UnitsView& units,
+                               const Eigen::Vector3d& direction_site);
   // Cosine between `direction_site` and the direction last observed: which source this follows.
   double alignment(const Eigen::Vector3d& direction_site) const {
     return direction_site.dot(last_direction_);
@@ -114,8 +114,9 @@ class GroundEcho {
   std::vector<double> aligned_im_;
   std::vector<double> echo_re_;
   std::vector<double> echo_im_;
-  std::vector<int> candidates_;  // scratch: band indices with a large enough weight
-  bool wide_simd_ = false;       // the AVX-512 kernels (GccPhat::wide_simd())
+  std::vector<int> candidates_;       // scratch: band indices with a large enough weight
+  std::vector<double> corrected_re_;  // corrected(): per mic over the band bins
+  std::vector<double> corrected_im_;
 
   bool locked_ = false;
   double curvature_per_m_ = 0.0;

@@ -26,7 +26,6 @@ class SourceBinMask {
 
  private:
   double threshold_;
-  std::vector<std::complex<double>> zeros_;  // a phasor row for the lane of an odd pair out
 };
 
 }  // namespace dronetrack::doa

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "doa/fftw_lock.hpp"
-#include "doa/vector_shuffle.hpp"
+#include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
@@ -30,61 +30,6 @@ constexpr std::uint8_t kFlagClipped = 2;
 // four partial sums). Several partial sums: one
 // running sum would make every sample wait for the previous addition. A float squared cannot
 // overflow a double, so the sum is finite exactly when every sample is: no per-sample test.
-#if defined(__x86_64__) && defined(__GNUC__)
-#define DRONETRACK_WIDE_SIMD 1
-// Four channels, four frames per step in AVX-512 vectors: 16 floats widened to two vectors of
-// eight doubles (frames n, n+1 and n+2, n+3), transposed into one channel's four frames per
-// half vector, stored as four runs; per channel lane sums and peaks. Returns how many frames it
-// did (whole steps); sums and peaks (per channel) are added to / raised.
-__attribute__((target("avx512f"))) int wide_deinterleave4(const float* source, int count,
-                                                          double* target, std::ptrdiff_t stride,
-                                                          double* sums, double* peaks) {
-  using Wide = double __attribute__((vector_size(64)));
-  using Floats = float __attribute__((vector_size(32)));
-  using Half = double __attribute__((vector_size(32)));
-  using Selector = long long __attribute__((vector_size(64)));
-  Wide sum_01{}, sum_23{}, peak_01{}, peak_23{};
-  int n = 0;
-  for (; n + 4 <= count; n += 4) {
-    Floats first, second;
-    std::memcpy(&first, source + n * 4, sizeof first);
-    std::memcpy(&second, source + n * 4 + 8, sizeof second);
-    const Wide low = __builtin_convertvector(first, Wide);    // frames n, n+1: c0 c1 c2 c3 ...
-    const Wide high = __builtin_convertvector(second, Wide);  // frames n+2, n+3
-    // Channels 0 and 1 of the four frames, then channels 2 and 3.
-    const Wide channels_01 = DRONETRACK_SHUFFLE(low, high, Selector, 0, 4, 8, 12, 1, 5, 9, 13);
-    const Wide channels_23 = DRONETRACK_SHUFFLE(low, high, Selector, 2, 6, 10, 14, 3, 7, 11, 15);
-    Half run;
-    run = Half{channels_01[0], channels_01[1], channels_01[2], channels_01[3]};
-    std::memcpy(target + n, &run, sizeof run);
-    run = Half{channels_01[4], channels_01[5], channels_01[6], channels_01[7]};
-    std::memcpy(target + stride + n, &run, sizeof run);
-    run = Half{channels_23[0], channels_23[1], channels_23[2], channels_23[3]};
-    std::memcpy(target + 2 * stride + n, &run, sizeof run);
-    run = Half{channels_23[4], channels_23[5], channels_23[6], channels_23[7]};
-    std::memcpy(target + 3 * stride + n, &run, sizeof run);
-    sum_01 += channels_01 * channels_01;
-    sum_23 += channels_23 * channels_23;
-    const Wide size_01 = channels_01 < 0.0 ? -channels_01 : channels_01;
-    const Wide size_23 = channels_23 < 0.0 ? -channels_23 : channels_23;
-    peak_01 = peak_01 > size_01 ? peak_01 : size_01;
-    peak_23 = peak_23 > size_23 ? peak_23 : size_23;
-  }
-  for (int lane = 0; lane < 8; ++lane) {
-    const int channel = lane / 4;
-    sums[channel] += sum_01[lane];
-    sums[2 + channel] += sum_23[lane];
-    peaks[channel] = std::max(peaks[channel], peak_01[lane]);
-    peaks[2 + channel] = std::max(peaks[2 + channel], peak_23[lane]);
-  }
-  return n;
-}
-
-bool wide_deinterleave_supported() {
-  static const bool supported = __builtin_cpu_supports("avx512f") != 0;
-  return supported;
-}
-#endif
 
 template <int kChannels>
 double deinterleave(const float* source, int channels, int count, double* target,
@@ -92,14 +37,11 @@ double deinterleave(const float* source, int channels, int count, double* target
   double sums[4] = {0.0, 0.0, 0.0, 0.0};
   double peaks[4] = {0.0, 0.0, 0.0, 0.0};
   if constexpr (kChannels == 4) {
-#ifdef DRONETRACK_WIDE_SIMD
-    if (wide_deinterleave_supported()) {
-      const int done = wide_deinterleave4(source, count, target, stride, sums, peaks);
-      source += done * 4;
-      target += done;
-      count -= done;
-    }
-#endif
+    // Whole vectors of the SIMD target first (doa/simd), the rest below.
+    const int done = simd::deinterleave_four({source, count, target, stride, sums, peaks});
+    source += done * 4;
+    target += done;
+    count -= done;
     // Channels (0, 1) and (2, 3) in the two lanes of a vector, even and odd frames in separate
     // running sums and peaks: two frames per step, no chain of dependent additions per frame.
     using Lanes = double __attribute__((vector_size(16)));

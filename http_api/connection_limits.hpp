@@ -28,6 +28,19 @@ struct ConnectionLimits {
   // Bytes of one request (head + body) before it is refused with 413: the API takes no bodies,
   // and httplib buffers a header line whole, so an endless line would otherwise grow unbounded.
   std::size_t max_request_bytes = 64 * 1024;
+
+  // Per client address (client_address.hpp), across its connections:
+  // Event streams one client may hold open at once: an operator's page holds one; a few tabs or
+  // a monitoring script beside it fit. Further /api/stream requests get 429.
+  int max_streams_per_client = 4;
+  // Requests one client may make: a burst of this many (a page load is ~10), then this many per
+  // second; beyond that 429 with Retry-After. Keeps one client from taking every worker's time.
+  double request_burst_per_client = 120.0;
+  double requests_per_second_per_client = 20.0;
+  // Failed logins one client may make within login_failure_window before its requests get 429
+  // for the rest of that window: bounds password guessing (and the ~0.2 s of PBKDF2 per guess).
+  int max_failed_logins_per_client = 10;
+  std::chrono::seconds login_failure_window{60};
 };
 
 }  // namespace dronetrack::http_api

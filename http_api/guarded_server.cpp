@@ -1,6 +1,7 @@
 #include "http_api/guarded_server.hpp"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -14,6 +15,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <string_view>
+
+#include <openssl/err.h>
+#include <openssl/ssl.h>
+
+#include "http_api/client_address.hpp"
+#include "http_api/tls_context.hpp"
 
 namespace dronetrack::http_api {
 namespace {
@@ -45,18 +52,52 @@ Wait wait_for(socket_t sock, short events, Clock::time_point deadline,
 
 bool would_block(int error) { return error == EAGAIN || error == EWOULDBLOCK || error == EINTR; }
 
-// One complete response with a JSON error body and "Connection: close", sent without waiting:
-// it is only ever sent into an idle socket, whose send buffer has room for it.
+// One complete response with a JSON error body and "Connection: close".
+std::string error_response(int status, std::string_view reason, std::string_view message) {
+  const std::string body = "{\"error\":\"" + std::string(message) + "\"}";
+  return "HTTP/1.1 " + std::to_string(status) + " " + std::string(reason) +
+         "\r\nContent-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
+         "\r\nConnection: close\r\n\r\n" + body;
+}
+
+// Sent without waiting: it is only ever sent into an idle socket, whose send buffer has room.
 void send_error_and_close(socket_t sock, int status, std::string_view reason,
                           std::string_view message) {
-  const std::string body = "{\"error\":\"" + std::string(message) + "\"}";
-  const std::string response =
-      "HTTP/1.1 " + std::to_string(status) + " " + std::string(reason) +
-      "\r\nContent-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
-      "\r\nConnection: close\r\n\r\n" + body;
+  const std::string response = error_response(status, reason, message);
   (void)::send(sock, response.data(), response.size(), MSG_DONTWAIT | MSG_NOSIGNAL);
   ::shutdown(sock, SHUT_WR);
 }
+
+// What a non-blocking TLS call that did not complete waits for, or 0 if it failed for good.
+short tls_wait_events(SSL* ssl, int result) {
+  switch (SSL_get_error(ssl, result)) {
+    case SSL_ERROR_WANT_READ:
+      return POLLIN;
+    case SSL_ERROR_WANT_WRITE:
+      return POLLOUT;
+    default:
+      return 0;
+  }
+}
+
+// The TLS handshake on a non-blocking socket, bounded like a request head: a client that opens
+// a connection and never completes the handshake holds its worker no longer than one that
+// trickles a head.
+bool accept_tls(SSL* ssl, socket_t sock, Clock::time_point deadline,
+                const std::atomic<bool>& stopping) {
+  for (;;) {
+    ERR_clear_error();
+    const int result = SSL_accept(ssl);
+    if (result == 1) return true;
+    const short events = tls_wait_events(ssl, result);
+    if (events == 0 || wait_for(sock, events, deadline, stopping) != Wait::ready) return false;
+  }
+}
+
+struct SslFree {
+  void operator()(SSL* ssl) const { SSL_free(ssl); }
+};
+using SslPointer = std::unique_ptr<SSL, SslFree>;
 
 void numeric_address(const sockaddr_storage& addr, socklen_t length, std::string& ip, int& port) {
   std::array<char, NI_MAXHOST> host{};
@@ -68,33 +109,16 @@ void numeric_address(const sockaddr_storage& addr, socklen_t length, std::string
   }
 }
 
-// The address a connection counts against: an IPv4 address (also when mapped into IPv6), or
-// the /64 of an IPv6 address, since one host usually owns a whole /64. Empty if the peer is
-// already gone.
+// The address a connection counts against (client_address.hpp); empty if the peer is already
+// gone.
 std::string client_key(socket_t sock) {
   sockaddr_storage addr{};
   socklen_t length = sizeof(addr);
   if (::getpeername(sock, reinterpret_cast<sockaddr*>(&addr), &length) != 0) return {};
-  std::array<char, INET6_ADDRSTRLEN> text{};
-  if (addr.ss_family == AF_INET) {
-    sockaddr_in v4{};
-    std::memcpy(&v4, &addr, sizeof(v4));
-    ::inet_ntop(AF_INET, &v4.sin_addr, text.data(), text.size());
-    return text.data();
-  }
-  if (addr.ss_family == AF_INET6) {
-    sockaddr_in6 peer{};
-    std::memcpy(&peer, &addr, sizeof(peer));
-    in6_addr v6 = peer.sin6_addr;
-    if (IN6_IS_ADDR_V4MAPPED(&v6)) {
-      ::inet_ntop(AF_INET, &v6.s6_addr[12], text.data(), text.size());
-      return text.data();
-    }
-    std::fill(std::begin(v6.s6_addr) + 8, std::end(v6.s6_addr), 0);
-    ::inet_ntop(AF_INET6, &v6, text.data(), text.size());
-    return std::string(text.data()) + "/64";
-  }
-  return "other";
+  std::string ip;
+  int port = 0;
+  numeric_address(addr, length, ip, port);
+  return ip.empty() ? std::string("other") : client_address_key(ip);
 }
 
 // httplib reads (and throws away) the body of these methods before routing; of any other
@@ -113,11 +137,13 @@ bool announces_body(const httplib::Request& req) {
 // The socket under httplib's parser, for one connection. Reads are buffered (httplib reads the
 // head a byte at a time) and, per request, bounded by a deadline and a byte budget; a read that
 // misses either answers the request itself (408, 413) and ends the connection. A write fails
-// when the client has taken nothing for the write timeout. Every wait ends at a stop.
+// when the client has taken nothing for the write timeout. Every wait ends at a stop. With TLS
+// (`ssl` not null; the socket is then non-blocking) the same bounds apply to the records.
 class GuardedStream final : public httplib::Stream {
  public:
-  GuardedStream(socket_t sock, const ConnectionLimits& limits, const std::atomic<bool>& stopping)
-      : sock_(sock), limits_(limits), stopping_(stopping) {}
+  GuardedStream(socket_t sock, SSL* ssl, const ConnectionLimits& limits,
+                const std::atomic<bool>& stopping)
+      : sock_(sock), ssl_(ssl), limits_(limits), stopping_(stopping) {}
 
   // A request starts: all of it must be read within the head timeout from now.
   void begin_request() {
@@ -127,14 +153,14 @@ class GuardedStream final : public httplib::Stream {
   // Waits up to `idle` for the first byte of the next request; false if it does not come, the
   // client leaves or the server stops.
   bool wait_for_next_request(Clock::duration idle) {
-    if (begin_ < end_) return true;  // pipelined: already buffered
+    if (begin_ < end_ || tls_buffered()) return true;  // pipelined: already buffered
     return wait_for(sock_, POLLIN, Clock::now() + idle, stopping_) == Wait::ready;
   }
   // No further request can be read: the client closed, a read failed, or we answered it.
   bool ended() const { return ended_; }
 
   bool is_readable() const override {
-    if (begin_ < end_) return true;
+    if (begin_ < end_ || tls_buffered()) return true;
     pollfd entry{sock_, POLLIN, 0};
     return ::poll(&entry, 1, 0) > 0;
   }
@@ -165,8 +191,17 @@ class GuardedStream final : public httplib::Stream {
     if (answered_) return -1;  // our own error response was the last word
     if (size == 0) return 0;
     const auto deadline = Clock::now() + limits_.write_timeout;
+    short events = POLLOUT;
     for (;;) {
-      if (wait_for(sock_, POLLOUT, deadline, stopping_) != Wait::ready) return -1;
+      if (wait_for(sock_, events, deadline, stopping_) != Wait::ready) return -1;
+      if (ssl_ != nullptr) {
+        ERR_clear_error();
+        const int n = SSL_write(ssl_, ptr, static_cast<int>(std::min<size_t>(size, 1 << 30)));
+        if (n > 0) return n;
+        events = tls_wait_events(ssl_, n);
+        if (events == 0) return -1;
+        continue;
+      }
       const ssize_t n = ::send(sock_, ptr, size, MSG_DONTWAIT | MSG_NOSIGNAL);
       if (n >= 0 || !would_block(errno)) return n;
     }
@@ -189,10 +224,31 @@ class GuardedStream final : public httplib::Stream {
   socket_t socket() const override { return sock_; }
 
  private:
+  bool tls_buffered() const { return ssl_ != nullptr && SSL_pending(ssl_) > 0; }
+
+  // One non-blocking read from the socket or the TLS session: > 0 bytes, 0 at the client's end
+  // of stream, -1 on failure; `retry_events` != 0: nothing yet, wait for those and call again.
+  ssize_t receive_now(short& retry_events) {
+    retry_events = 0;
+    if (ssl_ != nullptr) {
+      ERR_clear_error();
+      const int n = SSL_read(ssl_, buffer_.data(), static_cast<int>(buffer_.size()));
+      if (n > 0) return n;
+      if (SSL_get_error(ssl_, n) == SSL_ERROR_ZERO_RETURN) return 0;
+      retry_events = tls_wait_events(ssl_, n);
+      return -1;
+    }
+    const ssize_t n = ::recv(sock_, buffer_.data(), buffer_.size(), MSG_DONTWAIT);
+    if (n < 0 && would_block(errno)) retry_events = POLLIN;
+    return n;
+  }
+
   // Refills the empty buffer: > 0 bytes, 0 at the client's end of stream, -1 on failure.
   ssize_t fill() {
+    short events = tls_buffered() ? 0 : POLLIN;
     for (;;) {
-      const Wait wait = wait_for(sock_, POLLIN, read_deadline_, stopping_);
+      const Wait wait =
+          events == 0 ? Wait::ready : wait_for(sock_, events, read_deadline_, stopping_);
       if (wait == Wait::timed_out) {
         // A connection that never sent a byte is just closed, as a browser's unused
         // preconnection expects; one that started a request learns why it ends.
@@ -209,14 +265,14 @@ class GuardedStream final : public httplib::Stream {
         ended_ = true;
         return -1;
       }
-      const ssize_t n = ::recv(sock_, buffer_.data(), buffer_.size(), MSG_DONTWAIT);
+      const ssize_t n = receive_now(events);
       if (n >= 0) {
         begin_ = 0;
         end_ = static_cast<std::size_t>(n);
         if (n == 0) ended_ = true;
         return n;
       }
-      if (!would_block(errno)) {
+      if (events == 0) {
         ended_ = true;
         return -1;
       }
@@ -224,12 +280,20 @@ class GuardedStream final : public httplib::Stream {
   }
 
   void answer(int status, std::string_view reason, std::string_view message) {
-    send_error_and_close(sock_, status, reason, message);
+    if (ssl_ != nullptr) {
+      // Best effort, without waiting: the connection ends after it either way.
+      const std::string response = error_response(status, reason, message);
+      ERR_clear_error();
+      (void)SSL_write(ssl_, response.data(), static_cast<int>(response.size()));
+    } else {
+      send_error_and_close(sock_, status, reason, message);
+    }
     answered_ = true;
     ended_ = true;
   }
 
   const socket_t sock_;
+  SSL* const ssl_;
   const ConnectionLimits& limits_;
   const std::atomic<bool>& stopping_;
   std::array<char, 4096> buffer_{};
@@ -243,7 +307,8 @@ class GuardedStream final : public httplib::Stream {
 
 }  // namespace
 
-GuardedServer::GuardedServer(const ConnectionLimits& limits) : limits_(limits) {
+GuardedServer::GuardedServer(const ConnectionLimits& limits, std::shared_ptr<const TlsContext> tls)
+    : limits_(limits), tls_(std::move(tls)) {
   set_keep_alive_timeout(limits.keep_alive_timeout.count());
   set_keep_alive_max_count(limits.max_requests_per_connection);
   set_write_timeout(limits.write_timeout);
@@ -283,8 +348,11 @@ bool GuardedServer::process_and_close_socket(socket_t sock) {
       release(sock, client);
       break;
     case Admission::over_limit:
-      send_error_and_close(sock, 503, "Service Unavailable",
-                           "too many connections from this address");
+      // Over TLS a plaintext answer would be garbage to the client: it just sees the close.
+      if (!tls_) {
+        send_error_and_close(sock, 503, "Service Unavailable",
+                             "too many connections from this address");
+      }
       break;
     case Admission::stopping:
       break;
@@ -301,7 +369,26 @@ bool GuardedServer::process_and_close_socket(socket_t sock) {
 }
 
 bool GuardedServer::serve(socket_t sock) {
-  GuardedStream stream(sock, limits_, stopping_);
+  SslPointer ssl;
+  if (tls_) {
+    const int flags = ::fcntl(sock, F_GETFL, 0);
+    if (flags < 0 || ::fcntl(sock, F_SETFL, flags | O_NONBLOCK) != 0) return false;
+    ssl.reset(SSL_new(tls_->native()));
+    if (!ssl || SSL_set_fd(ssl.get(), sock) != 1 ||
+        !accept_tls(ssl.get(), sock, Clock::now() + limits_.head_timeout, stopping_)) {
+      return false;
+    }
+  }
+  const bool ok = serve_requests(sock, ssl.get());
+  if (ssl) {
+    ERR_clear_error();
+    (void)SSL_shutdown(ssl.get());  // close_notify, without waiting for the client's
+  }
+  return ok;
+}
+
+bool GuardedServer::serve_requests(socket_t sock, SSL* ssl) {
+  GuardedStream stream(sock, ssl, limits_, stopping_);
   bool ok = true;
   for (std::size_t count = 0; count < limits_.max_requests_per_connection; ++count) {
     // The first request is due from the moment the connection opens; a later one may keep the

@@ -1,5 +1,6 @@
 #include "http_api/http_server.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
@@ -13,8 +14,12 @@
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
+#include "http_api/authenticator.hpp"
 #include "http_api/bind_address.hpp"
+#include "http_api/client_address.hpp"
+#include "http_api/client_budget.hpp"
 #include "http_api/guarded_server.hpp"
+#include "http_api/tls_context.hpp"
 
 namespace dronetrack::http_api {
 namespace {
@@ -141,8 +146,38 @@ void check_limits(const HttpOptions& options) {
   if (limits.write_timeout.count() <= 0) fail("write_timeout must be positive");
   if (limits.max_connections_per_client < 1) fail("max_connections_per_client must be >= 1");
   if (limits.max_request_bytes < 1024) fail("max_request_bytes must be at least 1024");
+  if (limits.max_streams_per_client < 1) fail("max_streams_per_client must be >= 1");
+  if (!(limits.request_burst_per_client >= 1.0)) fail("request_burst_per_client must be >= 1");
+  if (!(limits.requests_per_second_per_client > 0.0)) {
+    fail("requests_per_second_per_client must be positive");
+  }
+  if (limits.max_failed_logins_per_client < 1) fail("max_failed_logins_per_client must be >= 1");
 }
 
+// Anyone who can reach a non-loopback address can read the site's tracks and watch its
+// defences: such an address is served only over TLS and to named users.
+void check_exposure(const HttpOptions& options, const std::string& host) {
+  if (options.tls_certificate.empty() != options.tls_private_key.empty()) {
+    throw std::runtime_error(
+        "HTTP: TLS needs both a certificate (http.tls_certificate) and its private key "
+        "(http.tls_private_key)");
+  }
+  if (is_loopback_host(host)) return;
+  std::string missing;
+  if (options.tls_certificate.empty()) missing = "TLS (http.tls_certificate, http.tls_private_key)";
+  if (options.users_file.empty()) {
+    missing += std::string(missing.empty() ? "" : " and ") + "users (http.users_file)";
+  }
+  if (!missing.empty()) {
+    throw std::runtime_error("HTTP: refusing to serve on " + options.bind +
+                             " (beyond loopback) without " + missing +
+                             "; see docs/http_api.md, \"Access\"");
+  }
+}
+
+std::string retry_after_header(double seconds) {
+  return std::to_string(std::max(1, static_cast<int>(std::ceil(seconds))));
+}
 }  // namespace
 
 HttpServer::HttpServer(LiveState& state, HttpOptions options)
@@ -152,7 +187,8 @@ HttpServer::~HttpServer() { stop(); }
 
 std::string HttpServer::url() const {
   const bool v6 = host_.find(':') != std::string::npos;
-  return "http://" + (v6 ? "[" + host_ + "]" : host_) + ":" + std::to_string(port_) + "/";
+  return std::string(tls_ ? "https://" : "http://") + (v6 ? "[" + host_ + "]" : host_) + ":" +
+         std::to_string(port_) + "/";
 }
 
 void HttpServer::start() {
@@ -160,7 +196,15 @@ void HttpServer::start() {
   auto [host, port] = parse_bind_address(options_.bind);
   host_ = host;
   check_limits(options_);
-  server_ = std::make_unique<GuardedServer>(options_.limits);
+  check_exposure(options_, host_);
+  if (!options_.tls_certificate.empty()) {
+    tls_ = std::make_shared<const TlsContext>(options_.tls_certificate, options_.tls_private_key);
+  }
+  if (!options_.users_file.empty()) {
+    authenticator_ = std::make_unique<Authenticator>(options_.users_file);
+  }
+  budget_ = std::make_unique<ClientBudget>(options_.limits);
+  server_ = std::make_unique<GuardedServer>(options_.limits, tls_);
   // Each connection holds a worker for as long as it is open: an SSE client for as long as it
   // stays connected, a slow client until its head deadline. Size the pool so the maximum number
   // of streams and a few slow clients at their per-address limit still leave the API workers.
@@ -277,8 +321,14 @@ void HttpServer::install_routes() {
   });
   svr.Get("/api/stream", [this](const httplib::Request& req, httplib::Response& res) {
     if (!check_params(req, res, {})) return;
+    const std::string client = client_address_key(req.remote_addr);
+    if (!budget_->open_stream(client)) {
+      send_error(res, 429, "too many streams from this address");
+      return;
+    }
     if (stream_clients_.fetch_add(1) >= options_.max_stream_clients) {
       --stream_clients_;
+      budget_->close_stream(client);
       send_error(res, 503, "too many stream clients");
       return;
     }
@@ -306,9 +356,10 @@ void HttpServer::install_routes() {
           }
           return out.empty() || sink.write(out.data(), out.size());
         },
-        [this, queue](bool) {
+        [this, queue, client](bool) {
           state_.unsubscribe(queue);
           --stream_clients_;
+          budget_->close_stream(client);
         });
   });
   svr.Get(R"(/api(/.*)?)", [](const httplib::Request& req, httplib::Response& res) {
@@ -342,16 +393,44 @@ void HttpServer::install_routes() {
   svr.Delete(R"(/.*)", method_not_allowed);
   svr.Patch(R"(/.*)", method_not_allowed);
   svr.Options(R"(/.*)", method_not_allowed);
-  // httplib parses TRACE and CONNECT but has no routes for them (it answers 400): catch them
-  // before routing. Neither carries a body httplib would read.
+  // Before routing: the client's request budget, its credentials, then TRACE and CONNECT,
+  // which httplib parses but has no routes for (it answers 400). None carries a body httplib
+  // would read.
   svr.set_pre_routing_handler(
-      [method_not_allowed](const httplib::Request& req, httplib::Response& res) {
+      [this, method_not_allowed](const httplib::Request& req, httplib::Response& res) {
+        if (!admit(req, res)) return httplib::Server::HandlerResponse::Handled;
         if (req.method != "TRACE" && req.method != "CONNECT") {
           return httplib::Server::HandlerResponse::Unhandled;
         }
         method_not_allowed(req, res);
         return httplib::Server::HandlerResponse::Handled;
       });
+}
+
+bool HttpServer::admit(const httplib::Request& req, httplib::Response& res) {
+  const std::string client = client_address_key(req.remote_addr);
+  const auto now = ClientBudget::Clock::now();
+  double retry_after_s = 0.0;
+  if (!budget_->take_request(client, now, retry_after_s)) {
+    res.set_header("Retry-After", retry_after_header(retry_after_s));
+    send_error(res, 429, "too many requests from this address");
+    return false;
+  }
+  if (!authenticator_) return true;
+  if (budget_->logins_blocked(client, now, retry_after_s)) {
+    res.set_header("Retry-After", retry_after_header(retry_after_s));
+    send_error(res, 429, "too many failed logins from this address");
+    return false;
+  }
+  std::string user;
+  const auto result = authenticator_->check(req.get_header_value("Authorization"), user);
+  if (result == Authenticator::Result::accepted) return true;
+  if (result == Authenticator::Result::rejected) budget_->login_failed(client, now);
+  res.set_header("WWW-Authenticate", "Basic realm=\"dronetrack\", charset=\"UTF-8\"");
+  send_error(res, 401,
+             result == Authenticator::Result::missing ? "credentials required"
+                                                      : "wrong user name or password");
+  return false;
 }
 
 }  // namespace dronetrack::http_api

@@ -10,16 +10,30 @@
 #include "http_api/connection_limits.hpp"
 #include "http_api/live_state.hpp"
 
+namespace httplib {
+struct Request;
+struct Response;
+}  // namespace httplib
+
 namespace dronetrack::http_api {
 
+class Authenticator;
+class ClientBudget;
 class GuardedServer;
+class TlsContext;
 
 struct HttpOptions {
   std::string bind = "127.0.0.1:8080";  // HOST:PORT; port 0 picks a free port (see port())
-  std::filesystem::path web_root;       // the page (index.html, app.js, ...); empty: API only
-  int max_stream_clients = 64;          // further /api/stream requests get 503
-  int stream_heartbeat_ms = 1000;       // a nodes event (stale flags) at least this often
-  ConnectionLimits limits;              // slow and hostile clients (connection_limits.hpp)
+  // HTTPS: a PEM certificate chain and its private key (both or neither). Users: a users file
+  // (user_file.hpp); requests then need HTTP Basic credentials. Serving beyond loopback needs
+  // both (docs/http_api.md, "Access").
+  std::filesystem::path tls_certificate;
+  std::filesystem::path tls_private_key;
+  std::filesystem::path users_file;
+  std::filesystem::path web_root;  // the page (index.html, app.js, ...); empty: API only
+  int max_stream_clients = 64;     // further /api/stream requests get 503
+  int stream_heartbeat_ms = 1000;  // a nodes event (stale flags) at least this often
+  ConnectionLimits limits;         // slow and hostile clients (connection_limits.hpp)
 };
 
 class HttpServer {
@@ -30,7 +44,8 @@ class HttpServer {
   HttpServer& operator=(const HttpServer&) = delete;
 
   // Binds and serves on a background thread. Throws std::runtime_error with a one-line message
-  // if the address is malformed or cannot be bound, or a limit is out of range.
+  // if the address is malformed or cannot be bound, a limit is out of range, the TLS files or
+  // the users file cannot be used, or the address is beyond loopback without TLS and users.
   void start();
   // Returns within about 0.1 s whatever the clients do: every open connection is shut down.
   void stop();
@@ -38,16 +53,21 @@ class HttpServer {
   // and limits, then closes it (fuzz/http_request_fuzz.cpp feeds raw requests this way).
   bool serve_connected(int sock);
   int port() const { return port_; }
-  std::string url() const;  // http://HOST:PORT/
+  std::string url() const;  // http://HOST:PORT/ or https://HOST:PORT/
 
  private:
   void install_routes();
+  // The client's request budget and credentials; false: `res` holds the refusal (429, 401).
+  bool admit(const httplib::Request& req, httplib::Response& res);
 
   LiveState& state_;
   HttpOptions options_;
   std::string host_;
   int port_ = 0;
   int listen_socket_ = -1;  // seen in httplib's socket-options hook, to raise the backlog
+  std::shared_ptr<const TlsContext> tls_;
+  std::unique_ptr<Authenticator> authenticator_;
+  std::unique_ptr<ClientBudget> budget_;
   std::unique_ptr<GuardedServer> server_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};

@@ -8,19 +8,22 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 packages=(
   build-essential cmake pkg-config git      # toolchain
+  lld                                       # faster linker (cmake/BuildSpeed.cmake)
   libeigen3-dev                             # linear algebra of the DOA solver and filters
   libfftw3-dev                              # FFTs for GCC-PHAT
+  libhwy-dev                                # portable SIMD kernels (Google Highway)
   libceres-dev                              # the site calibration's least squares (calib/)
   libsndfile1-dev                           # reading/writing multichannel recordings
   portaudio19-dev                           # live capture
   cyclonedds-dev cyclonedds-tools           # DDS transport + idlc
   nlohmann-json3-dev                        # JSON config and outputs
   libcpp-httplib-dev                        # HTTP API for the web page
+  libssl-dev                                # HTTPS and the users file's PBKDF2 (OpenSSL)
   libcli11-dev                              # command line
   libgtest-dev libgmock-dev libbenchmark-dev # tests and benchmarks
 )
 if [[ "${1:-}" == "--tests" ]]; then
-  packages+=(chromium clang-format)
+  packages+=(chromium clang-format openssl tcpdump)  # openssl: test certificates; tcpdump: DDS capture
   packages+=(clang libclang-rt-dev)  # scripts/fuzz.sh: clang 14 with libFuzzer + sanitizer runtimes
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)

@@ -236,5 +236,63 @@ TEST(DdsFusionIntake, MalformedSamplesAreCountedAndIgnoredAndTrackingGoesOn) {
   EXPECT_EQ(confirmed, 1);
 }
 
+// A secure site's fusion reads each array's partition and refuses a sample whose array id is
+// not its writer's partition: N1's writer (partition "array.N1") claiming to be N2 is counted
+// as foreign_partition and never reaches the engine; writers in the right partitions pass, and
+// a writer outside the per-array partitions (the default partition) is not even matched.
+TEST(DdsFusionIntake, SecureSiteRefusesSamplesOutsideTheirArraysPartition) {
+  dds::testing::use_loopback();
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  load_options.check_recordings = false;
+  const config::SiteConfig site = config::parse_site_config(kSite, ".", warnings, load_options);
+
+  dds::Participant participant(122);
+  LastTracks last;
+  FusionServiceOptions options;
+  options.array_partitions = true;
+  DdsFusionService service(site, participant, {&last}, options);
+  dds::Topic<dronetrack_Doa> doa_topic(participant);
+  const auto writer_in = [&](const std::string& array_id) {
+    dds::Qos qos;
+    dds::doa_writer_qos(qos);
+    if (!array_id.empty()) qos.partitions({dds::array_partition(array_id)});
+    return std::make_unique<dds::Writer<dronetrack_Doa>>(participant, doa_topic, qos);
+  };
+  const auto n1 = writer_in("N1");
+  const auto n2 = writer_in("N2");
+  const auto outside = writer_in("");
+  ASSERT_TRUE(n1->wait_for_readers(1, 5s));
+  ASSERT_TRUE(n2->wait_for_readers(1, 5s));
+  EXPECT_EQ(outside->matched_readers(), 0U);
+
+  const Eigen::Vector3d drone_m(10.0, 20.0, 30.0);
+  dronetrack_Doa sample{};
+  for (int frame = 0; frame < 10; ++frame) {
+    for (const char* id : {"N1", "N2"}) {
+      doa::DoaMeasurement measurement;
+      measurement.array_id = id;
+      measurement.time_s = 0.05 * frame;
+      const auto array = static_cast<std::size_t>(site.array_index(id));
+      measurement.direction = (drone_m - site.arrays[array].geometry.centre_site_m()).normalized();
+      measurement.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-4;
+      measurement.quality = 0.9;
+      dds::to_idl(measurement, 0, sample);
+      (std::string(id) == "N1" ? *n1 : *n2).write(sample);
+      if (std::string(id) == "N2") n1->write(sample);  // N1 speaking for N2
+      outside->write(sample);
+    }
+  }
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (service.counters().doa_received < 30 && std::chrono::steady_clock::now() < deadline) {
+    service.poll(50ms);
+  }
+  service.finish();
+  const IntakeCounters& counters = service.counters();
+  EXPECT_EQ(counters.doa_received, 30);  // 10 x (N1, N2, N1-as-N2); nothing from outside
+  EXPECT_EQ(counters.doa_problems[static_cast<int>(SampleProblem::foreign_partition)], 10);
+  EXPECT_EQ(counters.doa_accepted + counters.doa_rejected_by_engine, 20);
+}
+
 }  // namespace
 }  // namespace dronetrack::apps

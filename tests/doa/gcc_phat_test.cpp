@@ -8,8 +8,11 @@
 #include <cstdio>
 #include <initializer_list>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
+#include "doa/simd/dispatch.hpp"
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
@@ -186,7 +189,7 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
             << what << " pair " << p << " lag index " << m;
     }
   };
-  gcc.save_whitened();
+  const std::vector<std::uint8_t> whitened_mask(gcc.bin_keep().begin(), gcc.bin_keep().end());
   gcc.correlate();  // every bin: inverse FFT
   check_grid("all bins kept", 1e-6);
   for (int p = 0; p < gcc.pair_count(); ++p) {
@@ -201,18 +204,18 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   gcc.correlate(false);
   EXPECT_LT(gcc.kept_bin_count(), gcc.band_bin_count() / 5);
   check_grid("few bins kept", 1e-12);
-  // Back to the saved whitening: the same grid and peaks as the first time.
-  gcc.restore_whitened();
+  // Back to the whitening's cross-power: the same grid and peaks as the first time.
+  gcc.cross_power(gcc.units(), whitened_mask);
   gcc.correlate();
   EXPECT_EQ(gcc.kept_bin_count(), gcc.band_bin_count());
   check_grid("restored", 1e-6);
 }
 
-// The AVX-512 kernels (direct lag sums over the whole band, refinement, whitening) and the
-// two-lane code with the FFT give the same grid, peaks and coherence on one frame of two
-// sources, with every bin kept and with few kept.
-TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
-  if (!GccPhat::wide_simd_available()) GTEST_SKIP() << "no AVX-512 on this CPU: one code path";
+// Every SIMD target this CPU has (Highway's dispatch forced to each in turn: AVX-512, AVX2,
+// SSE4 on x86-64; NEON on arm64) gives the same grid, peaks and coherence on one frame of two
+// sources, with every bin kept (the FFT or, with wide vectors, direct sums) and with few kept
+// (direct sums everywhere); and the calls land on the target forced (counts).
+TEST(GccPhat, EverySimdTargetAgrees) {
   const int length = 2 * 8192;
   const testing::BandNoise first(length, kRate, 1500.0, 3500.0, 21);
   const testing::BandNoise second(length, kRate, 1500.0, 3500.0, 22);
@@ -229,40 +232,68 @@ TEST(GccPhat, WideAndTwoLaneKernelsAgree) {
   std::vector<MicPairSpec> pairs;
   for (int i = 0; i < 4; ++i)
     for (int j = i + 1; j < 4; ++j) pairs.push_back({i, j, max_lag_s});
-  GccPhat wide(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
-  GccPhat two_lane(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
-  two_lane.set_wide_simd(false);
-  ASSERT_TRUE(wide.wide_simd());
-  ASSERT_FALSE(two_lane.wide_simd());
-  ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&wide, &two_lane}));
-  auto compare = [&](const char* what, double grid_tolerance) {
-    for (int p = 0; p < wide.pair_count(); ++p) {
-      const std::span<const double> a = wide.grid(p);
-      const std::span<const double> b = two_lane.grid(p);
-      ASSERT_EQ(a.size(), b.size());
-      for (std::size_t m = 0; m < a.size(); ++m)
-        EXPECT_NEAR(a[m], b[m], grid_tolerance) << what << " pair " << p << " lag " << m;
-      EXPECT_NEAR(wide.pair(p).peak.lag_s, two_lane.pair(p).peak.lag_s, 1e-12) << what << p;
-      EXPECT_NEAR(wide.pair(p).peak.value, two_lane.pair(p).peak.value, 1e-12) << what << p;
-      EXPECT_NEAR(wide.pair(p).coherence, two_lane.pair(p).coherence, 1e-12) << what << p;
-      EXPECT_GT(wide.pair(p).peak.value, 0.1) << what << p;  // a real peak, not two zeros
+  struct Look {
+    std::vector<std::vector<double>> grids;
+    std::vector<PairCorrelation> pairs;
+  };
+  struct Outcome {
+    std::string target;
+    Look all_kept;
+    Look few_kept;
+  };
+  const auto look = [](const GccPhat& gcc) {
+    Look out;
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      out.grids.emplace_back(gcc.grid(p).begin(), gcc.grid(p).end());
+      out.pairs.push_back(gcc.pair(p));
+    }
+    return out;
+  };
+  std::vector<Outcome> outcomes;
+  for (const char* target : {"AVX3", "AVX2", "SSE4", "NEON", "SCALAR"}) {
+    try {
+      set_simd_target(target);
+    } catch (const std::invalid_argument&) {
+      continue;  // not on this CPU
+    }
+    ASSERT_EQ(simd_target_name(), target);
+    const std::uint64_t calls_before = simd_dispatch_count(target);
+    GccPhat gcc(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
+    ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&gcc}));
+    const std::vector<std::uint8_t> whitened_mask(gcc.bin_keep().begin(), gcc.bin_keep().end());
+    gcc.correlate();
+    Outcome outcome{target, look(gcc), {}};
+    gcc.cross_power(gcc.units(), whitened_mask);
+    const std::span<std::uint8_t> keep = gcc.bin_keep();
+    for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 5 == 0 ? 1 : 0;
+    gcc.correlate(true, false);  // 20 % kept: direct sums on every target
+    outcome.few_kept = look(gcc);
+    outcomes.push_back(outcome);
+    EXPECT_GT(simd_dispatch_count(target), calls_before) << target;
+  }
+  set_simd_target("auto");
+  ASSERT_FALSE(outcomes.empty());
+  const Outcome& reference = outcomes.front();
+  auto compare = [&](const Outcome& other, const Look& a, const Look& b, const char* what,
+                     double grid_tolerance) {
+    for (std::size_t p = 0; p < a.pairs.size(); ++p) {
+      ASSERT_EQ(a.grids[p].size(), b.grids[p].size());
+      for (std::size_t m = 0; m < a.grids[p].size(); ++m)
+        EXPECT_NEAR(a.grids[p][m], b.grids[p][m], grid_tolerance)
+            << other.target << " " << what << " pair " << p << " lag " << m;
+      EXPECT_NEAR(a.pairs[p].peak.lag_s, b.pairs[p].peak.lag_s, 1e-12) << other.target << what;
+      EXPECT_NEAR(a.pairs[p].peak.value, b.pairs[p].peak.value, 1e-12) << other.target << what;
+      EXPECT_NEAR(a.pairs[p].coherence, b.pairs[p].coherence, 1e-12) << other.target << what;
+      EXPECT_GT(b.pairs[p].peak.value, 0.1) << other.target << what;  // a real peak
     }
   };
-  wide.save_whitened();
-  two_lane.save_whitened();
-  wide.correlate();
-  two_lane.correlate();  // the whole band: the single-precision FFT on this side
-  compare("all bins kept", 1e-6);
-  for (GccPhat* gcc : {&wide, &two_lane}) {
-    gcc->restore_whitened();
-    const std::span<std::uint8_t> keep = gcc->bin_keep();
-    for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 5 == 0 ? 1 : 0;
-    gcc->correlate(true, false);  // 20 % kept: direct sums on both sides
+  for (const Outcome& other : outcomes) {
+    compare(other, reference.all_kept, other.all_kept, "all bins kept", 1e-6);
+    compare(other, reference.few_kept, other.few_kept, "every 5th bin kept", 1e-12);
   }
-  compare("every 5th bin kept", 1e-12);
 }
 
-// The grid-less re-measure (prepare_phasors + refine_from) finds the peak correlate() + refine()
+// The grid-less re-measure (refine_from) finds the peak correlate() + refine()
 // find, from a start a fraction of a grid step off, and gives up beyond its reach.
 TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   const int length = 2 * 8192;
@@ -277,7 +308,7 @@ TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   gcc.correlate();
   const GccPeak with_grid = gcc.pair(0).peak;
   EXPECT_NEAR(with_grid.lag_s, 4.37 / kRate, 0.2 / kRate);  // sensor noise at 14 dB
-  gcc.prepare_phasors();
+  gcc.cross_power(gcc.units(), std::vector<std::uint8_t>(gcc.bin_keep().size(), 1), true);
   for (const double offset_steps : {-0.4, 0.0, 0.3}) {
     GccPeak from_lag;
     ASSERT_TRUE(gcc.refine_from(0, with_grid.lag_s + offset_steps * gcc.lag_step_s(), from_lag));

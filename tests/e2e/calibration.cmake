@@ -17,7 +17,8 @@ run("sim flight" ${BIN} --log-level warn sim ${SCENARIOS}/calibration-flight.jso
 run("sim field" ${BIN} --log-level warn sim ${SCENARIOS}/seed002-field-errors.json --out ${DIR}/field)
 run("sim ideal" ${BIN} --log-level warn sim ${SCENARIOS}/seed002-ideal-44k.json --out ${DIR}/ideal)
 run("calibrate" ${BIN} --log-level warn calibrate ${DIR}/flight/site.json
-    --reference ${DIR}/flight/reference.jsonl --out ${DIR}/field/calibrated.json)
+    --reference ${DIR}/flight/reference.jsonl --out ${DIR}/field/calibrated.json
+    --clock-offset-std-s 0.005 --array-position-std-m 0.01)
 message("${last_output}")
 # The calibrated site names the flight's recordings; the field scene is the same arrays.
 file(READ ${DIR}/field/calibrated.json calibrated)

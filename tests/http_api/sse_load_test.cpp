@@ -41,6 +41,7 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
   options.max_stream_clients = 64;
   // Every client here comes from 127.0.0.1: lift the per-address limit above them all.
   options.limits.max_connections_per_client = kClients + 1;
+  options.limits.max_streams_per_client = kClients + 1;  // every client here is 127.0.0.1
   HttpServer server(state, options);
   server.start();
 

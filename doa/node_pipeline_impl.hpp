@@ -1,0 +1,163 @@
+#pragma once
+// NodePipeline's inside, shared by its parts (node_setup.cpp: validation and construction;
+// node_sources.cpp: the frame's sources, found, freed of echoes and measured again;
+// node_pipeline.cpp: the frame's stages in order). Not part of its interface.
+#include "doa/node_pipeline.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "doa/acoustic_features.hpp"
+#include "doa/bin_snr_weight.hpp"
+#include "doa/channel_health.hpp"
+#include "doa/cone_peaks.hpp"
+#include "doa/detection_gate.hpp"
+#include "doa/gcc_phat.hpp"
+#include "doa/ground_echo.hpp"
+#include "doa/ls_doa_solver.hpp"
+#include "doa/source_bin_mask.hpp"
+#include "doa/source_tracks.hpp"
+#include "doa/spectral_frame.hpp"
+#include "doa/srp_phat.hpp"
+#include "doa/static_source_null.hpp"
+#include "doa/tdoa_tracker.hpp"
+
+namespace dronetrack::doa {
+
+namespace node_detail {
+
+inline constexpr int kMaxSources = 8;
+// With SNR weighting the static null observes a plain-PHAT look every this many frames (0.1 s
+// at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left the
+// generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
+inline constexpr std::int64_t kStaticNullLookFrames = 2;
+
+std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
+                          double sample_rate_hz, double speed_of_sound_mps);
+void validate(const ArrayGeometry& geometry, const DoaParams& params, double sample_rate_hz,
+              double speed_of_sound_mps);
+// A node per band: several bands listed, and the config asks for each on its own.
+bool splits_bands(const DoaParams& params);
+// The oversample giving >= 8 lag-grid samples per period of a narrow band's centre.
+int fringe_oversample(const FrequencyBand& band);
+
+}  // namespace node_detail
+
+using node_detail::kMaxSources;
+using node_detail::kStaticNullLookFrames;
+
+struct NodePipeline::Impl {
+  Impl(ArrayGeometry geometry_in, int array_index_in, const DoaParams& params_in,
+       double sample_rate_hz_in, double speed_of_sound_mps);
+
+  struct Candidate {
+    DoaSolution solution;
+    std::array<PairTdoa, kMaxPairs> tdoas{};
+    double coherence = 0.0;
+    double time_offset_s = 0.0;  // the tracker's output delay (primary only)
+    int slot = -1;               // its acoustic history (source track slot, or its index)
+  };
+
+  void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
+  // analyse()'s stages (node_pipeline.cpp).
+  double begin_frame(const FrameView& frame);  // the frame's time, s
+  void whiten(const FrameView& frame, double time_s);
+  DetectionInput correlate(const FrameView& frame, double time_s);
+  void track(double time_s, bool sharp);
+  bool gate_frame(DetectionInput& detection, double time_s);
+  bool sources_to_publish(double time_s, bool detecting);
+  void find_candidates();
+  void find_further_sources();
+  void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
+  void null_observe();
+  void null_own_look();
+  bool below_horizon(const DoaSolution& solution);
+  bool already_found(const Eigen::Vector3d& direction_site) const;
+  // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
+  // a grid step): Newton from the known lags, no lag grids.
+  void remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
+  void remove_ground_echoes();
+  // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
+  void only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);
+  // The mask as it stands (static null, sources below the horizon): what every later look of
+  // this frame starts from.
+  void keep_frame_mask();
+  void remove_ground_echo(int source, GroundEcho& echo);
+  void smooth_candidates(double time_s);
+  // This frame's sources' spectra into their slots' acoustic histories (every few frames).
+  // acoustic_directions/slots/generations hold `count` sources.
+  void measure_acoustics(int count);
+  bool was_detecting(double time_s) const;
+  // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
+  double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
+  double mean_coherence(std::span<const PairTdoa> used) const;
+  double inband_power() const;
+  bool publish(const Candidate& candidate, double time_s, int source_index,
+               std::vector<DoaMeasurement>& out);
+  // The pose at the DOA's time, its site-frame vectors turned to it; false: no pose then.
+  bool stamp_pose(DoaMeasurement& measurement);
+  // A moving array's solution from its TDOAs freed of the platform's Doppler scale.
+  DoaSolution doppler_corrected(const Candidate& candidate, double time_s) const;
+
+  ArrayGeometry geometry;
+  int array_index;
+  DoaParams params;
+  double sample_rate_hz;
+  int frame_length;
+  int hop;
+  LsDoaSolver solver;
+  Framer framer;
+  MultichannelFft fft;
+  GccPhat gcc;
+  DetectionGate gate;
+  std::vector<BandRun> band;
+  ChannelHealth health;
+  std::unique_ptr<TdoaEstimator> tracker;
+  std::unique_ptr<SrpPhat> srp;
+  double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
+  SourceBinMask bin_mask{gcc};
+  double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
+  double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
+  std::unique_ptr<StaticSourceNull> static_null;       // static ground sources' bins dropped
+  std::unique_ptr<BinSnrWeight> snr_weight;            // noise-only bins faded
+  std::unique_ptr<AcousticFeatureExtractor> acoustic;  // each source's spectral features
+  bool acoustic_due = false;                           // this frame is measured
+  std::array<Eigen::Vector3d, kMaxSources> acoustic_directions{};
+  std::array<int, kMaxSources> acoustic_slots{};
+  std::array<std::uint32_t, kMaxSources> acoustic_generations{};
+  // Each source's ground reflection (its range and strength are its own), following the sources
+  // by direction; empty for arrays that cannot tell the echo from the source.
+  std::vector<GroundEcho> ground_echoes;
+  std::unique_ptr<SourceTracks> source_tracks;
+  std::unique_ptr<ConePeakHistory> cone_peaks;  // rank 1 only
+  std::array<SourceObservation, kMaxSources> observations{};
+  std::array<SourceEstimate, kMaxSources> estimates{};
+  struct FrameDetection {
+    double time_s = -1e300;
+    bool detecting = false;
+  };
+  std::array<FrameDetection, 64> recent_detections{};  // ring: was the gate open at that frame
+  std::size_t next_detection = 0;
+  std::vector<PairTdoa> tdoas;
+  std::vector<std::uint8_t> frame_mask = std::vector<std::uint8_t>(
+      static_cast<std::size_t>(gcc.band_bin_count()), 1);  // keep_frame_mask()
+  std::array<Candidate, kMaxSources> candidates{};
+  int candidate_count = 0;
+  // This frame's static-null observation (SNR weighting on): wanted, made, and on what time and
+  // frame condition.
+  bool null_wanted = false;
+  bool null_observed = false;
+  double null_time_s = 0.0;
+  bool null_frame_clean = false;
+  NodeDiagnostics diagnostics;
+  PoseStamp fixed_pose = fixed_stamp(geometry);
+  PoseTrack pose_track;            // empty: a fixed array
+  double sound_speed_mps = 343.0;  // for the Doppler correction
+};
+
+}  // namespace dronetrack::doa

@@ -1,0 +1,195 @@
+#pragma once
+// The DSP's vector kernels, written once against Google Highway (doa/simd/kernels.cpp) and
+// dispatched at run time to the CPU's best target (doa/simd/dispatch.hpp). Plain functions on plain
+// rows: callers never see a vector type. Each kernel does its whole row, tails included.
+#include <complex>
+#include <cstddef>
+#include <cstdint>
+
+#include "doa/band_run.hpp"
+
+namespace dronetrack::doa::simd {
+
+// A row of complex values as two rows, reals and imaginaries: every lane one bin.
+struct SplitRows {
+  const double* re;
+  const double* im;
+};
+struct SplitOut {
+  double* re;
+  double* im;
+};
+
+// ---- GCC-PHAT ----
+
+// |X| and X / |X| of `count` band bins of one mic's spectrum (X at spectrum[fft_bins[n]]); a
+// silent bin (X = 0) gets the unit 0.
+struct UnitRows {
+  const std::complex<double>* spectrum;
+  const int* fft_bins;
+  std::size_t count;
+  double* level;
+  SplitOut unit;
+};
+void unit_phasors(const UnitRows& rows);
+
+// One pair's phasors W = u_i u_j* (times live x w) and |G| = |X_i| |X_j| (times live); live is
+// 0 below `silent_level` (no phase) and for bins with keep 0 (keep null: all kept); weights null:
+// unweighted. Returns the sum of the magnitudes (times w).
+struct PairRows {
+  SplitRows a;
+  SplitRows b;
+  const double* level_i;
+  const double* level_j;
+  const std::uint8_t* keep;
+  const double* weights;
+  std::size_t count;
+  double silent_level;
+  double* out;  // (re, im) interleaved
+  double* magnitude;
+};
+double pair_products(const PairRows& rows);
+
+// The kept bins' sums of one mask (weights, their squares, w^2 and w^4 terms), and each bin's
+// scale (keep times 1, the weight or its inverse) and keep as doubles.
+enum class Rescale { none, weight, inverse };
+struct KeptRows {
+  const std::uint8_t* keep;
+  const double* weights;
+  const double* omega2;
+  std::size_t count;
+  bool weighted;
+  Rescale rescale;
+  double* scales;
+  double* keeps;
+};
+struct KeptSums {
+  double kept = 0.0;  // how many bins are kept (sums of 0 and 1: exact)
+  double w = 0.0;
+  double w2 = 0.0;
+  double omega2 = 0.0;
+  double w2_omega2 = 0.0;
+  double omega4 = 0.0;
+};
+KeptSums kept_sums(const KeptRows& rows);
+
+// One pair's band: phasors times `scales` and magnitudes times `keeps` (when `scale`); returns
+// the sum of the magnitudes (times `weights` when given).
+struct ScaleRows {
+  double* phasors;  // (re, im) interleaved
+  double* magnitudes;
+  const double* scales;
+  const double* keeps;
+  const double* weights;
+  bool scale;
+  std::size_t count;
+};
+double scale_and_sum(const ScaleRows& rows);
+
+// Every pair's lag grid summed directly over the kept bins:
+// R(+-m) = norm sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)), lags 0..half_span.
+struct GridJob {
+  const std::complex<double>* phasors;  // pair p's band at phasors + p * pair_stride
+  std::size_t pair_stride;
+  double* grids;  // pair p's 2 half + 1 values at grids + p * grid_stride
+  std::size_t grid_stride;
+  const int* half_spans;
+  int pairs;
+  const double* lag_table;  // per band bin: lag_stride cosines, then lag_stride sines
+  std::size_t lag_stride;   // a multiple of kLagStrideMultiple
+  const int* kept_indices;
+  int kept;
+  double normalisation;
+};
+inline constexpr int kLagStrideMultiple = 16;
+void direct_grids(const GridJob& job);
+
+// R(tau) = sum Re(W_k e^{j w_k tau}) and its first four derivatives at one lag
+// (r[n] = sum w_k^n Re(j^n W_k e^{j w_k tau})), and the |G|-weighted sum with its first two.
+struct TaylorRows {
+  const BandRun* runs;
+  std::size_t run_count;
+  double bin_omega;
+  const std::complex<double>* phasors;
+  const double* magnitudes;
+  double lag_s;
+};
+struct TaylorSums {
+  double r[5] = {};
+  double weighted = 0.0;
+  double slope = 0.0;
+  double bend = 0.0;
+};
+TaylorSums taylor_sums(const TaylorRows& rows);
+
+// ---- ground echo ----
+
+// sum_bins weight |sum_mics aligned conj(c) / |c||^2 with c = 1 + gain echo; row of mic m at
+// m * mic_stride; `bins` a multiple of 8 (zero units and weights after the last).
+struct CoherenceRows {
+  SplitRows aligned;
+  SplitRows echo;
+  const double* weight;
+  std::size_t mics;
+  std::size_t mic_stride;
+  int bins;
+};
+double echo_coherence(const CoherenceRows& rows, double gain);
+
+// One mic's units times conj(c) / |c| over the band, c = 1 + level e^{j k phase_step} at FFT
+// bin k.
+struct CombRows {
+  const BandRun* runs;
+  std::size_t run_count;
+  SplitRows unit;
+  SplitOut out;
+  double level;
+  double phase_step;
+};
+void comb_divide(const CombRows& rows);
+
+// Per bin (`bins` a multiple of 8) out = level e^{j omega time}, times (in_re + j in_im) when
+// given.
+struct PhasorRows {
+  const double* omega;
+  int bins;
+  double time_s;
+  double level;
+  SplitRows in;  // null rows: level e^{j omega time} alone
+  SplitOut out;
+};
+void phasor_rows(const PhasorRows& rows);
+
+// ---- source bin mask ----
+
+// Clears keep[k] of the band bins a source owns: sum_pairs Re(W_pk e^{j w_k tau_p}) at or above
+// threshold x scale_k (scales null: 1). Returns how many kept bins it cleared.
+struct OwnedBinScan {
+  const BandRun* runs;
+  std::size_t run_count;
+  double bin_omega;
+  const std::complex<double>* const* phasors;  // `pairs` rows over the band
+  const double* taus;
+  int pairs;
+  const double* scales;
+  double threshold;
+  std::uint8_t* keep;
+};
+int drop_owned_bins(const OwnedBinScan& scan);
+
+// ---- framer ----
+
+// Four interleaved channels' `count` frames into each channel's run (channel c at
+// target + c * stride), whole vectors only: returns how many frames it did; adds each channel's
+// sum of squares to sums[c] and raises peaks[c] to its largest magnitude.
+struct FourChannelRows {
+  const float* source;
+  int count;
+  double* target;
+  std::ptrdiff_t stride;
+  double* sums;
+  double* peaks;
+};
+int deinterleave_four(const FourChannelRows& rows);
+
+}  // namespace dronetrack::doa::simd

@@ -1,0 +1,146 @@
+// Lane arithmetic the kernels share, compiled once per Highway target (included from each
+// kernel file after hwy/foreach_target.h, hence the toggling guard instead of #pragma once).
+#if defined(DRONETRACK_DOA_SIMD_LANE_MATH_INL_) == defined(HWY_TARGET_TOGGLE)
+#ifdef DRONETRACK_DOA_SIMD_LANE_MATH_INL_
+#undef DRONETRACK_DOA_SIMD_LANE_MATH_INL_
+#else
+#define DRONETRACK_DOA_SIMD_LANE_MATH_INL_
+#endif
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <numbers>
+
+#include "hwy/highway.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace dronetrack::doa::simd::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// Most doubles in one vector of this target: stack rows for partial vectors.
+constexpr std::size_t kMaxLanes = HWY_MAX_BYTES / sizeof(double);
+
+// 1 / sqrt(x) lane by lane. Square roots and divisions dominate per-bin normalisations: this
+// starts from the exponent-halving bit estimate (within 3.5 %) and takes four Newton steps
+// (3.5 % -> 2e-3 -> 5e-6 -> 3e-11 -> rounding). x = 0 keeps the huge estimate: x * result
+// stays 0.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V InverseSqrt(D d, V x) {
+  const hn::RebindToUnsigned<D> du;
+  constexpr std::uint64_t kMagic = 0x5FE6EB50C7B537A9ULL;
+  V out = hn::BitCast(d, hn::Sub(hn::Set(du, kMagic), hn::ShiftRight<1>(hn::BitCast(du, x))));
+  const V half_x = hn::Mul(hn::Set(d, 0.5), x);
+  const V three_halves = hn::Set(d, 1.5);
+  for (int step = 0; step < 4; ++step)
+    out = hn::Mul(out, hn::NegMulAdd(hn::Mul(half_x, out), out, three_halves));
+  return out;
+}
+
+// e^{j phase} lane by lane: phase reduced to whole turns, the half angle (within +-pi/2) by
+// Taylor polynomials (through x^17 and x^16: error < 1e-13), then the double angle. No libm
+// call per lane; the DSP's phases are thousands of radians at most.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void UnitPhasor(D d, V phase_rad, V& re, V& im) {
+  const V turns = hn::Mul(phase_rad, hn::Set(d, 0.5 / std::numbers::pi));
+  const V half = hn::Mul(hn::Sub(turns, hn::Round(turns)), hn::Set(d, std::numbers::pi));
+  const V x2 = hn::Mul(half, half);
+  // 1/n! for the odd (sine) and even (cosine) terms, highest first.
+  constexpr double kSine[] = {1.0 / 355687428096000.0,
+                              -1.0 / 1307674368000.0,
+                              1.0 / 6227020800.0,
+                              -1.0 / 39916800.0,
+                              1.0 / 362880.0,
+                              -1.0 / 5040.0,
+                              1.0 / 120.0,
+                              -1.0 / 6.0,
+                              1.0};
+  constexpr double kCosine[] = {1.0 / 20922789888000.0,
+                                -1.0 / 87178291200.0,
+                                1.0 / 479001600.0,
+                                -1.0 / 3628800.0,
+                                1.0 / 40320.0,
+                                -1.0 / 720.0,
+                                1.0 / 24.0,
+                                -1.0 / 2.0,
+                                1.0};
+  V sine = hn::Set(d, kSine[0]);
+  V cosine = hn::Set(d, kCosine[0]);
+  for (int term = 1; term < 9; ++term) {
+    sine = hn::MulAdd(sine, x2, hn::Set(d, kSine[term]));
+    cosine = hn::MulAdd(cosine, x2, hn::Set(d, kCosine[term]));
+  }
+  sine = hn::Mul(sine, half);
+  re = hn::Sub(hn::Mul(cosine, cosine), hn::Mul(sine, sine));
+  im = hn::Mul(hn::Set(d, 2.0), hn::Mul(sine, cosine));
+}
+
+// `count` (at most a vector) doubles from `source`, zeros after them.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V LoadSome(D d, const double* source, std::size_t count) {
+  if (count == hn::Lanes(d)) return hn::LoadU(d, source);
+  HWY_ALIGN double row[kMaxLanes] = {};
+  std::memcpy(row, source, count * sizeof(double));
+  return hn::Load(d, row);
+}
+
+// The first `count` lanes of v to `target`.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void StoreSome(D d, V v, double* target, std::size_t count) {
+  if (count == hn::Lanes(d)) {
+    hn::StoreU(v, d, target);
+    return;
+  }
+  HWY_ALIGN double row[kMaxLanes];
+  hn::Store(v, d, row);
+  std::memcpy(target, row, count * sizeof(double));
+}
+
+// `count` interleaved (re, im) pairs from `source` split into reals and imaginaries, zeros
+// after them.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void LoadSomePairs(D d, const double* source, std::size_t count, V& re, V& im) {
+  if (count == hn::Lanes(d)) {
+    hn::LoadInterleaved2(d, source, re, im);
+    return;
+  }
+  HWY_ALIGN double row[2 * kMaxLanes] = {};
+  std::memcpy(row, source, 2 * count * sizeof(double));
+  hn::LoadInterleaved2(d, row, re, im);
+}
+
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void StoreSomePairs(D d, V re, V im, double* target, std::size_t count) {
+  if (count == hn::Lanes(d)) {
+    hn::StoreInterleaved2(re, im, d, target);
+    return;
+  }
+  HWY_ALIGN double row[2 * kMaxLanes];
+  hn::StoreInterleaved2(re, im, d, row);
+  std::memcpy(target, row, 2 * count * sizeof(double));
+}
+
+// `count` keep bytes (0 or 1) as doubles, zeros after them.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V LoadKeep(D d, const std::uint8_t* keep, std::size_t count) {
+  if (count == hn::Lanes(d)) {
+    // Widened in registers: a row of doubles written lane by lane and loaded as a vector would
+    // stall on store forwarding.
+    const hn::Rebind<std::uint8_t, D> bytes;
+    const hn::Rebind<std::int32_t, D> words;
+    return hn::PromoteTo(d, hn::PromoteTo(words, hn::LoadU(bytes, keep)));
+  }
+  HWY_ALIGN double row[kMaxLanes] = {};
+  for (std::size_t l = 0; l < count; ++l) row[l] = keep[l];
+  return hn::Load(d, row);
+}
+
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE double SumLanes(D d, V v) {
+  return hn::GetLane(hn::SumOfLanes(d, v));
+}
+
+}  // namespace dronetrack::doa::simd::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#endif  // DRONETRACK_DOA_SIMD_LANE_MATH_INL_
