@@ -93,8 +93,9 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
     doa.array_index = site.array_index(record.array);
     if (doa.array_index < 0) {
       throw std::runtime_error(file.string() + ": DOA " + std::to_string(i + 1) + " (t " +
-                               std::to_string(record.time_s) + " s): array '" + record.array +
-                               "' is not in the site (" + site_array_ids(site) + ")");
+                               std::to_string(record.time_s) + " s): array '" +
+                               config::printable(record.array) + "' is not in the site (" +
+                               site_array_ids(site) + ")");
     }
     doa.time_s = record.time_s;
     doa.direction = record.direction.normalized();

@@ -6,10 +6,20 @@ target_compile_options(dronetrack_options INTERFACE
                             -Woverloaded-virtual -Wnull-dereference -Wimplicit-fallthrough>)
 # Eigen's vectorised code is worth it on the per-measurement path; stay portable across x86-64
 # machines (no -march=native: the binary may move between nodes).
+if(DRONETRACK_FUZZ AND NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+  message(FATAL_ERROR "DRONETRACK_FUZZ needs clang (libFuzzer): configure with "
+                      "CC=clang CXX=clang++, as scripts/fuzz.sh does")
+endif()
+# Fuzzing: the same sanitizers, plus libFuzzer's coverage hooks on every object of ours
+# (fuzzer-no-link: the harness executables alone link libFuzzer's main, fuzz/CMakeLists.txt).
+set(_dronetrack_fuzz_flags "")
+if(DRONETRACK_FUZZ)
+  set(_dronetrack_fuzz_flags -fsanitize=fuzzer-no-link)
+endif()
 # The sanitizer build is RelWithDebInfo for its stack traces: line tables (-g1) give the same
 # ASan/UBSan traces (file:line, inlined frames included) as full -g, and compile and link faster.
-if(DRONETRACK_SANITIZE)
-  target_compile_options(dronetrack_options INTERFACE
+if(DRONETRACK_SANITIZE OR DRONETRACK_FUZZ)
+  target_compile_options(dronetrack_options INTERFACE ${_dronetrack_fuzz_flags}
     -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
     $<$<CONFIG:RelWithDebInfo>:-g1>)
   target_link_options(dronetrack_options INTERFACE -fsanitize=address,undefined)
@@ -17,9 +27,9 @@ endif()
 
 # Generated sources (idlc C files) get the sanitizer but not our warning set.
 add_library(dronetrack_sanitize_only INTERFACE)
-if(DRONETRACK_SANITIZE)
-  target_compile_options(dronetrack_sanitize_only INTERFACE -fsanitize=address,undefined
-    -fno-omit-frame-pointer $<$<CONFIG:RelWithDebInfo>:-g1>)
+if(DRONETRACK_SANITIZE OR DRONETRACK_FUZZ)
+  target_compile_options(dronetrack_sanitize_only INTERFACE ${_dronetrack_fuzz_flags}
+    -fsanitize=address,undefined -fno-omit-frame-pointer $<$<CONFIG:RelWithDebInfo>:-g1>)
   target_link_options(dronetrack_sanitize_only INTERFACE -fsanitize=address,undefined)
 endif()
 

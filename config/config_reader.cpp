@@ -16,14 +16,31 @@ std::string format_number(double value) {
   return text.str();
 }
 
+std::string printable(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) {
+      constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[byte >> 4];
+      out += kHex[byte & 0xf];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 void Diagnostics::error(const std::string& path, const std::string& what) {
-  errors.push_back(path.empty() ? what : path + ": " + what);
+  errors.push_back(printable(path.empty() ? what : path + ": " + what));
 }
 void Diagnostics::warn(const std::string& path, const std::string& what) {
   // A document with a million unknown keys must not print a million lines.
   ++warning_count;
   if (warnings.size() < kMaxReportedWarnings) {
-    warnings.push_back(path.empty() ? what : path + ": " + what);
+    warnings.push_back(printable(path.empty() ? what : path + ": " + what));
   } else if (warnings.size() == kMaxReportedWarnings) {
     warnings.push_back("(further warnings not shown)");
   } else {

@@ -105,6 +105,10 @@ class LineReader {
 std::optional<Eigen::Vector3d> read_vector3(const nlohmann::json& node, const std::string& path,
                                             Diagnostics& diagnostics);
 std::string describe_json_type(const nlohmann::json& node);
+// `text` with its control characters shown as \xNN: a message quoting a key or a string of
+// the input stays one line (a JSON "\n" in a key would otherwise split or forge a line; found
+// by fuzz/site_config). Diagnostics applies it to every problem.
+std::string printable(const std::string& text);
 // A number as an error message shows it (shortest form: 1.5, 0.3, 1e-05).
 std::string format_number(double value);
 

@@ -16,6 +16,12 @@ constexpr double kUnitTolerance = 1e-3;
 // An array or pose beyond this from the site origin is a unit or sign mistake (as the site config).
 constexpr double kMaxPositionAbs_m = 1e5;
 
+// Latest sample time taken (about the year 2096 in Unix time): beyond ~9.2e18 ns the seconds a
+// sample converts to no longer convert back into an int64 (llround overflows), so what a node
+// forwards would turn negative. Found by fuzz/dds_conversions' round-trip property.
+constexpr std::int64_t kMaxTime_ns = 4'000'000'000'000'000'000;
+bool absurd(std::int64_t time_ns) { return time_ns < 0 || time_ns > kMaxTime_ns; }
+
 bool finite(double value) { return std::isfinite(value); }
 template <std::size_t N>
 bool all_finite(const double (&values)[N]) {
@@ -180,7 +186,7 @@ SampleProblem from_idl(const dronetrack_Doa& sample, const std::vector<std::stri
       !finite(sample.quality) || !finite(sample.snr_db)) {
     return SampleProblem::non_finite;
   }
-  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  if (absurd(sample.time_ns)) return SampleProblem::absurd_time;
   if (sample.tdoa_s._length > static_cast<std::uint32_t>(doa::kMaxPairs) ||
       (sample.tdoa_s._length > 0 && sample.tdoa_s._buffer == nullptr)) {
     return SampleProblem::oversized_sequence;
@@ -271,7 +277,7 @@ SampleProblem from_idl(const dronetrack_ArrayPose& sample, std::string_view arra
       !finite(sample.roll_deg)) {
     return SampleProblem::non_finite;
   }
-  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  if (absurd(sample.time_ns)) return SampleProblem::absurd_time;
   const Eigen::Vector3d position = vector3(sample.position_m);
   if (position.cwiseAbs().maxCoeff() > kMaxPositionAbs_m || std::abs(sample.yaw_deg) > 360.0 ||
       std::abs(sample.pitch_deg) > 90.0 || std::abs(sample.roll_deg) > 360.0) {
@@ -323,7 +329,7 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
       !finite(sample.noise_floor_dbfs) || !finite(sample.snr_db)) {
     return SampleProblem::non_finite;
   }
-  if (sample.time_ns < 0) return SampleProblem::absurd_time;
+  if (absurd(sample.time_ns)) return SampleProblem::absurd_time;
   if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
       sample.non_finite_samples < 0 || sample.channel_count > doa::kMaxStatusChannels) {
     return SampleProblem::bad_value;

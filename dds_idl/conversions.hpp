@@ -29,7 +29,8 @@ enum class SampleProblem : std::uint8_t {
   empty_key,           // array id "" (a null key string arrives as "")
   unknown_array,       // not in the site config
   non_finite,          // NaN/Inf anywhere
-  absurd_time,         // negative, or implausibly far from the other samples (see the caller)
+  absurd_time,         // negative, past 4e18 ns (~2096), or implausibly far from the other
+                       // samples (see the caller)
   oversized_sequence,  // more TDOAs than kMaxPairs, or a length beyond the buffer
   bad_value,           // not a unit vector, negative variance, enum out of range, ...
   foreign_partition,   // secure site: written outside the partition of the array it names

@@ -45,6 +45,9 @@ class GuardedServer : public httplib::Server {
   // streams): their workers see the socket end within one poll slice and return. The thread
   // running listen_after_bind() then returns once those workers are joined.
   void stop_and_disconnect();
+  // Serves one already-connected socket on the calling thread, as if accepted, and closes it
+  // (the fuzz harness feeds raw requests through a socketpair: fuzz/http_request_fuzz.cpp).
+  bool serve_connected(socket_t sock) { return process_and_close_socket(sock); }
 
  private:
   // Called by httplib on a worker thread for each accepted socket; owns and closes it.

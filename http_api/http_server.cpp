@@ -262,6 +262,11 @@ void HttpServer::stop() {
   server_.reset();
 }
 
+bool HttpServer::serve_connected(int sock) {
+  if (!server_) throw std::runtime_error("HTTP server not started");
+  return server_->serve_connected(sock);
+}
+
 void HttpServer::install_routes() {
   httplib::Server& svr = *server_;
 

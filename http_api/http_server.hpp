@@ -49,6 +49,9 @@ class HttpServer {
   void start();
   // Returns within about 0.1 s whatever the clients do: every open connection is shut down.
   void stop();
+  // After start(): serves one connected socket on the calling thread through the same routes
+  // and limits, then closes it (fuzz/http_request_fuzz.cpp feeds raw requests this way).
+  bool serve_connected(int sock);
   int port() const { return port_; }
   std::string url() const;  // http://HOST:PORT/ or https://HOST:PORT/
 

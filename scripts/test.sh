@@ -23,3 +23,7 @@ cmake --build --preset asan -j"$jobs"
 # every memory error. Browser and benchmark-style tests run once, in the release build.
 ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --preset asan -j"$jobs" -LE "browser|slow"
+
+# libFuzzer harnesses (fuzz/README.md): a clang build plus 20 s per harness, about 3 min on CI.
+echo "== fuzz: ${DRONETRACK_FUZZ_SECONDS:-20} s per harness" >&2
+bash scripts/fuzz.sh "${DRONETRACK_FUZZ_SECONDS:-20}"

@@ -63,6 +63,10 @@ TEST(DdsConversions, EachKindOfDamagedDoaIsNamed) {
        SampleProblem::non_finite},
       {"negative time", [](dronetrack_Doa& s, auto&) { s.time_ns = -5; },
        SampleProblem::absurd_time},
+      // Seconds this far out no longer convert back to int64 nanoseconds (fuzz/dds_conversions).
+      {"time beyond the round trip",
+       [](dronetrack_Doa& s, auto&) { s.time_ns = std::numeric_limits<std::int64_t>::max(); },
+       SampleProblem::absurd_time},
       {"too many TDOAs",
        [](dronetrack_Doa& s, std::array<double, 64>& storage) {
          s.tdoa_s = {64, 64, storage.data(), false};
