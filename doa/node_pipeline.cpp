@@ -17,6 +17,7 @@
 #include <string>
 
 #include "doa/acoustic_features.hpp"
+#include "doa/array_health.hpp"
 #include "doa/bin_snr_weight.hpp"
 #include "doa/channel_health.hpp"
 #include "doa/cone_peaks.hpp"
@@ -159,6 +160,13 @@ ChannelHealthSettings health_settings(const DoaParams& params) {
   return settings;
 }
 
+// A pair hears the array-health checks' source at the peak the node needs to publish.
+ArrayHealthSettings array_health_settings(const DoaParams& params) {
+  ArrayHealthSettings settings;
+  settings.coherent_peak = std::clamp(params.min_gcc_peak, 0.05, 0.95);
+  return settings;
+}
+
 }  // namespace
 
 std::string NodePipeline::setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
@@ -184,7 +192,9 @@ struct NodePipeline::Impl {
                                params.noise_floor_rise_db_per_s, 0.5, -130.0},
              params.hop_s),
         band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())),
-        health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)) {
+        health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)),
+        array_health(geometry, speed_of_sound_mps, static_cast<double>(hop) / sample_rate_hz,
+                     array_health_settings(params)) {
     if (!geometry.channel_delay_s.empty() || !geometry.channel_gain_db.empty()) {
       std::vector<double> delay_samples;
       for (double delay_s : geometry.channel_delay_s)
@@ -270,7 +280,8 @@ struct NodePipeline::Impl {
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
   double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
   double mean_coherence(std::span<const PairTdoa> used) const;
-  double inband_power() const;
+  // Mean over channels; each channel's into channel_power.
+  double inband_power();
   bool publish(const Candidate& candidate, double time_s, int source_index,
                std::vector<DoaMeasurement>& out);
   // The pose at the DOA's time, its site-frame vectors turned to it; false: no pose then.
@@ -291,6 +302,9 @@ struct NodePipeline::Impl {
   DetectionGate gate;
   std::vector<BandRun> band;
   ChannelHealth health;
+  ArrayHealth array_health;
+  std::array<double, kMaxMics> channel_power{};    // this frame's, in band, after gains
+  std::array<PairPeak, kMaxPairs> health_pairs{};  // this frame's first look's peaks
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
@@ -356,15 +370,19 @@ void NodePipeline::Impl::null_own_look() {
   null_observe();
 }
 
-double NodePipeline::Impl::inband_power() const {
+double NodePipeline::Impl::inband_power() {
+  // Parseval: one-sided bins count twice; per windowed sample.
+  const double scale = 2.0 / (static_cast<double>(fft.fft_size()) * fft.window_energy());
   double total = 0.0;
   for (int c = 0; c < fft.channels(); ++c) {
     const std::complex<double>* spectrum = fft.spectrum(c);
+    double power = 0.0;
     for (const BandRun& run : band)
-      for (int k = run.first_bin; k <= run.last_bin; ++k) total += std::norm(spectrum[k]);
+      for (int k = run.first_bin; k <= run.last_bin; ++k) power += std::norm(spectrum[k]);
+    channel_power[static_cast<std::size_t>(c)] = scale * power;
+    total += power;
   }
-  // Parseval: one-sided bins count twice; per windowed sample, mean over channels.
-  return 2.0 * total / (static_cast<double>(fft.fft_size()) * fft.window_energy() * fft.channels());
+  return scale * total / fft.channels();
 }
 
 bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int source_index,
@@ -698,6 +716,10 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   null_frame_clean = frame_clean;
   if (null_wanted) gcc.save_whitened();  // for null_own_look()
   gcc.correlate();
+  // The health checks read the full band's first look (later looks drop bins).
+  for (int p = 0; p < gcc.pair_count(); ++p)
+    health_pairs[static_cast<std::size_t>(p)] = {gcc.pair(p).peak.lag_s,
+                                                 signed_extreme(gcc.grid(p))};
   if (cone_peaks) cone_peaks->record(time_s, gcc);
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
@@ -732,6 +754,11 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   diagnostics.noise_floor_dbfs = gate.noise_floor_dbfs();
   diagnostics.snr_db = gate.snr_db();
   diagnostics.detecting = detecting;
+  array_health.observe(
+      time_s,
+      std::span<const double>(channel_power.data(), static_cast<std::size_t>(fft.channels())),
+      std::span<const PairPeak>(health_pairs.data(), static_cast<std::size_t>(gcc.pair_count())),
+      frame_clean && gate.snr_db() >= params.detection_snr_db);
   recent_detections[next_detection] = {time_s, detecting};
   next_detection = (next_detection + 1) % recent_detections.size();
   if (source_tracks) {
@@ -853,6 +880,7 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
   Impl& impl = *impl_;
   // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
   impl.health.scan(block);
+  impl.array_health.clear_events();
   impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
   const FramerCounters& counters = impl.framer.counters();
   impl.diagnostics.non_finite_samples = impl.health.non_finite_samples();
@@ -883,6 +911,9 @@ const NodeDiagnostics& NodePipeline::diagnostics() const {
 }
 const ChannelHealth& NodePipeline::health() const {
   return per_band_ ? per_band_->nodes.front().health() : impl_->health;
+}
+const ArrayHealth& NodePipeline::array_health() const {
+  return per_band_ ? per_band_->nodes.front().array_health() : impl_->array_health;
 }
 const ArrayGeometry& NodePipeline::geometry() const {
   return per_band_ ? per_band_->nodes.front().geometry() : impl_->geometry;
