@@ -49,15 +49,18 @@ const char* to_string(ArrayProblem problem) {
   return "unknown";
 }
 
-double signed_extreme(std::span<const double> correlation) {
-  double highest = 0.0;
-  double lowest = 0.0;
+PairPeak correlation_extremes(std::span<const double> correlation) {
+  PairPeak extremes;
   for (const double value : correlation) {
-    highest = std::max(highest, value);
-    lowest = std::min(lowest, value);
+    extremes.highest = std::max(extremes.highest, value);
+    extremes.lowest = std::min(extremes.lowest, value);
   }
-  return -lowest > highest ? lowest : highest;
+  return extremes;
 }
+
+namespace {
+double magnitude(const PairPeak& pair) { return std::max(pair.highest, -pair.lowest); }
+}  // namespace
 
 ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mps, double hop_s,
                          const ArrayHealthSettings& settings)
@@ -77,10 +80,12 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
     fail("coherent_peak must be in (0, 1)");
   if (!(settings.incoherent_ratio > 0.0 && settings.incoherent_ratio < 1.0))
     fail("incoherent_ratio must be in (0, 1)");
+  if (!(settings.sign_dominance >= 1.0)) fail("sign_dominance must be >= 1");
   if (settings.judge_source_frames < 2) fail("judge_source_frames must be >= 2");
   if (!(settings.problem_share > 0.5 && settings.problem_share <= 1.0))
     fail("problem_share must be in (0.5, 1]");
   if (settings.closure_window_frames < 3) fail("closure_window_frames must be >= 3");
+  if (settings.closure_persistence < 1) fail("closure_persistence must be >= 1");
   if (!(settings.closure_us > 0.0) || !(settings.frame_closure_us > 0.0))
     fail("closure_us and frame_closure_us must be > 0");
   if (!(settings.skew_us > 0.0) || !(settings.skew_window_s > 0.0) ||
@@ -115,6 +120,7 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
   closure_ring_.assign(triples_.size() * window, 0.0);
   closure_count_.assign(triples_.size(), 0);
   closure_next_.assign(triples_.size(), 0);
+  closure_failing_runs_.assign(triples_.size(), 0);
   fit_ring_.assign(window, 0.0);
 
   // The delay fit needs the slowness in three dimensions: a planar or linear array leaves it out.
@@ -148,11 +154,23 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
 }
 
 bool ArrayHealth::coherent_positive(const PairPeak& pair) const {
-  return pair.signed_peak >= settings_.coherent_peak && std::isfinite(pair.tdoa_s);
+  return pair.highest >= settings_.coherent_peak && pair.highest >= -pair.lowest &&
+         std::isfinite(pair.tdoa_s);
+}
+
+// A band-pass correlation's first side lobes are negative and, when the band is narrow (the
+// SNR weights leave a rotor's few strongest lines), nearly as deep as the main lobe is high:
+// echoes and a second source then tip one over the other on a clean pair. Only a clear winner
+// tells the sign.
+int ArrayHealth::lobe_sign(const PairPeak& pair) const {
+  if (magnitude(pair) < settings_.coherent_peak) return 0;
+  if (pair.highest >= -settings_.sign_dominance * pair.lowest) return 1;
+  if (-pair.lowest >= settings_.sign_dominance * pair.highest) return -1;
+  return 0;
 }
 
 void ArrayHealth::observe(double time_s, std::span<const double> channel_power,
-                          std::span<const PairPeak> pairs, bool source) {
+                          std::span<const PairPeak> pairs, bool source, bool single_source) {
   if (channel_power.size() == static_cast<std::size_t>(channels_))
     observe_levels(time_s, channel_power);
   if (!source || pairs.size() != static_cast<std::size_t>(pairs_)) return;
@@ -161,10 +179,18 @@ void ArrayHealth::observe(double time_s, std::span<const double> channel_power,
   const int needed = std::max(1, (channels_ - 1) * (channels_ - 2) / 2);
   int coherent = 0;
   for (const PairPeak& pair : pairs)
-    if (std::fabs(pair.signed_peak) >= settings_.coherent_peak) ++coherent;
+    if (magnitude(pair) >= settings_.coherent_peak) ++coherent;
   if (coherent < needed) return;
   observe_coherence(time_s, pairs);
-  observe_closure(time_s, pairs);
+  if (single_source) observe_closure(pairs);
+  if (++closure_new_frames_ < settings_.judge_source_frames) return;
+  closure_new_frames_ = 0;
+  judge_delays(time_s);
+}
+
+void ArrayHealth::judge_delays(double time_s) {
+  judge_closure(time_s);
+  if (fit_possible_) judge_skew(time_s);
 }
 
 void ArrayHealth::observe_levels(double time_s, std::span<const double> channel_power) {
@@ -202,10 +228,10 @@ void ArrayHealth::observe_levels(double time_s, std::span<const double> channel_
 void ArrayHealth::observe_coherence(double time_s, std::span<const PairPeak> pairs) {
   ++source_frames_;
   for (int p = 0; p < pairs_; ++p) {
-    const double peak = pairs[static_cast<std::size_t>(p)].signed_peak;
-    if (std::fabs(peak) < settings_.coherent_peak) continue;
+    const int sign = lobe_sign(pairs[static_cast<std::size_t>(p)]);
+    if (sign == 0) continue;
     ++coherent_frames_[static_cast<std::size_t>(p)];
-    if (peak < 0.0) ++negative_frames_[static_cast<std::size_t>(p)];
+    if (sign < 0) ++negative_frames_[static_cast<std::size_t>(p)];
   }
   // A mic is incoherent when its best pair is far under what the pairs without it reach.
   if (channels_ >= 3) {
@@ -214,7 +240,7 @@ void ArrayHealth::observe_coherence(double time_s, std::span<const PairPeak> pai
       std::size_t others = 0;
       for (int p = 0; p < pairs_; ++p) {
         const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
-        const double size = std::fabs(pairs[static_cast<std::size_t>(p)].signed_peak);
+        const double size = magnitude(pairs[static_cast<std::size_t>(p)]);
         if (i == c || j == c)
           best = std::max(best, size);
         else
@@ -262,7 +288,7 @@ void ArrayHealth::observe_coherence(double time_s, std::span<const PairPeak> pai
   std::fill(negative_frames_.begin(), negative_frames_.end(), 0);
 }
 
-void ArrayHealth::observe_closure(double time_s, std::span<const PairPeak> pairs) {
+void ArrayHealth::observe_closure(std::span<const PairPeak> pairs) {
   const auto window = static_cast<std::size_t>(settings_.closure_window_frames);
   double frame_closure_s = 0.0;
   bool all_positive = true;
@@ -285,10 +311,6 @@ void ArrayHealth::observe_closure(double time_s, std::span<const PairPeak> pairs
   for (const PairPeak& pair : pairs) all_positive = all_positive && coherent_positive(pair);
   if (fit_possible_ && all_positive && frame_closure_s <= 1e-6 * settings_.frame_closure_us)
     observe_fit(pairs);
-  if (++closure_new_frames_ < settings_.judge_source_frames) return;
-  closure_new_frames_ = 0;
-  judge_closure(time_s);
-  if (fit_possible_) judge_skew(time_s);
 }
 
 // One frame of the delay fit. tau = G u / c + D d: the slowness G^+ tau of the pair delays
@@ -342,7 +364,11 @@ void ArrayHealth::judge_closure(double time_s) {
                 scratch_.begin());
     const double median_us = 1e6 * median_of(std::span<double>(scratch_.data(), count));
     closure_residual_us_ = std::max(closure_residual_us_, std::fabs(median_us));
-    if (std::fabs(median_us) <= settings_.closure_us) continue;
+    // A stretch of frames whose pairs follow different sources can hold a median off for a
+    // judgement or two: a triple fails when it stays off.
+    int& runs = closure_failing_runs_[t];
+    runs = std::fabs(median_us) > settings_.closure_us ? runs + 1 : 0;
+    if (runs < settings_.closure_persistence) continue;
     ++failing;
     for (const int mic : triples_[t]) ++failing_of[static_cast<std::size_t>(mic)];
   }

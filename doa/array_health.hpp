@@ -57,26 +57,30 @@ struct ArrayHealthSettings {
   double dead_level_db = -20.0;    // level offset below this: dead
   double coherent_peak = 0.2;      // |GCC peak| at or above this: the pair hears a source
   double incoherent_ratio = 0.3;   // a channel's best pair under this x the others' median
+  double sign_dominance = 1.5;     // a main lobe's sign counts when |it| >= this x the other's
   int judge_source_frames = 20;    // dead (incoherent) and polarity: judged per this many
   double problem_share = 0.8;      // of those frames (incoherent) or of a pair's (negative)
   int closure_window_frames = 32;  // running median of each triple's closure over these
-  double closure_us = 10.0;        // |median closure| above this: the triple fails
+  double closure_us = 40.0;        // |median closure| above this: the triple is off
+  int closure_persistence = 3;     // and fails when off on this many judgements in a row
   double frame_closure_us = 30.0;  // a frame with a larger closure feeds no delay fit
-  double skew_us = 10.0;           // a channel's fitted delay off the median's by more
-  double skew_window_s = 10.0;     // the delay fit forgets with this time constant
+  double skew_us = 150.0;          // a channel's fitted delay off the median's by more
+  double skew_window_s = 30.0;     // the delay fit forgets with this time constant
   double skew_prior_us = 1000.0;   // channel delays a priori (keeps unseen ones at 0)
-  double min_skew_frames = 40.0;   // source frames (forgetting-weighted) before judging it
+  double min_skew_frames = 200.0;  // source frames (forgetting-weighted) before judging it
   double rewarn_s = 10.0;          // a problem raised is not raised again sooner than this
 };
 
 // One mic pair on one frame (pairs i<j in lexicographic order, tau_ij = t_i - t_j).
 struct PairPeak {
-  double tdoa_s = 0.0;       // the refined highest peak's lag
-  double signed_peak = 0.0;  // the correlation's largest |value|, with its sign
+  double tdoa_s = 0.0;   // the refined highest peak's lag
+  double highest = 0.0;  // the correlation's largest value over the physical lags (>= 0)
+  double lowest = 0.0;   // and its smallest (<= 0)
 };
 
-// The value of largest magnitude, with its sign (0 for an empty grid).
-double signed_extreme(std::span<const double> correlation);
+// The largest and smallest values of a pair's correlation (lags within the physical limit),
+// clamped to >= 0 and <= 0: a PairPeak without its lag.
+PairPeak correlation_extremes(std::span<const double> correlation);
 
 struct ArrayChannelHealth {
   ArrayFlags problems = 0;       // present on the last judgement of each check
@@ -103,10 +107,12 @@ class ArrayHealth {
               const ArrayHealthSettings& settings = {});
 
   // One analysis frame: channel_power[c] (in-band power of channel c, after calibrated gains),
-  // pairs[p] (every pair's peak), and whether the frame carries a source (clean, over the noise
-  // floor). Spans of the wrong size are ignored. Appends to events() what this frame raised.
+  // pairs[p] (every pair's peak), whether the frame carries a source (clean, over the noise
+  // floor) and whether the node found exactly one (closure and the delay fit need one source:
+  // with two, pairs follow different ones). Spans of the wrong size are ignored. Appends to
+  // events() what this frame raised.
   void observe(double time_s, std::span<const double> channel_power,
-               std::span<const PairPeak> pairs, bool source);
+               std::span<const PairPeak> pairs, bool source, bool single_source);
   // Forgets the events (the node calls it before each block).
   void clear_events() { events_.clear(); }
 
@@ -136,12 +142,15 @@ class ArrayHealth {
 
   void observe_levels(double time_s, std::span<const double> channel_power);
   void observe_coherence(double time_s, std::span<const PairPeak> pairs);
-  void observe_closure(double time_s, std::span<const PairPeak> pairs);
+  void observe_closure(std::span<const PairPeak> pairs);
+  void judge_delays(double time_s);
   void observe_fit(std::span<const PairPeak> pairs);
   void judge_closure(double time_s);
   void judge_skew(double time_s);
   void update(int channel, ArrayProblem problem, bool present, double time_s, double share);
   bool coherent_positive(const PairPeak& pair) const;
+  // +1 positive main lobe, -1 negative, 0 neither dominates or too weak.
+  int lobe_sign(const PairPeak& pair) const;
 
   int channels_;
   int pairs_;
@@ -170,6 +179,7 @@ class ArrayHealth {
   std::vector<int> closure_count_{};    // per triple, entries in the ring (up to the window)
   std::vector<int> closure_next_{};
   int closure_new_frames_ = 0;
+  std::vector<int> closure_failing_runs_{};  // per triple: judgements in a row it was off
   double closure_residual_us_ = 0.0;
   std::vector<double> fit_ring_{};
   int fit_count_ = 0;

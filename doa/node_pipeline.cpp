@@ -717,9 +717,11 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   if (null_wanted) gcc.save_whitened();  // for null_own_look()
   gcc.correlate();
   // The health checks read the full band's first look (later looks drop bins).
-  for (int p = 0; p < gcc.pair_count(); ++p)
-    health_pairs[static_cast<std::size_t>(p)] = {gcc.pair(p).peak.lag_s,
-                                                 signed_extreme(gcc.grid(p))};
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    PairPeak& pair = health_pairs[static_cast<std::size_t>(p)];
+    pair = correlation_extremes(gcc.grid(p));
+    pair.tdoa_s = gcc.pair(p).peak.lag_s;
+  }
   if (cone_peaks) cone_peaks->record(time_s, gcc);
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
@@ -744,6 +746,10 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   candidate_count = 0;
   acoustic_due = acoustic && acoustic->due(diagnostics.frames_processed);
   if (sharp) find_candidates();
+  // Sources this frame's looks found (before the regression replaces them); none accepted on
+  // a sharp frame is still one source for the health checks: a skewed channel makes its
+  // delays fail the solver's fit.
+  const int frame_sources = candidate_count;
   if (null_wanted && !null_observed) null_own_look();
   double coherent_share = 0.0;
   for (int s = 0; s < candidate_count; ++s)
@@ -758,7 +764,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
       time_s,
       std::span<const double>(channel_power.data(), static_cast<std::size_t>(fft.channels())),
       std::span<const PairPeak>(health_pairs.data(), static_cast<std::size_t>(gcc.pair_count())),
-      frame_clean && gate.snr_db() >= params.detection_snr_db);
+      frame_clean && gate.snr_db() >= params.detection_snr_db, sharp && frame_sources <= 1);
   recent_detections[next_detection] = {time_s, detecting};
   next_detection = (next_detection + 1) % recent_detections.size();
   if (source_tracks) {
@@ -903,6 +909,7 @@ void NodePipeline::finish() {
     return;
   }
   impl_->health.finish();
+  impl_->array_health.clear_events();  // the last process() call's were handed out
 }
 
 // Per band: every band's node frames the same samples with the same frame and hop.
