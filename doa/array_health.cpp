@@ -263,22 +263,29 @@ void ArrayHealth::observe_coherence(double time_s, std::span<const PairPeak> pai
     // Flipped: most of its pairs that heard the source on most of the frames did so negative. A
     // two-mic array cannot tell which of its mics is flipped.
     if (channels_ < 3) continue;
-    int judged = 0;
-    int negative = 0;
+    // One flipped mic turns the signs of its own pairs only: most of them negative, most of
+    // the others positive. All pairs negative is the scene (a band whose side lobes rival its
+    // main lobe, an echo adding into one), not a mic.
+    int judged = 0, negative = 0, others_judged = 0, others_positive = 0;
     double negative_share = 0.0;
     for (int p = 0; p < pairs_; ++p) {
       const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
       const auto pair = static_cast<std::size_t>(p);
-      if ((i != c && j != c) || 2 * coherent_frames_[pair] < source_frames_) continue;
-      ++judged;
+      if (2 * coherent_frames_[pair] < source_frames_) continue;
       const double share = static_cast<double>(negative_frames_[pair]) / coherent_frames_[pair];
+      if (i != c && j != c) {
+        ++others_judged;
+        if (share <= 1.0 - settings_.problem_share) ++others_positive;
+        continue;
+      }
+      ++judged;
       if (share >= settings_.problem_share) {
         ++negative;
         negative_share += share;
       }
     }
-    if (judged == 0) continue;  // not heard enough to say
-    const bool flipped = 2 * negative > judged;
+    if (judged == 0 || others_judged == 0) continue;  // not heard enough to say
+    const bool flipped = 2 * negative > judged && 2 * others_positive > others_judged;
     update(c, ArrayProblem::polarity_flipped, flipped, time_s,
            negative > 0 ? negative_share / negative : 0.0);
   }

@@ -280,6 +280,17 @@ struct NodePipeline::Impl {
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
   double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
   double mean_coherence(std::span<const PairTdoa> used) const;
+  // The frame's correlations are as sharp as publishing needs, whatever their main lobes' sign:
+  // a flipped mic's pairs peak negative, which neither `sharp` nor the gate's SNR (its floor
+  // counts what is not coherent at the positive peaks) would call a source.
+  bool sharp_either_sign() const {
+    double sum = 0.0;
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const PairPeak& pair = health_pairs[static_cast<std::size_t>(p)];
+      sum += std::max(pair.highest, -pair.lowest);
+    }
+    return sum >= params.min_gcc_peak * gcc.pair_count();
+  }
   // Mean over channels; each channel's into channel_power.
   double inband_power();
   bool publish(const Candidate& candidate, double time_s, int source_index,
@@ -764,7 +775,8 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
       time_s,
       std::span<const double>(channel_power.data(), static_cast<std::size_t>(fft.channels())),
       std::span<const PairPeak>(health_pairs.data(), static_cast<std::size_t>(gcc.pair_count())),
-      frame_clean && gate.snr_db() >= params.detection_snr_db, sharp && frame_sources <= 1);
+      frame_clean && (gate.snr_db() >= params.detection_snr_db || sharp_either_sign()),
+      sharp && frame_sources <= 1);
   recent_detections[next_detection] = {time_s, detecting};
   next_detection = (next_detection + 1) % recent_detections.size();
   if (source_tracks) {
