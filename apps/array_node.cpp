@@ -116,15 +116,6 @@ std::string health_summary(const doa::NodeStatus& status) {
     if (channel.problems_seen == 0 && channel.array_problems_seen == 0) continue;
     line += (line.empty() ? status.array_id + " channel " : "; channel ") + std::to_string(c) + ":";
     const char* separator = " ";
-    for (int p = 0; p < doa::kArrayProblemCount; ++p) {
-      const auto problem = static_cast<doa::ArrayProblem>(p);
-      if (!doa::has_problem(channel.array_problems_seen, problem)) continue;
-      line += separator;
-      separator = ", ";
-      std::string name = doa::to_string(problem);
-      std::replace(name.begin(), name.end(), '_', ' ');
-      line += name;
-    }
     for (int p = 0; p < doa::kHealthProblemCount; ++p) {
       const auto problem = static_cast<doa::HealthProblem>(p);
       if (!doa::has_problem(channel.problems_seen, problem)) continue;
@@ -149,6 +140,20 @@ std::string health_summary(const doa::NodeStatus& status) {
           line += "absurd level";
           break;
       }
+    }
+    for (int p = 0; p < doa::kArrayProblemCount; ++p) {
+      const auto problem = static_cast<doa::ArrayProblem>(p);
+      if (!doa::has_problem(channel.array_problems_seen, problem)) continue;
+      // A silent or all-NaN channel is dead: said already.
+      if (problem == doa::ArrayProblem::dead &&
+          (doa::has_problem(channel.problems_seen, doa::HealthProblem::silent) ||
+           doa::has_problem(channel.problems_seen, doa::HealthProblem::non_finite)))
+        continue;
+      line += separator;
+      separator = ", ";
+      std::string name = doa::to_string(problem);
+      std::replace(name.begin(), name.end(), '_', ' ');
+      line += name;
     }
   }
   return line;
