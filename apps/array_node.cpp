@@ -28,14 +28,18 @@ std::string percent(double share) {
   return format(value >= 1.0 ? "%.1f %%" : "%.2g %%", value);
 }
 
+// "A2 channel 3: ", naming the input channel too when a channel_map moved the mic.
+std::string channel_prefix(const std::string& array_id, int input_channel, int mic) {
+  std::string line = array_id + " channel " + std::to_string(mic);
+  if (input_channel != mic) line += " (input channel " + std::to_string(input_channel) + ")";
+  return line + ": ";
+}
+
 }  // namespace
 
 std::string health_warning(const std::string& array_id, int input_channel,
                            const doa::HealthEvent& event) {
-  std::string line = array_id + " channel " + std::to_string(event.channel);
-  if (input_channel != event.channel)
-    line += " (input channel " + std::to_string(input_channel) + ")";
-  line += ": ";
+  std::string line = channel_prefix(array_id, input_channel, event.channel);
   const std::string since = " since " + format("%.2f", event.since_s) + " s";
   const std::string of_stretch = " of " + format("%.2f", event.stretch_s) + " s";
   switch (event.problem) {
@@ -69,12 +73,47 @@ std::string health_warning(const std::string& array_id, int input_channel,
   return line;
 }
 
+std::string array_health_warning(const std::string& array_id, int input_channel,
+                                 const doa::ArrayHealthEvent& event) {
+  std::string line = channel_prefix(array_id, input_channel, event.channel);
+  const std::string at = " at " + format("%.2f", event.time_s) + " s";
+  switch (event.problem) {
+    case doa::ArrayProblem::level_imbalance:
+      line += "level " + format("%+.1f", event.level_offset_db) +
+              " dB against the array's median in band (after channel_gain_db)" + at +
+              "; check the mic and its gain, or calibrate channel_gain_db";
+      break;
+    case doa::ArrayProblem::dead:
+      line += event.share > 0.0 ? "dead: incoherent with every other mic on " +
+                                      percent(event.share) + " of the frames with a source"
+                                : "dead: level " + format("%+.1f", event.level_offset_db) +
+                                      " dB against the array's median in band";
+      line += at + "; its pairs give no usable delay";
+      break;
+    case doa::ArrayProblem::polarity_flipped:
+      line += "polarity flipped: its pairs correlate negative on " + percent(event.share) +
+              " of the frames with a source" + at + "; rewire the mic or invert the channel";
+      break;
+    case doa::ArrayProblem::closure:
+      line += "TDOA closure fails on the mic triples holding it (array closure residual " +
+              format("%.1f", event.closure_residual_us) + " us)" + at +
+              "; its pairs pick different peaks: a skewed or moved mic";
+      break;
+    case doa::ArrayProblem::skew:
+      line += "delay " + format("%+.1f", event.delay_offset_us) +
+              " us against the array's median channel (fit over the source directions)" + at +
+              "; calibrate channel_delay_s";
+      break;
+  }
+  return line;
+}
+
 std::string health_summary(const doa::NodeStatus& status) {
   const double samples = std::max(1.0, std::round(status.time_s * status.sample_rate_hz));
   std::string line;
   for (std::size_t c = 0; c < status.channels.size(); ++c) {
     const doa::ChannelStatus& channel = status.channels[c];
-    if (channel.problems_seen == 0) continue;
+    if (channel.problems_seen == 0 && channel.array_problems_seen == 0) continue;
     line += (line.empty() ? status.array_id + " channel " : "; channel ") + std::to_string(c) + ":";
     const char* separator = " ";
     for (int p = 0; p < doa::kHealthProblemCount; ++p) {
@@ -101,6 +140,20 @@ std::string health_summary(const doa::NodeStatus& status) {
           line += "absurd level";
           break;
       }
+    }
+    for (int p = 0; p < doa::kArrayProblemCount; ++p) {
+      const auto problem = static_cast<doa::ArrayProblem>(p);
+      if (!doa::has_problem(channel.array_problems_seen, problem)) continue;
+      // A silent or all-NaN channel is dead: said already.
+      if (problem == doa::ArrayProblem::dead &&
+          (doa::has_problem(channel.problems_seen, doa::HealthProblem::silent) ||
+           doa::has_problem(channel.problems_seen, doa::HealthProblem::non_finite)))
+        continue;
+      line += separator;
+      separator = ", ";
+      std::string name = doa::to_string(problem);
+      std::replace(name.begin(), name.end(), '_', ' ');
+      line += name;
     }
   }
   return line;
@@ -189,10 +242,20 @@ bool ArrayNode::step(std::vector<doa::DoaMeasurement>& doas) {
 }
 
 void ArrayNode::warn_health_problems() const {
-  for (const doa::HealthEvent& event : pipeline_.health().events()) {
-    const auto mic = static_cast<std::size_t>(event.channel);
-    const int input = mic < channel_map_.size() ? channel_map_[mic] : event.channel;
-    log::warn(health_warning(array_id_, input, event));
+  auto input_of = [&](int channel) {
+    const auto mic = static_cast<std::size_t>(channel);
+    return mic < channel_map_.size() ? channel_map_[mic] : channel;
+  };
+  for (const doa::HealthEvent& event : pipeline_.health().events())
+    log::warn(health_warning(array_id_, input_of(event.channel), event));
+  for (const doa::ArrayHealthEvent& event : pipeline_.array_health().events()) {
+    // A silent or all-NaN channel was named for that already: its level says nothing new.
+    const doa::HealthFlags audio = pipeline_.health().channel(event.channel).problems_seen;
+    if (event.problem == doa::ArrayProblem::dead &&
+        (doa::has_problem(audio, doa::HealthProblem::silent) ||
+         doa::has_problem(audio, doa::HealthProblem::non_finite)))
+      continue;
+    log::warn(array_health_warning(array_id_, input_of(event.channel), event));
   }
 }
 
@@ -211,9 +274,18 @@ doa::NodeStatus ArrayNode::status() const {
   status.snr_db = diagnostics.snr_db;
   status.detecting = diagnostics.detecting;
   status.software_version = DRONETRACK_VERSION;
-  for (const doa::ChannelHealthCounters& channel : pipeline_.health().counters()) {
-    status.channels.push_back({channel.problems, channel.problems_seen, channel.non_finite_samples,
-                               channel.clipped_samples, channel.rms_dbfs});
+  const doa::ArrayHealth& array_health = pipeline_.array_health();
+  status.closure_residual_us =
+      std::min(array_health.closure_residual_us(), doa::kMaxHealthDelay_us);
+  status.fit_residual_us = std::min(array_health.fit_residual_us(), doa::kMaxHealthDelay_us);
+  for (std::size_t c = 0; c < pipeline_.health().counters().size(); ++c) {
+    const doa::ChannelHealthCounters& channel = pipeline_.health().counters()[c];
+    const doa::ArrayChannelHealth& compared = array_health.channel_health()[c];
+    status.channels.push_back(
+        {channel.problems, channel.problems_seen, channel.non_finite_samples,
+         channel.clipped_samples, channel.rms_dbfs, compared.problems, compared.problems_seen,
+         std::clamp(compared.level_offset_db, -doa::kMaxLevelOffset_db, doa::kMaxLevelOffset_db),
+         std::clamp(compared.delay_offset_us, -doa::kMaxHealthDelay_us, doa::kMaxHealthDelay_us)});
   }
   return status;
 }

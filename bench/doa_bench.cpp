@@ -12,6 +12,7 @@
 // many kernel calls it served (counts: proof of the path taken, also under emulation).
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <complex>
 #include <cstdio>
 #include <cstring>
@@ -22,6 +23,7 @@
 #include <vector>
 
 #include "doa/acoustic_features.hpp"
+#include "doa/array_health.hpp"
 #include "doa/channel_health.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/node_pipeline.hpp"
@@ -288,6 +290,43 @@ void BM_ChannelHealth(benchmark::State& state) {
 }
 BENCHMARK(BM_ChannelHealth)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
+// The array health checks of one frame as NodePipeline runs them: each pair's lag grid read for
+// its extremes (the grid of a 0.82 m pair at the default band and oversampling), then observe()
+// with a source from a direction that turns 1.5 deg a frame (closure, the delay fit; each
+// check's judgement once per 20 frames, amortised).
+void BM_ArrayHealth(benchmark::State& state) {
+  const DoaParams params;
+  const ArrayGeometry geometry = testing::tetrahedron(30.0);
+  ArrayHealth health(geometry, 343.0, params.hop_s);
+  const double lag_step_s =
+      1.0 / (2.0 * params.bands_hz.back().high_hz * params.correlation_oversample);
+  const double max_lag_s = (geometry.mics_m[0] - geometry.mics_m[1]).norm() / 343.0;
+  const auto grid_length = static_cast<std::size_t>(2.0 * std::ceil(max_lag_s / lag_step_s) + 1);
+  std::vector<double> grid(grid_length);
+  for (std::size_t n = 0; n < grid.size(); ++n)
+    grid[n] = std::cos(0.3 * static_cast<double>(n)) / (1.0 + 0.05 * static_cast<double>(n));
+  const std::vector<double> power = {1e-4, 1.1e-4, 0.9e-4, 1e-4};
+  std::vector<PairPeak> pairs(6);
+  int frame = 0;
+  for (auto _ : state) {
+    const double azimuth = 0.026 * frame;
+    const Eigen::Vector3d u(std::cos(azimuth) * 0.9, std::sin(azimuth) * 0.9, 0.436);
+    int p = 0;
+    for (std::size_t i = 0; i < 4; ++i) {
+      for (std::size_t j = i + 1; j < 4; ++j, ++p) {
+        PairPeak& pair = pairs[static_cast<std::size_t>(p)];
+        pair = correlation_extremes(grid);
+        pair.tdoa_s = (geometry.mics_m[j] - geometry.mics_m[i]).dot(u.normalized()) / 343.0;
+      }
+    }
+    health.observe(frame * params.hop_s, power, pairs, true, true);
+    health.clear_events();
+    ++frame;
+  }
+  benchmark::DoNotOptimize(health.closure_residual_us());
+}
+BENCHMARK(BM_ArrayHealth)->Unit(benchmark::kMicrosecond);
+
 // Records each benchmark's CPU time per iteration so main() can print the ratio: the median
 // over repetitions when --benchmark_repetitions is given (the machine is shared: single runs
 // are noisy), else the one run.
@@ -350,6 +389,10 @@ int main(int argc, char** argv) {
       std::printf(
           "  pipeline / kernel:           %8.2f   (the same source, no ground reflection)\n",
           no_ground->second / kernel->second);
+    const auto array_health = reporter.seconds.find("BM_ArrayHealth");
+    if (array_health != reporter.seconds.end())
+      std::printf("  array health checks:         %8.2f us/frame, %5.2f %% of the pipeline\n",
+                  array_health->second * 1e6, 100.0 * array_health->second / pipeline->second);
     const auto no_features = reporter.seconds.find("BM_NodePipeline/4");
     if (no_features != reporter.seconds.end())
       std::printf(

@@ -302,6 +302,8 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
   sample.noise_floor_dbfs = status.noise_floor_dbfs;
   sample.snr_db = status.snr_db;
   sample.detecting = status.detecting;
+  sample.closure_residual_us = status.closure_residual_us;
+  sample.fit_residual_us = status.fit_residual_us;
   copy_bounded(sample.software_version, status.software_version);
   const std::size_t channels = std::min(status.channels.size(), doa::kMaxStatusChannels);
   sample.channel_count = static_cast<std::uint8_t>(channels);
@@ -317,6 +319,10 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
     out.non_finite_samples = channel.non_finite_samples;
     out.clipped_samples = channel.clipped_samples;
     out.rms_dbfs = channel.rms_dbfs;
+    out.array_problems = channel.array_problems;
+    out.array_problems_seen = channel.array_problems_seen;
+    out.level_offset_db = channel.level_offset_db;
+    out.delay_offset_us = channel.delay_offset_us;
   }
 }
 
@@ -326,10 +332,15 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   if (id.empty()) return SampleProblem::empty_key;
   if (index_of(id, array_ids) < 0) return SampleProblem::unknown_array;
   if (!finite(sample.sample_rate_hz) || !finite(sample.level_dbfs) ||
-      !finite(sample.noise_floor_dbfs) || !finite(sample.snr_db)) {
+      !finite(sample.noise_floor_dbfs) || !finite(sample.snr_db) ||
+      !finite(sample.closure_residual_us) || !finite(sample.fit_residual_us)) {
     return SampleProblem::non_finite;
   }
   if (absurd(sample.time_ns)) return SampleProblem::absurd_time;
+  if (!(sample.closure_residual_us >= 0.0 &&
+        sample.closure_residual_us <= doa::kMaxHealthDelay_us) ||
+      !(sample.fit_residual_us >= 0.0 && sample.fit_residual_us <= doa::kMaxHealthDelay_us))
+    return SampleProblem::bad_value;
   if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
       sample.non_finite_samples < 0 || sample.channel_count > doa::kMaxStatusChannels) {
     return SampleProblem::bad_value;
@@ -337,9 +348,16 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   constexpr unsigned kKnownProblems = (1U << doa::kHealthProblemCount) - 1U;
   for (std::size_t c = 0; c < sample.channel_count; ++c) {
     const dronetrack_ChannelHealth& channel = sample.channels[c];
-    if (!finite(channel.rms_dbfs)) return SampleProblem::non_finite;
+    if (!finite(channel.rms_dbfs) || !finite(channel.level_offset_db) ||
+        !finite(channel.delay_offset_us))
+      return SampleProblem::non_finite;
     if (channel.non_finite_samples < 0 || channel.clipped_samples < 0 ||
-        (channel.problems & ~kKnownProblems) != 0 || (channel.problems_seen & ~kKnownProblems) != 0)
+        (channel.problems & ~kKnownProblems) != 0 ||
+        (channel.problems_seen & ~kKnownProblems) != 0 ||
+        (channel.array_problems & ~doa::kKnownArrayProblems) != 0 ||
+        (channel.array_problems_seen & ~doa::kKnownArrayProblems) != 0 ||
+        std::fabs(channel.level_offset_db) > doa::kMaxLevelOffset_db ||
+        std::fabs(channel.delay_offset_us) > doa::kMaxHealthDelay_us)
       return SampleProblem::bad_value;
   }
   out.array_id.assign(id);
@@ -353,12 +371,16 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   out.noise_floor_dbfs = sample.noise_floor_dbfs;
   out.snr_db = sample.snr_db;
   out.detecting = sample.detecting;
+  out.closure_residual_us = sample.closure_residual_us;
+  out.fit_residual_us = sample.fit_residual_us;
   out.software_version.assign(bounded_view(sample.software_version));
   out.channels.clear();
   for (std::size_t c = 0; c < sample.channel_count; ++c) {
     const dronetrack_ChannelHealth& channel = sample.channels[c];
     out.channels.push_back({channel.problems, channel.problems_seen, channel.non_finite_samples,
-                            channel.clipped_samples, channel.rms_dbfs});
+                            channel.clipped_samples, channel.rms_dbfs, channel.array_problems,
+                            channel.array_problems_seen, channel.level_offset_db,
+                            channel.delay_offset_us});
   }
   return SampleProblem::none;
 }

@@ -25,8 +25,13 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
                      detection.inband_power > 0.0;
   track(time_s, sharp);
   if (sharp) find_candidates();
+  // Sources this frame's looks found (before the regression replaces them); none accepted on
+  // a sharp frame is still one source for the health checks: a skewed channel makes its
+  // delays fail the solver's fit.
+  const int frame_sources = candidate_count;
   if (null_wanted && !null_observed) null_own_look();
   const bool detecting = gate_frame(detection, time_s);
+  judge_channels(time_s, detection.frame_clean, sharp, frame_sources);
   if (!sources_to_publish(time_s, detecting)) return;
   for (int s = 0; s < candidate_count; ++s) {
     const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
@@ -61,6 +66,12 @@ DetectionInput NodePipeline::Impl::correlate(const FrameView& frame, double time
   null_frame_clean = frame_clean;
   if (null_wanted) keep_frame_mask();  // for null_own_look()
   gcc.correlate();
+  // The health checks read the full band's first look (later looks drop bins).
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    PairPeak& pair = health_pairs[static_cast<std::size_t>(p)];
+    pair = correlation_extremes(gcc.grid(p));
+    pair.tdoa_s = gcc.pair(p).peak.lag_s;
+  }
   if (cone_peaks) cone_peaks->record(time_s, gcc);
   double coherence_sum = 0.0;
   double peak_sum = 0.0;
@@ -100,6 +111,16 @@ bool NodePipeline::Impl::gate_frame(DetectionInput& detection, double time_s) {
   recent_detections[next_detection] = {time_s, detecting};
   next_detection = (next_detection + 1) % recent_detections.size();
   return detecting;
+}
+
+void NodePipeline::Impl::judge_channels(double time_s, bool frame_clean, bool sharp,
+                                        int frame_sources) {
+  array_health.observe(
+      time_s,
+      std::span<const double>(channel_power.data(), static_cast<std::size_t>(fft.channels())),
+      std::span<const PairPeak>(health_pairs.data(), static_cast<std::size_t>(gcc.pair_count())),
+      frame_clean && (gate.snr_db() >= params.detection_snr_db || sharp_either_sign()),
+      sharp && frame_sources <= 1);
 }
 
 // The candidates become the sources to publish (smoothed over frames with the per-source
@@ -219,6 +240,7 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
   Impl& impl = *impl_;
   // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
   impl.health.scan(block);
+  impl.array_health.clear_events();
   impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
   const FramerCounters& counters = impl.framer.counters();
   impl.diagnostics.non_finite_samples = impl.health.non_finite_samples();
@@ -241,6 +263,7 @@ void NodePipeline::finish() {
     return;
   }
   impl_->health.finish();
+  impl_->array_health.clear_events();  // the last process() call's were handed out
 }
 
 // Per band: every band's node frames the same samples with the same frame and hop.
@@ -249,6 +272,9 @@ const NodeDiagnostics& NodePipeline::diagnostics() const {
 }
 const ChannelHealth& NodePipeline::health() const {
   return per_band_ ? per_band_->nodes.front().health() : impl_->health;
+}
+const ArrayHealth& NodePipeline::array_health() const {
+  return per_band_ ? per_band_->nodes.front().array_health() : impl_->array_health;
 }
 const ArrayGeometry& NodePipeline::geometry() const {
   return per_band_ ? per_band_->nodes.front().geometry() : impl_->geometry;

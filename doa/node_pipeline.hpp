@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "doa/array_geometry.hpp"
+#include "doa/array_health.hpp"
 #include "doa/audio_block.hpp"
 #include "doa/channel_health.hpp"
 #include "doa/doa_measurement.hpp"
@@ -63,6 +64,10 @@ class NodePipeline {
   // Per-channel audio health; its events() are the problems raised by the last process() or
   // finish() call (docs/deployment.md "Audio health").
   const ChannelHealth& health() const;
+  // The channels judged against each other (level, dead, polarity, closure, skew); its events()
+  // are the problems raised by the last process() call (docs/calibration.md "Health checks at
+  // the node"). Per band: the first band's.
+  const ArrayHealth& array_health() const;
   const ArrayGeometry& geometry() const;
   int frame_length_samples() const;
   int hop_samples() const;

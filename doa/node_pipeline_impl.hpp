@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "doa/acoustic_features.hpp"
+#include "doa/array_health.hpp"
 #include "doa/bin_snr_weight.hpp"
 #include "doa/channel_health.hpp"
 #include "doa/cone_peaks.hpp"
@@ -96,7 +97,14 @@ struct NodePipeline::Impl {
   // Only the per-source regression reports an earlier frame; the per-pair trackers are current.
   double output_delay_s() const { return source_tracks ? source_tracks->output_delay_s() : 0.0; }
   double mean_coherence(std::span<const PairTdoa> used) const;
-  double inband_power() const;
+  // Mean over channels; each channel's into channel_power.
+  double inband_power();
+  // The frame's correlations are as sharp as publishing needs, whatever their main lobes' sign:
+  // a flipped mic's pairs peak negative, which neither `sharp` nor the gate's SNR (its floor
+  // counts what is not coherent at the positive peaks) would call a source.
+  bool sharp_either_sign() const;
+  // The channels judged against each other (ArrayHealth) on this frame's powers and peaks.
+  void judge_channels(double time_s, bool frame_clean, bool sharp, int frame_sources);
   bool publish(const Candidate& candidate, double time_s, int source_index,
                std::vector<DoaMeasurement>& out);
   // The pose at the DOA's time, its site-frame vectors turned to it; false: no pose then.
@@ -117,6 +125,9 @@ struct NodePipeline::Impl {
   DetectionGate gate;
   std::vector<BandRun> band;
   ChannelHealth health;
+  ArrayHealth array_health;
+  std::array<double, kMaxMics> channel_power{};    // this frame's, in band, after gains
+  std::array<PairPeak, kMaxPairs> health_pairs{};  // this frame's first look's peaks
   std::unique_ptr<TdoaEstimator> tracker;
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this

@@ -133,6 +133,13 @@ std::string NodePipeline::setup_problem(const ArrayGeometry& geometry, const Doa
   return node_detail::setup_problem(geometry, params, sample_rate_hz, speed_of_sound_mps);
 }
 
+// A pair hears the array-health checks' source at the peak the node needs to publish.
+ArrayHealthSettings array_health_settings(const DoaParams& params) {
+  ArrayHealthSettings settings;
+  settings.coherent_peak = std::clamp(params.min_gcc_peak, 0.05, 0.95);
+  return settings;
+}
+
 NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const DoaParams& params_in,
                          double sample_rate_hz_in, double speed_of_sound_mps)
     : geometry(std::move(geometry_in)),
@@ -150,7 +157,9 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
                              params.noise_floor_rise_db_per_s, 0.5, -130.0},
            params.hop_s),
       band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())),
-      health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)) {
+      health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)),
+      array_health(geometry, speed_of_sound_mps, static_cast<double>(hop) / sample_rate_hz,
+                   array_health_settings(params)) {
   if (!geometry.channel_delay_s.empty() || !geometry.channel_gain_db.empty()) {
     std::vector<double> delay_samples;
     for (double delay_s : geometry.channel_delay_s)

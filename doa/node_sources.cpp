@@ -29,15 +29,28 @@ void NodePipeline::Impl::null_own_look() {
   null_observe();
 }
 
-double NodePipeline::Impl::inband_power() const {
+double NodePipeline::Impl::inband_power() {
+  // Parseval: one-sided bins count twice; per windowed sample.
+  const double scale = 2.0 / (static_cast<double>(fft.fft_size()) * fft.window_energy());
   double total = 0.0;
   for (int c = 0; c < fft.channels(); ++c) {
     const std::complex<double>* spectrum = fft.spectrum(c);
+    double power = 0.0;
     for (const BandRun& run : band)
-      for (int k = run.first_bin; k <= run.last_bin; ++k) total += std::norm(spectrum[k]);
+      for (int k = run.first_bin; k <= run.last_bin; ++k) power += std::norm(spectrum[k]);
+    channel_power[static_cast<std::size_t>(c)] = scale * power;
+    total += power;
   }
-  // Parseval: one-sided bins count twice; per windowed sample, mean over channels.
-  return 2.0 * total / (static_cast<double>(fft.fft_size()) * fft.window_energy() * fft.channels());
+  return scale * total / fft.channels();
+}
+
+bool NodePipeline::Impl::sharp_either_sign() const {
+  double sum = 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairPeak& pair = health_pairs[static_cast<std::size_t>(p)];
+    sum += std::max(pair.highest, -pair.lowest);
+  }
+  return sum >= params.min_gcc_peak * gcc.pair_count();
 }
 
 bool NodePipeline::Impl::publish(const Candidate& candidate, double time_s, int source_index,

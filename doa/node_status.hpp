@@ -4,18 +4,26 @@
 #include <string>
 #include <vector>
 
+#include "doa/array_health.hpp"
 #include "doa/channel_health.hpp"
 
 namespace dronetrack::doa {
 
-// One channel (mic) of the node: its audio health (doa/channel_health.hpp).
+// One channel (mic) of the node: its audio health (doa/channel_health.hpp) and how it compares
+// with the array's other channels (doa/array_health.hpp).
 struct ChannelStatus {
   HealthFlags problems = 0;       // present on the last ~1 s judged (bit i: HealthProblem i)
   HealthFlags problems_seen = 0;  // present at any time since the node started
   std::int64_t non_finite_samples = 0;
   std::int64_t clipped_samples = 0;
-  double rms_dbfs = -120.0;  // of the last ~1 s judged (floor -120)
+  double rms_dbfs = -120.0;            // of the last ~1 s judged (floor -120)
+  ArrayFlags array_problems = 0;       // on each check's last judgement (bit i: ArrayProblem i)
+  ArrayFlags array_problems_seen = 0;  // at any time since the node started
+  double level_offset_db = 0.0;        // in-band level minus the array's median, after gains
+  double delay_offset_us = 0.0;        // fitted channel delay minus the median channel's
 };
+inline constexpr double kMaxLevelOffset_db = 300.0;  // |level_offset_db| bound (DDS validation)
+inline constexpr double kMaxHealthDelay_us = 1e6;    // |delay_offset_us|, residuals' bound
 
 inline constexpr std::size_t kMaxStatusChannels = 8;  // the pipeline's mic limit; DDS array size
 
@@ -31,6 +39,8 @@ struct NodeStatus {
   double noise_floor_dbfs = -120.0;
   double snr_db = 0.0;
   bool detecting = false;
+  double closure_residual_us = 0.0;  // largest |running median| of a triple's delay closure
+  double fit_residual_us = 0.0;      // running median RMS misfit of the pair delays to a plane wave
   std::string software_version;
   std::vector<ChannelStatus> channels;  // index: mic (0-based); at most kMaxStatusChannels
 };

@@ -93,12 +93,17 @@ json doa_json(const doa::DoaMeasurement& doa) {
   return out;
 }
 
-// Problem flags as names ("non_finite", "silent", ...), in bit order.
-json problem_names(doa::HealthFlags flags) {
+// Problem flags as names, the channel's own audio first ("non_finite", "silent", ...), then
+// how it compares with the array's other channels ("level_imbalance", "dead", ...), in bit order.
+json problem_names(doa::HealthFlags flags, doa::ArrayFlags array_flags) {
   json names = json::array();
   for (int p = 0; p < doa::kHealthProblemCount; ++p) {
     const auto problem = static_cast<doa::HealthProblem>(p);
     if (doa::has_problem(flags, problem)) names.push_back(doa::to_string(problem));
+  }
+  for (int p = 0; p < doa::kArrayProblemCount; ++p) {
+    const auto problem = static_cast<doa::ArrayProblem>(p);
+    if (doa::has_problem(array_flags, problem)) names.push_back(doa::to_string(problem));
   }
   return names;
 }
@@ -107,11 +112,13 @@ json status_json(const doa::NodeStatus& s) {
   json channels = json::array();
   for (const doa::ChannelStatus& channel : s.channels) {
     channels.push_back(json{
-        {"problems", problem_names(channel.problems)},
-        {"problems_seen", problem_names(channel.problems_seen)},
+        {"problems", problem_names(channel.problems, channel.array_problems)},
+        {"problems_seen", problem_names(channel.problems_seen, channel.array_problems_seen)},
         {"non_finite_samples", channel.non_finite_samples},
         {"clipped_samples", channel.clipped_samples},
         {"rms_dbfs", channel.rms_dbfs},
+        {"level_offset_db", channel.level_offset_db},
+        {"delay_offset_us", channel.delay_offset_us},
     });
   }
   return json{
@@ -125,6 +132,8 @@ json status_json(const doa::NodeStatus& s) {
       {"noise_floor_dbfs", s.noise_floor_dbfs},
       {"snr_db", s.snr_db},
       {"detecting", s.detecting},
+      {"closure_residual_us", s.closure_residual_us},
+      {"fit_residual_us", s.fit_residual_us},
       {"software_version", s.software_version},
       {"channels", std::move(channels)},
   };

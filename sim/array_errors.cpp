@@ -1,5 +1,6 @@
 #include "sim/array_errors.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "sim/random.hpp"
@@ -17,6 +18,15 @@ double ArrayErrors::gain(std::size_t mic) const {
   return mic < channel_gain_db.size() ? std::pow(10.0, channel_gain_db[mic] / 20.0) : 1.0;
 }
 
+bool ArrayErrors::dead(std::size_t mic) const {
+  return std::find(dead_mics.begin(), dead_mics.end(), static_cast<int>(mic)) != dead_mics.end();
+}
+
+bool ArrayErrors::flipped(std::size_t mic) const {
+  return std::find(flipped_mics.begin(), flipped_mics.end(), static_cast<int>(mic)) !=
+         flipped_mics.end();
+}
+
 nlohmann::json ArrayErrors::to_json() const {
   nlohmann::json offsets = nlohmann::json::array();
   for (const auto& offset : mic_offset_m) offsets.push_back({offset.x(), offset.y(), offset.z()});
@@ -26,7 +36,9 @@ nlohmann::json ArrayErrors::to_json() const {
           {"yaw_deg", yaw_deg},
           {"pitch_deg", pitch_deg},
           {"roll_deg", roll_deg},
-          {"clock_offset_s", clock_offset_s}};
+          {"clock_offset_s", clock_offset_s},
+          {"dead_mics", dead_mics},
+          {"flipped_mics", flipped_mics}};
 }
 
 std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
@@ -48,6 +60,10 @@ std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
       errors.channel_gain_db.push_back(spec.gain_spread_db * random.normal());
       errors.channel_delay_s.push_back(spec.channel_delay_std_s * random.normal());
     }
+    for (const MicRef& ref : spec.dead_mics)
+      if (ref.array_id == site.arrays[a].geometry.id) errors.dead_mics.push_back(ref.mic);
+    for (const MicRef& ref : spec.flipped_mics)
+      if (ref.array_id == site.arrays[a].geometry.id) errors.flipped_mics.push_back(ref.mic);
   }
   return out;
 }

@@ -5,6 +5,7 @@
 // milliseconds off. The scene is rendered with the arrays as drawn; site.json keeps the nominal
 // values (what the operator believes), truth.json records the draws.
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -14,16 +15,24 @@
 
 namespace dronetrack::sim {
 
-// The keys, each a 1-sigma spread (0: none).
+// One mic of one array (array_errors.dead_mics, flipped_mics).
+struct MicRef {
+  std::string array_id;
+  int mic = 0;
+};
+
+// The keys, each a 1-sigma spread (0: none), and the faults set by name.
 struct ArrayErrorSpec {
   bool enabled = false;
-  std::uint64_t seed = 0;            // draws; default the scenario's seed
-  double mic_position_std_m = 0.0;   // each mic coordinate, array frame
-  double gain_spread_db = 0.0;       // each channel's gain
-  double channel_delay_std_s = 0.0;  // each channel's delay (channel 0 included)
-  double yaw_std_deg = 0.0;          // the array's yaw
-  double tilt_std_deg = 0.0;         // its pitch and its roll
-  double clock_offset_std_s = 0.0;   // the node's clock: its recording starts this late
+  std::uint64_t seed = 0;              // draws; default the scenario's seed
+  double mic_position_std_m = 0.0;     // each mic coordinate, array frame
+  double gain_spread_db = 0.0;         // each channel's gain
+  double channel_delay_std_s = 0.0;    // each channel's delay (channel 0 included)
+  double yaw_std_deg = 0.0;            // the array's yaw
+  double tilt_std_deg = 0.0;           // its pitch and its roll
+  double clock_offset_std_s = 0.0;     // the node's clock: its recording starts this late
+  std::vector<MicRef> dead_mics{};     // record their sensor noise only (no sound reaches them)
+  std::vector<MicRef> flipped_mics{};  // record everything inverted (polarity flipped)
 };
 
 // One array's draws.
@@ -35,13 +44,18 @@ struct ArrayErrors {
   double pitch_deg = 0.0;
   double roll_deg = 0.0;
   double clock_offset_s = 0.0;
+  std::vector<int> dead_mics{};     // mic indices
+  std::vector<int> flipped_mics{};  // mic indices
+  bool dead(std::size_t mic) const;
+  bool flipped(std::size_t mic) const;
   // How late channel `mic` records the sound that reaches the mic at t: clock + channel delay.
   double recording_delay_s(std::size_t mic) const;
   double gain(std::size_t mic) const;  // linear
   nlohmann::json to_json() const;
 };
 
-// Per array of `site`, deterministic in spec.seed and the array's index.
+// Per array of `site`, deterministic in spec.seed and the array's index; the dead and flipped
+// mics as listed (their arrays and indices checked by the scenario parser).
 std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
                                            const config::SiteConfig& site);
 // The arrays as they really are: mics, yaw, pitch and roll with the draws applied.

@@ -206,9 +206,27 @@ class Renderer {
       add_noise(shape, rms, scenario_.seed, array_index, out.channels, out.frames(),
                 out.samples.data());
     };
+    // A dead mic hears nothing: its channel records its own sensor noise alone.
+    const ArrayErrors* errors = array_index < scenario_.array_errors.size()
+                                    ? &scenario_.array_errors[array_index]
+                                    : nullptr;
+    const auto& array = scenario_.site.arrays[array_index];
+    std::vector<std::size_t> dead_channels;
+    if (errors != nullptr)
+      for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic)
+        if (errors->dead(mic)) dead_channels.push_back(channel_of(array, mic));
+    for (const std::size_t channel : dead_channels)
+      for (std::size_t n = 0; n < out.frames(); ++n) out.samples[n * out.channels + channel] = 0.0F;
     add(noise.sensor, NoiseKind::sensor);
+    std::vector<float> dead_samples;
+    for (const std::size_t channel : dead_channels)
+      for (std::size_t n = 0; n < out.frames(); ++n)
+        dead_samples.push_back(out.samples[n * out.channels + channel]);
     add(noise.wind, NoiseKind::wind);
     add(noise.ambient, NoiseKind::ambient);
+    for (std::size_t d = 0; d < dead_channels.size(); ++d)
+      for (std::size_t n = 0; n < out.frames(); ++n)
+        out.samples[n * out.channels + dead_channels[d]] = dead_samples[d * out.frames() + n];
     if (noise.impulsive.enabled) {
       // Scaled like white sensor noise: the RMS a Gaussian burst of the same c would have.
       double rms = 0.0;
@@ -223,13 +241,13 @@ class Renderer {
       add_impulsive_noise(noise.impulsive, rms, scenario_.sample_rate_hz, scenario_.seed,
                           array_index, out.channels, out.frames(), out.samples.data());
     }
-    // A channel's gain scales all it records: the mic's sensitivity and its preamplifier.
-    if (array_index < scenario_.array_errors.size() &&
-        !scenario_.array_errors[array_index].channel_gain_db.empty()) {
-      const ArrayErrors& errors = scenario_.array_errors[array_index];
-      const auto& array = scenario_.site.arrays[array_index];
+    // A channel's gain scales all it records: the mic's sensitivity and its preamplifier; a
+    // flipped mic (or swapped wires) records it all inverted.
+    if (errors != nullptr) {
       for (std::size_t mic = 0; mic < array.geometry.mic_count(); ++mic) {
-        const auto gain = static_cast<float>(errors.gain(mic));
+        const auto gain =
+            static_cast<float>(errors->gain(mic) * (errors->flipped(mic) ? -1.0 : 1.0));
+        if (gain == 1.0F) continue;
         const std::size_t channel = channel_of(array, mic);
         for (std::size_t n = 0; n < out.frames(); ++n)
           out.samples[n * out.channels + channel] *= gain;

@@ -281,6 +281,32 @@ void parse_noise_level(ObjectReader& parent, const std::string& key, NoiseLevel&
   level.enabled = level.snr_db.has_value() || level.level_db_spl.has_value();
 }
 
+// A list of {"array": id, "mic": index}: the array must be the site's, the mic one of its mics.
+void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::SiteConfig& site,
+                    std::vector<MicRef>& out) {
+  parent.for_each(key, false, [&](const nlohmann::json& element, const std::string& path) {
+    ObjectReader reader(element, path, parent.diagnostics());
+    const std::string id = reader.required_string("array").value_or("");
+    const int array = id.empty() ? -1 : site.array_index(id);
+    if (!id.empty() && array < 0) {
+      reader.diagnostics().error(reader.path_of("array"), "no array '" + id + "' in the site");
+      reader.accept("mic");
+      return;
+    }
+    const int mics =
+        array < 0
+            ? 8
+            : static_cast<int>(site.arrays[static_cast<std::size_t>(array)].geometry.mic_count());
+    const std::optional<int> mic = reader.optional_integer("mic", 0, mics - 1);
+    if (!mic) {
+      if (!reader.has("mic"))
+        reader.diagnostics().error(reader.path_of("mic"), "required mic is missing");
+      return;
+    }
+    if (array >= 0) out.push_back({id, *mic});
+  });
+}
+
 void parse_noise(ObjectReader& reader, Scenario& scenario) {
   NoiseSpec& noise = scenario.noise;
   parse_noise_level(reader, "sensor", noise.sensor);
@@ -541,6 +567,8 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       spec.yaw_std_deg = errors.number("yaw_std_deg", 0.0, 0.0, 45.0);
       spec.tilt_std_deg = errors.number("tilt_std_deg", 0.0, 0.0, 45.0);
       spec.clock_offset_std_s = errors.number("clock_offset_std_s", 0.0, 0.0, 1.0);
+      parse_mic_refs(errors, "dead_mics", scenario.site, spec.dead_mics);
+      parse_mic_refs(errors, "flipped_mics", scenario.site, spec.flipped_mics);
     }
     scenario.array_errors = draw_array_errors(scenario.array_error_spec, scenario.site);
     apply_geometry_errors(scenario.array_errors, scenario.site);

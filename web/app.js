@@ -377,9 +377,12 @@
         n.status ? `${s.overruns}` : '–',
         doa ? `${fmt(doa.azimuth_deg, 0)}°/${fmt(doa.elevation_deg, 0)}°` : '–',
       ];
-      // Audio health: channels (0-based mic index) with a problem on their last second.
+      // Audio health: channels (0-based mic index) with a problem on their last judgement, their
+      // own audio's (silent, clipped, ...) and against the array's other channels (dead,
+      // polarity flipped, level imbalance, closure, skew).
       const audio = (s.channels || [])
-        .map((c, index) => (c.problems || []).length ? `channel ${index}: ${c.problems.join(', ')}` : '')
+        .map((c, index) => (c.problems || []).length
+          ? `channel ${index}: ${c.problems.map((p) => p.replaceAll('_', ' ')).join(', ')}` : '')
         .filter((text) => text);
       cells.forEach((text, i) => {
         const td = document.createElement('td');
@@ -397,6 +400,18 @@
         tr.appendChild(td);
       });
       rows.appendChild(tr);
+      // The operator must see it without hovering: a warning line under the node, naming it.
+      if (audio.length) {
+        const warning = document.createElement('tr');
+        warning.className = 'node-warning';
+        warning.dataset.warningFor = n.array;
+        const td = document.createElement('td');
+        td.colSpan = cells.length;
+        td.className = 'warn';
+        td.textContent = `${n.array} ${audio.join('; ')}`;
+        warning.appendChild(td);
+        rows.appendChild(warning);
+      }
     }
   }
   function renderAlerts() {

@@ -272,6 +272,54 @@ TEST(DdsConversions, NodeStatusChannelsRoundTripAndAreValidated) {
   EXPECT_TRUE(out.channels.empty());
 }
 
+// The channels judged against each other (issue 16): flags, offsets and the array's residuals
+// round-trip; NaN, unknown bits and values out of bounds are refused.
+TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
+  doa::NodeStatus status;
+  status.array_id = "N2";
+  status.closure_residual_us = 12.5;
+  status.fit_residual_us = 3.25;
+  status.channels = {{0, 0, 0, 0, -31.5, 0, 0, 0.25, -1.5},
+                     {0, 0, 0, 0, -31.0, doa::array_flag(doa::ArrayProblem::polarity_flipped),
+                      doa::array_flag(doa::ArrayProblem::polarity_flipped) |
+                          doa::array_flag(doa::ArrayProblem::skew),
+                      6.0, 200.0}};
+  dronetrack_NodeStatus sample{};
+  to_idl(status, 0, sample);
+  doa::NodeStatus out;
+  ASSERT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+  EXPECT_EQ(out.closure_residual_us, 12.5);
+  EXPECT_EQ(out.fit_residual_us, 3.25);
+  ASSERT_EQ(out.channels.size(), 2U);
+  EXPECT_EQ(out.channels[1].array_problems, status.channels[1].array_problems);
+  EXPECT_EQ(out.channels[1].array_problems_seen, status.channels[1].array_problems_seen);
+  EXPECT_EQ(out.channels[1].level_offset_db, 6.0);
+  EXPECT_EQ(out.channels[1].delay_offset_us, 200.0);
+  EXPECT_EQ(out.channels[0].level_offset_db, 0.25);
+
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  sample.channels[1].level_offset_db = nan;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
+  sample.channels[1].level_offset_db = 301.0;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channels[1].level_offset_db = 6.0;
+  sample.channels[0].delay_offset_us = nan;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
+  sample.channels[0].delay_offset_us = 0.0;
+  sample.channels[0].array_problems_seen = 0x20;  // no such check
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channels[0].array_problems_seen = 0;
+  sample.closure_residual_us = nan;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
+  sample.closure_residual_us = -1.0;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.closure_residual_us = 0.0;
+  sample.fit_residual_us = 2e6;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.fit_residual_us = 0.0;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::none);
+}
+
 TEST(DdsConversions, LongIdsAreTruncatedToTheirBound) {
   dronetrack_NodeStatus status{};
   copy_bounded(status.software_version, std::string(100, 'v'));

@@ -1,0 +1,466 @@
+#include "doa/array_health.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+
+namespace dronetrack::doa {
+
+namespace {
+
+// Raised problems one observe() can hold per problem and channel (a frame judges each check at
+// most once, so one suffices; the rest is slack for a node that skips clear_events()).
+constexpr std::size_t kEventsPerProblem = 4;
+// The delay fit's floor on a pair delay's noise: a sub-sample GCC estimate is not better.
+constexpr double kMinDelayNoise_s = 2e-6;
+
+// Median of `values` (reordered); 0 for none.
+double median_of(std::span<double> values) {
+  if (values.empty()) return 0.0;
+  const std::size_t half = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half),
+                   values.end());
+  const double upper = values[half];
+  if (values.size() % 2 == 1) return upper;
+  const double lower =
+      *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half));
+  return 0.5 * (lower + upper);
+}
+
+}  // namespace
+
+const char* to_string(ArrayProblem problem) {
+  switch (problem) {
+    case ArrayProblem::level_imbalance:
+      return "level_imbalance";
+    case ArrayProblem::dead:
+      return "dead";
+    case ArrayProblem::polarity_flipped:
+      return "polarity_flipped";
+    case ArrayProblem::closure:
+      return "closure";
+    case ArrayProblem::skew:
+      return "skew";
+  }
+  return "unknown";
+}
+
+PairPeak correlation_extremes(std::span<const double> correlation) {
+  PairPeak extremes;
+  for (const double value : correlation) {
+    extremes.highest = std::max(extremes.highest, value);
+    extremes.lowest = std::min(extremes.lowest, value);
+  }
+  return extremes;
+}
+
+namespace {
+double magnitude(const PairPeak& pair) { return std::max(pair.highest, -pair.lowest); }
+}  // namespace
+
+ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mps, double hop_s,
+                         const ArrayHealthSettings& settings)
+    : channels_(static_cast<int>(geometry.mic_count())),
+      pairs_(channels_ * (channels_ - 1) / 2),
+      speed_of_sound_mps_(speed_of_sound_mps),
+      settings_(settings) {
+  auto fail = [](const std::string& what) { throw std::invalid_argument("ArrayHealth: " + what); };
+  if (channels_ < 2 || channels_ > 8) fail("needs 2 to 8 mics");
+  if (!(speed_of_sound_mps > 0.0)) fail("speed_of_sound_mps must be > 0");
+  if (!(hop_s > 0.0)) fail("hop_s must be > 0");
+  if (!(settings.level_stretch_s > 0.0)) fail("level_stretch_s must be > 0");
+  if (!(settings.imbalance_db > 0.0)) fail("imbalance_db must be > 0");
+  if (!(settings.dead_level_db < -settings.imbalance_db))
+    fail("dead_level_db must be below -imbalance_db");
+  if (!(settings.coherent_peak > 0.0 && settings.coherent_peak < 1.0))
+    fail("coherent_peak must be in (0, 1)");
+  if (!(settings.incoherent_ratio > 0.0 && settings.incoherent_ratio < 1.0))
+    fail("incoherent_ratio must be in (0, 1)");
+  if (!(settings.sign_dominance >= 1.0)) fail("sign_dominance must be >= 1");
+  if (settings.judge_source_frames < 2) fail("judge_source_frames must be >= 2");
+  if (!(settings.problem_share > 0.5 && settings.problem_share <= 1.0))
+    fail("problem_share must be in (0.5, 1]");
+  if (settings.closure_window_frames < 3) fail("closure_window_frames must be >= 3");
+  if (settings.closure_persistence < 1) fail("closure_persistence must be >= 1");
+  if (!(settings.closure_us > 0.0) || !(settings.frame_closure_us > 0.0))
+    fail("closure_us and frame_closure_us must be > 0");
+  if (!(settings.skew_us > 0.0) || !(settings.skew_window_s > 0.0) ||
+      !(settings.skew_prior_us > 0.0) || !(settings.min_skew_frames >= 1.0))
+    fail("skew_us, skew_window_s, skew_prior_us must be > 0 and min_skew_frames >= 1");
+  if (!(settings.rewarn_s >= 0.0)) fail("rewarn_s must be >= 0");
+
+  const auto n = static_cast<std::size_t>(channels_);
+  for (int i = 0; i < channels_; ++i)
+    for (int j = i + 1; j < channels_; ++j) pair_mics_.push_back({i, j});
+  auto pair_index = [&](int i, int j) { return i * (2 * channels_ - i - 1) / 2 + (j - i - 1); };
+  for (int i = 0; i < channels_; ++i)
+    for (int j = i + 1; j < channels_; ++j)
+      for (int k = j + 1; k < channels_; ++k) {
+        triples_.push_back({i, j, k});
+        triple_pairs_.push_back({pair_index(i, j), pair_index(j, k), pair_index(i, k)});
+      }
+  channels_health_.assign(n, ArrayChannelHealth{});
+  states_.assign(n, {});
+  events_.reserve(n * kArrayProblemCount * kEventsPerProblem);
+  power_sums_.assign(n, 0.0);
+  level_stretch_frames_ =
+      std::max(1, static_cast<int>(std::lround(settings.level_stretch_s / hop_s)));
+  const auto window = static_cast<std::size_t>(settings.closure_window_frames);
+  scratch_.assign(std::max({n, static_cast<std::size_t>(pairs_), window}), 0.0);
+  incoherent_frames_.assign(n, 0);
+  previous_offset_us_.assign(n, 0.0);
+  level_dead_.assign(n, 0);
+  incoherent_dead_.assign(n, 0);
+  coherent_frames_.assign(static_cast<std::size_t>(pairs_), 0);
+  negative_frames_.assign(static_cast<std::size_t>(pairs_), 0);
+  closure_ring_.assign(triples_.size() * window, 0.0);
+  closure_count_.assign(triples_.size(), 0);
+  closure_next_.assign(triples_.size(), 0);
+  closure_failing_runs_.assign(triples_.size(), 0);
+  fit_ring_.assign(window, 0.0);
+
+  // The delay fit needs the slowness in three dimensions: a planar or linear array leaves it out.
+  geometry_.resize(pairs_, 3);
+  difference_.setZero(pairs_, channels_);
+  for (int p = 0; p < pairs_; ++p) {
+    const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
+    geometry_.row(p) = (geometry.mics_m[static_cast<std::size_t>(j)] -
+                        geometry.mics_m[static_cast<std::size_t>(i)])
+                           .transpose();
+    difference_(p, i) = 1.0;
+    difference_(p, j) = -1.0;
+  }
+  const Eigen::MatrixXd pair_vectors = geometry_;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(pair_vectors);
+  const Eigen::VectorXd singular = svd.singularValues();
+  fit_possible_ = singular.size() == 3 && singular(0) > 0.0 && singular(2) > 1e-3 * singular(0);
+  information_.setZero(channels_, channels_);
+  information_vector_.setZero(channels_);
+  delay_estimate_s_.setZero(channels_);
+  frame_jacobian_.setZero(pairs_, channels_);
+  frame_tdoas_.setZero(pairs_);
+  frame_misfit_.setZero(pairs_);
+  if (fit_possible_) {
+    const Eigen::Matrix3d normal = geometry_.transpose() * geometry_;
+    geometry_inverse_ = normal.inverse() * geometry_.transpose();
+    slowness_of_delays_ = geometry_inverse_ * difference_;
+    out_of_range_ = difference_ - geometry_ * slowness_of_delays_;
+  }
+  forgetting_ = std::exp(-hop_s / settings.skew_window_s);
+}
+
+bool ArrayHealth::coherent_positive(const PairPeak& pair) const {
+  return pair.highest >= settings_.coherent_peak && pair.highest >= -pair.lowest &&
+         std::isfinite(pair.tdoa_s);
+}
+
+// A band-pass correlation's first side lobes are negative and, when the band is narrow (the
+// SNR weights leave a rotor's few strongest lines), nearly as deep as the main lobe is high:
+// echoes and a second source then tip one over the other on a clean pair. Only a clear winner
+// tells the sign.
+int ArrayHealth::lobe_sign(const PairPeak& pair) const {
+  if (magnitude(pair) < settings_.coherent_peak) return 0;
+  if (pair.highest >= -settings_.sign_dominance * pair.lowest) return 1;
+  if (-pair.lowest >= settings_.sign_dominance * pair.highest) return -1;
+  return 0;
+}
+
+void ArrayHealth::observe(double time_s, std::span<const double> channel_power,
+                          std::span<const PairPeak> pairs, bool source, bool single_source) {
+  if (channel_power.size() == static_cast<std::size_t>(channels_))
+    observe_levels(time_s, channel_power);
+  if (!source || pairs.size() != static_cast<std::size_t>(pairs_)) return;
+  // A source for these checks: enough pairs hear it that every pair of all mics but one could
+  // be among them (a dead or flipped mic leaves those).
+  const int needed = std::max(1, (channels_ - 1) * (channels_ - 2) / 2);
+  int coherent = 0;
+  for (const PairPeak& pair : pairs)
+    if (magnitude(pair) >= settings_.coherent_peak) ++coherent;
+  if (coherent < needed) return;
+  observe_coherence(time_s, pairs);
+  if (single_source) observe_closure(pairs);
+  if (++closure_new_frames_ < settings_.judge_source_frames) return;
+  closure_new_frames_ = 0;
+  judge_delays(time_s);
+}
+
+void ArrayHealth::judge_delays(double time_s) {
+  judge_closure(time_s);
+  if (fit_possible_) judge_skew(time_s);
+}
+
+void ArrayHealth::observe_levels(double time_s, std::span<const double> channel_power) {
+  for (int c = 0; c < channels_; ++c) {
+    const double power = channel_power[static_cast<std::size_t>(c)];
+    if (std::isfinite(power) && power > 0.0) power_sums_[static_cast<std::size_t>(c)] += power;
+  }
+  if (++level_frames_ < level_stretch_frames_) return;
+  const std::span<double> levels(scratch_.data(), static_cast<std::size_t>(channels_));
+  for (int c = 0; c < channels_; ++c)
+    levels[static_cast<std::size_t>(c)] =
+        10.0 *
+        std::log10(std::max(power_sums_[static_cast<std::size_t>(c)] / level_frames_, 1e-30));
+  std::array<double, 8> own{};
+  std::copy(levels.begin(), levels.end(), own.begin());
+  const double median_db = median_of(levels);
+  level_frames_ = 0;
+  std::fill(power_sums_.begin(), power_sums_.end(), 0.0);
+  // No signal in the band on most channels: nothing to compare (ChannelHealth says silent).
+  if (median_db <= -290.0) return;
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    const double offset_db = own[index] - median_db;
+    channels_health_[index].level_offset_db = offset_db;
+    const bool dead = offset_db < settings_.dead_level_db;
+    level_dead_[index] = dead ? 1 : 0;
+    // A dead mic's level says it is dead, not imbalanced.
+    update(c, ArrayProblem::level_imbalance,
+           !dead && incoherent_dead_[index] == 0 && std::fabs(offset_db) > settings_.imbalance_db,
+           time_s, 0.0);
+    update(c, ArrayProblem::dead, dead || incoherent_dead_[index] != 0, time_s, 0.0);
+  }
+}
+
+void ArrayHealth::observe_coherence(double time_s, std::span<const PairPeak> pairs) {
+  ++source_frames_;
+  for (int p = 0; p < pairs_; ++p) {
+    const int sign = lobe_sign(pairs[static_cast<std::size_t>(p)]);
+    if (sign == 0) continue;
+    ++coherent_frames_[static_cast<std::size_t>(p)];
+    if (sign < 0) ++negative_frames_[static_cast<std::size_t>(p)];
+  }
+  // A mic is incoherent when its best pair is far under what the pairs without it reach.
+  if (channels_ >= 3) {
+    for (int c = 0; c < channels_; ++c) {
+      double best = 0.0;
+      std::size_t others = 0;
+      for (int p = 0; p < pairs_; ++p) {
+        const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
+        const double size = magnitude(pairs[static_cast<std::size_t>(p)]);
+        if (i == c || j == c)
+          best = std::max(best, size);
+        else
+          scratch_[others++] = size;
+      }
+      const double typical = median_of(std::span<double>(scratch_.data(), others));
+      if (typical >= settings_.coherent_peak && best < settings_.incoherent_ratio * typical)
+        ++incoherent_frames_[static_cast<std::size_t>(c)];
+    }
+  }
+  if (source_frames_ < settings_.judge_source_frames) return;
+  const double share_needed = settings_.problem_share * source_frames_;
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    const double incoherent_share = static_cast<double>(incoherent_frames_[index]) / source_frames_;
+    incoherent_dead_[index] = incoherent_frames_[index] >= share_needed ? 1 : 0;
+    update(c, ArrayProblem::dead, level_dead_[index] != 0 || incoherent_dead_[index] != 0, time_s,
+           incoherent_share);
+    if (incoherent_dead_[index] != 0) update(c, ArrayProblem::level_imbalance, false, time_s, 0.0);
+    // Flipped: most of its pairs that heard the source on most of the frames did so negative. A
+    // two-mic array cannot tell which of its mics is flipped.
+    if (channels_ < 3) continue;
+    // One flipped mic turns the signs of its own pairs only: most of them negative, most of
+    // the others positive. All pairs negative is the scene (a band whose side lobes rival its
+    // main lobe, an echo adding into one), not a mic.
+    int judged = 0, negative = 0, others_judged = 0, others_positive = 0;
+    double negative_share = 0.0;
+    for (int p = 0; p < pairs_; ++p) {
+      const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
+      const auto pair = static_cast<std::size_t>(p);
+      if (2 * coherent_frames_[pair] < source_frames_) continue;
+      const double share = static_cast<double>(negative_frames_[pair]) / coherent_frames_[pair];
+      if (i != c && j != c) {
+        ++others_judged;
+        if (share <= 1.0 - settings_.problem_share) ++others_positive;
+        continue;
+      }
+      ++judged;
+      if (share >= settings_.problem_share) {
+        ++negative;
+        negative_share += share;
+      }
+    }
+    if (judged == 0 || others_judged == 0) continue;  // not heard enough to say
+    const bool flipped = 2 * negative > judged && 2 * others_positive > others_judged;
+    update(c, ArrayProblem::polarity_flipped, flipped, time_s,
+           negative > 0 ? negative_share / negative : 0.0);
+  }
+  source_frames_ = 0;
+  std::fill(incoherent_frames_.begin(), incoherent_frames_.end(), 0);
+  std::fill(coherent_frames_.begin(), coherent_frames_.end(), 0);
+  std::fill(negative_frames_.begin(), negative_frames_.end(), 0);
+}
+
+void ArrayHealth::observe_closure(std::span<const PairPeak> pairs) {
+  const auto window = static_cast<std::size_t>(settings_.closure_window_frames);
+  double frame_closure_s = 0.0;
+  bool all_positive = true;
+  for (std::size_t t = 0; t < triples_.size(); ++t) {
+    const auto [ij, jk, ik] = triple_pairs_[t];
+    const PairPeak& a = pairs[static_cast<std::size_t>(ij)];
+    const PairPeak& b = pairs[static_cast<std::size_t>(jk)];
+    const PairPeak& c = pairs[static_cast<std::size_t>(ik)];
+    // A negative main lobe (a flipped mic) gives no lag to add: its peak is a side lobe.
+    if (!coherent_positive(a) || !coherent_positive(b) || !coherent_positive(c)) {
+      all_positive = false;
+      continue;
+    }
+    const double closure_s = a.tdoa_s + b.tdoa_s - c.tdoa_s;
+    frame_closure_s = std::max(frame_closure_s, std::fabs(closure_s));
+    closure_ring_[t * window + static_cast<std::size_t>(closure_next_[t])] = closure_s;
+    closure_next_[t] = (closure_next_[t] + 1) % settings_.closure_window_frames;
+    closure_count_[t] = std::min(closure_count_[t] + 1, settings_.closure_window_frames);
+  }
+  for (const PairPeak& pair : pairs) all_positive = all_positive && coherent_positive(pair);
+  if (fit_possible_ && all_positive && frame_closure_s <= 1e-6 * settings_.frame_closure_us)
+    observe_fit(pairs);
+}
+
+// One frame of the delay fit. tau = G u / c + D d: the slowness G^+ tau of the pair delays
+// freed of the current estimate is turned to unit length, and what that leaves of the delays
+// is the misfit r. Around the estimate, r = M (d - d_est) with M = E + (G u)(F^T u) (E: the
+// part of D outside G's range, F = G^+ D; the u-part is the radial error a delay puts on the
+// slowness's length), so the information on d gains M^T M and M^T (r + M d_est).
+void ArrayHealth::observe_fit(std::span<const PairPeak> pairs) {
+  for (int p = 0; p < pairs_; ++p) frame_tdoas_(p) = pairs[static_cast<std::size_t>(p)].tdoa_s;
+  // The LS DOA's misfit as the node measures it, before any delay is taken out.
+  const Eigen::Vector3d raw_slowness = geometry_inverse_ * frame_tdoas_;
+  const double raw_norm = raw_slowness.norm();
+  if (!(raw_norm > 0.0)) return;
+  frame_misfit_.noalias() =
+      frame_tdoas_ - geometry_ * (raw_slowness / (raw_norm * speed_of_sound_mps_));
+  fit_ring_[static_cast<std::size_t>(fit_next_)] = std::sqrt(frame_misfit_.squaredNorm() / pairs_);
+  fit_next_ = (fit_next_ + 1) % settings_.closure_window_frames;
+  fit_count_ = std::min(fit_count_ + 1, settings_.closure_window_frames);
+
+  frame_tdoas_.noalias() -= difference_ * delay_estimate_s_;
+  const Eigen::Vector3d slowness = geometry_inverse_ * frame_tdoas_;
+  const double length = slowness.norm() * speed_of_sound_mps_;
+  if (!(length > 0.5 && length < 1.5)) return;  // not one plane wave: a stray frame
+  const Eigen::Vector3d direction = slowness.normalized();
+  frame_misfit_.noalias() = frame_tdoas_ - geometry_ * (direction / speed_of_sound_mps_);
+  frame_jacobian_ = out_of_range_;
+  frame_jacobian_.noalias() +=
+      (geometry_ * direction) * (slowness_of_delays_.transpose() * direction).transpose();
+  frame_misfit_.noalias() += frame_jacobian_ * delay_estimate_s_;
+  information_ *= forgetting_;
+  information_.noalias() += frame_jacobian_.transpose() * frame_jacobian_;
+  information_vector_ *= forgetting_;
+  information_vector_.noalias() += frame_jacobian_.transpose() * frame_misfit_;
+  fit_frames_ = forgetting_ * fit_frames_ + 1.0;
+  fit_square_sum_ = forgetting_ * fit_square_sum_ + frame_misfit_.squaredNorm();
+}
+
+// A triple fails when its running median closure is off zero; a channel is named when it is the
+// only one every failing triple holds (and at least two fail).
+void ArrayHealth::judge_closure(double time_s) {
+  const auto window = static_cast<std::size_t>(settings_.closure_window_frames);
+  closure_residual_us_ = 0.0;
+  std::array<int, 8> failing_of{};
+  int failing = 0;
+  bool judged = false;
+  for (std::size_t t = 0; t < triples_.size(); ++t) {
+    if (2 * closure_count_[t] < settings_.closure_window_frames) continue;
+    judged = true;
+    const auto count = static_cast<std::size_t>(closure_count_[t]);
+    std::copy_n(closure_ring_.begin() + static_cast<std::ptrdiff_t>(t * window), count,
+                scratch_.begin());
+    const double median_us = 1e6 * median_of(std::span<double>(scratch_.data(), count));
+    closure_residual_us_ = std::max(closure_residual_us_, std::fabs(median_us));
+    // A stretch of frames whose pairs follow different sources can hold a median off for a
+    // judgement or two: a triple fails when it stays off.
+    int& runs = closure_failing_runs_[t];
+    runs = std::fabs(median_us) > settings_.closure_us ? runs + 1 : 0;
+    if (runs < settings_.closure_persistence) continue;
+    ++failing;
+    for (const int mic : triples_[t]) ++failing_of[static_cast<std::size_t>(mic)];
+  }
+  if (fit_count_ > 0) {
+    std::copy_n(fit_ring_.begin(), fit_count_, scratch_.begin());
+    fit_residual_us_ =
+        1e6 * median_of(std::span<double>(scratch_.data(), static_cast<std::size_t>(fit_count_)));
+  }
+  if (!judged || channels_ < 4) return;
+  int common = 0;
+  for (int c = 0; c < channels_; ++c)
+    if (failing >= 2 && failing_of[static_cast<std::size_t>(c)] == failing) ++common;
+  for (int c = 0; c < channels_; ++c) {
+    const bool named = common == 1 && failing_of[static_cast<std::size_t>(c)] == failing;
+    update(c, ArrayProblem::closure, named, time_s, 0.0);
+  }
+}
+
+// The channel delays that best explain the misfits, with a weak prior keeping what the source
+// directions did not reveal at 0 and the mean delay at 0 (a delay common to all channels is
+// the clock's); a channel is judged only once its offset is known to a third of skew_us.
+void ArrayHealth::judge_skew(double time_s) {
+  if (fit_frames_ < settings_.min_skew_frames) return;
+  const auto n = static_cast<double>(channels_);
+  const double scale_s2 =
+      std::max(kMinDelayNoise_s * kMinDelayNoise_s, fit_square_sum_ / (fit_frames_ * pairs_));
+  const double prior_s = 1e-6 * settings_.skew_prior_us;
+  ChannelMatrix system = information_;
+  system.diagonal().array() += scale_s2 / (prior_s * prior_s);
+  system.array() += std::max(1.0, information_.trace()) / (n * n);
+  const Eigen::LDLT<ChannelMatrix> solve(system);
+  const ChannelVector delay_s = solve.solve(information_vector_);
+  const double square_sum = fit_square_sum_ - 2.0 * delay_s.dot(information_vector_) +
+                            delay_s.dot(information_ * delay_s);
+  const double dof = std::max(1.0, fit_frames_ * (pairs_ - 2) - (n - 1.0));
+  const double noise_s2 = std::max(kMinDelayNoise_s * kMinDelayNoise_s, square_sum / dof);
+  std::copy(delay_s.data(), delay_s.data() + channels_, scratch_.begin());
+  const double median_s =
+      median_of(std::span<double>(scratch_.data(), static_cast<std::size_t>(channels_)));
+  delay_estimate_s_ = delay_s;
+  for (int c = 0; c < channels_; ++c) {
+    ChannelVector unit = ChannelVector::Zero(channels_);
+    unit(c) = 1.0;
+    const double std_us = 1e6 * std::sqrt(noise_s2 * solve.solve(unit)(c));
+    if (!(std_us < settings_.skew_us / 3.0)) continue;  // not seen well enough to say
+    const double offset_us = 1e6 * (delay_s(c) - median_s);
+    double& previous_us = previous_offset_us_[static_cast<std::size_t>(c)];
+    // Linearised about an estimate still moving, the first fits can be off by the threshold:
+    // a skew is said when two fits in a row agree on it.
+    const bool skewed = std::fabs(offset_us) > settings_.skew_us &&
+                        std::fabs(previous_us) > settings_.skew_us &&
+                        std::fabs(offset_us - previous_us) < 0.5 * settings_.skew_us;
+    previous_us = offset_us;
+    channels_health_[static_cast<std::size_t>(c)].delay_offset_us = offset_us;
+    update(c, ArrayProblem::skew, skewed, time_s, 0.0);
+  }
+}
+
+void ArrayHealth::update(int channel, ArrayProblem problem, bool present, double time_s,
+                         double share) {
+  ProblemState& state =
+      states_[static_cast<std::size_t>(channel)][static_cast<std::size_t>(problem)];
+  ArrayChannelHealth& health = channels_health_[static_cast<std::size_t>(channel)];
+  if (!present) {
+    state.present = false;
+    state.announced = false;
+    health.problems &= static_cast<ArrayFlags>(~array_flag(problem));
+    return;
+  }
+  state.present = true;
+  health.problems |= array_flag(problem);
+  health.problems_seen |= array_flag(problem);
+  if (state.announced || time_s - state.last_raised_s < settings_.rewarn_s) return;
+  state.announced = true;
+  state.last_raised_s = time_s;
+  if (events_.size() == events_.capacity()) return;  // never allocates
+  ArrayHealthEvent event;
+  event.channel = channel;
+  event.problem = problem;
+  event.time_s = time_s;
+  event.level_offset_db = health.level_offset_db;
+  event.delay_offset_us = health.delay_offset_us;
+  event.closure_residual_us = closure_residual_us_;
+  event.share = share;
+  events_.push_back(event);
+}
+
+}  // namespace dronetrack::doa

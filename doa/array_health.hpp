@@ -1,0 +1,207 @@
+#pragma once
+// Health of an array's channels judged against each other, online, from what the node's
+// pipeline computes every frame anyway (issue 16): each channel's in-band power after the
+// calibrated gains, and every mic pair's GCC-PHAT peak (its refined lag and the signed largest
+// value of its correlation). Five problems, each raised once when it appears (as ChannelHealth):
+//   level_imbalance  a channel's in-band level off the array's median by more than imbalance_db;
+//   dead             a channel far below the median (dead_level_db), or incoherent with every
+//                    other mic while the other pairs hear a source;
+//   polarity_flipped the pairs holding the channel correlate with a negative main lobe on the
+//                    frames with a source, the others with a positive one;
+//   closure          the pair delays of one source do not add up (tau_ij + tau_jk - tau_ik != 0,
+//                    running median per triple) on the triples holding the channel;
+//   skew             the channel's delay, fitted from the pair delays' misfit to a plane wave
+//                    of unit slowness over many source directions, is off the median channel's.
+// A pure per-channel delay d cancels exactly in a closure sum ((d_i - d_j) + (d_j - d_k) -
+// (d_i - d_k) = 0); closure catches the GCC picking different sources or cycles on different
+// pairs, which is what a skewed channel does to a harmonic drone, and the delay fit catches the
+// skew itself. Thresholds and their units: docs/calibration.md "Health checks at the node".
+// Plain logic (Eigen, std): no I/O, no clock; everything sized in the constructor, observe()
+// allocates nothing.
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "doa/array_geometry.hpp"
+#include "doa/doa_measurement.hpp"
+
+namespace dronetrack::doa {
+
+enum class ArrayProblem : std::uint8_t {
+  level_imbalance = 0,
+  dead = 1,
+  polarity_flipped = 2,
+  closure = 3,
+  skew = 4,
+};
+inline constexpr int kArrayProblemCount = 5;
+// "level_imbalance", "dead", "polarity_flipped", "closure", "skew".
+const char* to_string(ArrayProblem problem);
+
+// Bit i set: ArrayProblem i.
+using ArrayFlags = std::uint8_t;
+constexpr ArrayFlags array_flag(ArrayProblem problem) {
+  return static_cast<ArrayFlags>(1U << static_cast<unsigned>(problem));
+}
+constexpr bool has_problem(ArrayFlags flags, ArrayProblem problem) {
+  return (flags & array_flag(problem)) != 0;
+}
+inline constexpr ArrayFlags kKnownArrayProblems = (1U << kArrayProblemCount) - 1;
+
+struct ArrayHealthSettings {
+  double level_stretch_s = 2.0;    // levels are compared over stretches this long
+  double imbalance_db = 3.0;       // |level offset| above this: level_imbalance
+  double dead_level_db = -20.0;    // level offset below this: dead
+  double coherent_peak = 0.2;      // |GCC peak| at or above this: the pair hears a source
+  double incoherent_ratio = 0.3;   // a channel's best pair under this x the others' median
+  double sign_dominance = 1.5;     // a main lobe's sign counts when |it| >= this x the other's
+  int judge_source_frames = 20;    // dead (incoherent) and polarity: judged per this many
+  double problem_share = 0.8;      // of those frames (incoherent) or of a pair's (negative)
+  int closure_window_frames = 32;  // running median of each triple's closure over these
+  double closure_us = 40.0;        // |median closure| above this: the triple is off
+  int closure_persistence = 3;     // and fails when off on this many judgements in a row
+  double frame_closure_us = 30.0;  // a frame with a larger closure feeds no delay fit
+  double skew_us = 150.0;          // a channel's fitted delay off the median's by more
+  double skew_window_s = 30.0;     // the delay fit forgets with this time constant
+  double skew_prior_us = 1000.0;   // channel delays a priori (keeps unseen ones at 0)
+  double min_skew_frames = 200.0;  // source frames (forgetting-weighted) before judging it
+  double rewarn_s = 10.0;          // a problem raised is not raised again sooner than this
+};
+
+// One mic pair on one frame (pairs i<j in lexicographic order, tau_ij = t_i - t_j).
+struct PairPeak {
+  double tdoa_s = 0.0;   // the refined highest peak's lag
+  double highest = 0.0;  // the correlation's largest value over the physical lags (>= 0)
+  double lowest = 0.0;   // and its smallest (<= 0)
+};
+
+// The largest and smallest values of a pair's correlation (lags within the physical limit),
+// clamped to >= 0 and <= 0: a PairPeak without its lag.
+PairPeak correlation_extremes(std::span<const double> correlation);
+
+struct ArrayChannelHealth {
+  ArrayFlags problems = 0;       // present on the last judgement of each check
+  ArrayFlags problems_seen = 0;  // present at any time so far
+  double level_offset_db = 0.0;  // in-band level minus the array's median, last stretch
+  double delay_offset_us = 0.0;  // fitted channel delay minus the median channel's
+};
+
+// A problem raised on one channel.
+struct ArrayHealthEvent {
+  int channel = 0;  // 0-based mic index
+  ArrayProblem problem = ArrayProblem::level_imbalance;
+  double time_s = 0.0;               // stream time of the judgement that raised it
+  double level_offset_db = 0.0;      // the channel's, then
+  double delay_offset_us = 0.0;      // the channel's, then
+  double closure_residual_us = 0.0;  // the array's, then
+  double share = 0.0;  // dead (incoherent)/polarity: share of the judged frames that showed it
+};
+
+class ArrayHealth {
+ public:
+  // Throws std::invalid_argument naming the bad parameter.
+  ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mps, double hop_s,
+              const ArrayHealthSettings& settings = {});
+
+  // One analysis frame: channel_power[c] (in-band power of channel c, after calibrated gains),
+  // pairs[p] (every pair's peak), whether the frame carries a source (clean, over the noise
+  // floor) and whether the node found exactly one (closure and the delay fit need one source:
+  // with two, pairs follow different ones). Spans of the wrong size are ignored. Appends to
+  // events() what this frame raised.
+  void observe(double time_s, std::span<const double> channel_power,
+               std::span<const PairPeak> pairs, bool source, bool single_source);
+  // Forgets the events (the node calls it before each block).
+  void clear_events() { events_.clear(); }
+
+  std::span<const ArrayHealthEvent> events() const { return events_; }
+  int channels() const { return channels_; }
+  std::span<const ArrayChannelHealth> channel_health() const { return channels_health_; }
+  // Largest |running median closure| over the triples (us), 0 before any is judged.
+  double closure_residual_us() const { return closure_residual_us_; }
+  // Running median over source frames of the RMS misfit of the pair delays to a plane wave of
+  // unit slowness (us): grows for a moved mic or a skewed channel; 0 before any.
+  double fit_residual_us() const { return fit_residual_us_; }
+  const ArrayHealthSettings& settings() const { return settings_; }
+
+ private:
+  using PairVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxPairs, 1>;
+  using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
+  using PairByChannel = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxPairs, 8>;
+  using ChannelMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
+  using PairBySpace = Eigen::Matrix<double, Eigen::Dynamic, 3, 0, kMaxPairs, 3>;
+  using SpaceByPair = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxPairs>;
+  using SpaceByChannel = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 8>;
+  struct ProblemState {
+    bool present = false;
+    bool announced = false;
+    double last_raised_s = -1e300;
+  };
+
+  void observe_levels(double time_s, std::span<const double> channel_power);
+  void observe_coherence(double time_s, std::span<const PairPeak> pairs);
+  void observe_closure(std::span<const PairPeak> pairs);
+  void judge_delays(double time_s);
+  void observe_fit(std::span<const PairPeak> pairs);
+  void judge_closure(double time_s);
+  void judge_skew(double time_s);
+  void update(int channel, ArrayProblem problem, bool present, double time_s, double share);
+  bool coherent_positive(const PairPeak& pair) const;
+  // +1 positive main lobe, -1 negative, 0 neither dominates or too weak.
+  int lobe_sign(const PairPeak& pair) const;
+
+  int channels_;
+  int pairs_;
+  double speed_of_sound_mps_;
+  ArrayHealthSettings settings_;
+  std::vector<std::array<int, 2>> pair_mics_{};
+  std::vector<std::array<int, 3>> triples_{};       // i < j < k
+  std::vector<std::array<int, 3>> triple_pairs_{};  // pairs ij, jk, ik
+  std::vector<ArrayChannelHealth> channels_health_{};
+  std::vector<std::array<ProblemState, kArrayProblemCount>> states_{};
+  std::vector<ArrayHealthEvent> events_{};  // capacity fixed at construction
+  // Levels over the current stretch.
+  std::vector<double> power_sums_{};
+  int level_frames_ = 0;
+  int level_stretch_frames_ = 1;
+  std::vector<double> scratch_{};  // medians (channels, triples, window)
+  // Coherence and sign over the current judgement's source frames.
+  int source_frames_ = 0;
+  std::vector<int> incoherent_frames_{};         // per channel
+  std::vector<std::uint8_t> level_dead_{};       // per channel: the last level judgement's
+  std::vector<std::uint8_t> incoherent_dead_{};  // per channel: the last coherence judgement's
+  std::vector<int> coherent_frames_{};           // per pair
+  std::vector<int> negative_frames_{};           // per pair
+  // Closure: ring of each triple's last residuals (s), and the frames since the last judgement.
+  std::vector<double> closure_ring_{};  // triple-major
+  std::vector<int> closure_count_{};    // per triple, entries in the ring (up to the window)
+  std::vector<int> closure_next_{};
+  int closure_new_frames_ = 0;
+  std::vector<int> closure_failing_runs_{};  // per triple: judgements in a row it was off
+  double closure_residual_us_ = 0.0;
+  std::vector<double> fit_ring_{};
+  int fit_count_ = 0;
+  int fit_next_ = 0;
+  double fit_residual_us_ = 0.0;
+  // Delay fit (rank-3 arrays): information form, forgetting, about the estimate it linearises at.
+  bool fit_possible_ = false;
+  PairBySpace geometry_{};               // G: row (i,j) = (p_j - p_i), tau = G u / c + D d
+  SpaceByPair geometry_inverse_{};       // G^+
+  PairByChannel out_of_range_{};         // E = (I - G G^+) D
+  SpaceByChannel slowness_of_delays_{};  // F = G^+ D
+  PairByChannel difference_{};           // D: row (i,j) = e_i - e_j
+  ChannelMatrix information_{};
+  ChannelVector information_vector_{};
+  double fit_frames_ = 0.0;      // forgetting-weighted count
+  double fit_square_sum_ = 0.0;  // forgetting-weighted sum of the misfits' squares (s^2)
+  double forgetting_ = 1.0;
+  ChannelVector delay_estimate_s_{};
+  std::vector<double> previous_offset_us_{};  // per channel, the last fit's
+  PairByChannel frame_jacobian_{};
+  PairVector frame_tdoas_{};
+  PairVector frame_misfit_{};
+};
+
+}  // namespace dronetrack::doa

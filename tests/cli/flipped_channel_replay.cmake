@@ -1,0 +1,29 @@
+# `dronetrack sim` then `replay` on a site whose A1 has its mic 2 wired inverted (issue 16): the
+# replay completes (exit 0) and warns exactly once, naming the array and the channel, plus the
+# run's one summary line for A1; the clean A2 is never named.
+file(REMOVE_RECURSE ${DIR})
+file(MAKE_DIRECTORY ${DIR})
+execute_process(COMMAND ${BIN} sim ${SCENARIO} --out ${DIR}/scene
+  RESULT_VARIABLE code ERROR_VARIABLE err OUTPUT_QUIET)
+if(NOT code EQUAL 0)
+  message(FATAL_ERROR "sim exit ${code}: ${err}")
+endif()
+execute_process(COMMAND ${BIN} --log-level warn replay ${DIR}/scene/site.json
+  --tracks-out ${DIR}/tracks.jsonl RESULT_VARIABLE code ERROR_VARIABLE err OUTPUT_QUIET)
+if(NOT code EQUAL 0)
+  message(FATAL_ERROR "replay exit ${code}: ${err}")
+endif()
+# The lines hold semicolons, which CMake lists split on.
+string(REPLACE ";" "," err "${err}")
+string(REGEX MATCHALL "[^\n]*A[12] channel [0-9][^\n]*" named "${err}")
+string(REGEX MATCHALL "[^\n]*warn: A1 channel 2: polarity flipped: [^\n]*" warned "${err}")
+string(REGEX MATCHALL "[^\n]*replay: audio problems: A1 channel 2: polarity flipped[^\n]*" summed
+  "${err}")
+list(LENGTH named named_count)
+list(LENGTH warned warned_count)
+list(LENGTH summed summed_count)
+if(NOT warned_count EQUAL 1 OR NOT summed_count EQUAL 1 OR NOT named_count EQUAL 2)
+  message(FATAL_ERROR "expected one polarity warning for A1 channel 2 and its summary line, "
+                      "nothing else naming a channel; stderr:\n${err}")
+endif()
+message(STATUS "ok: ${warned}")
