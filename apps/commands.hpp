@@ -29,6 +29,12 @@ struct UserError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// An argument this site cannot honour (e.g. `--http` beyond loopback on a site without TLS and
+// users): main prints it as one line and exits 2, like a command-line error.
+struct ArgumentError : UserError {
+  using UserError::UserError;
+};
+
 void register_replay(CLI::App& root, CommandTable& table);
 void register_node(CLI::App& root, CommandTable& table);
 void register_fusion(CLI::App& root, CommandTable& table);

@@ -1,5 +1,7 @@
 #include "apps/live_state_observer.hpp"
 
+#include "apps/commands.hpp"
+
 #include <cstdlib>
 
 namespace dronetrack::apps {
@@ -17,6 +19,9 @@ http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std
   options.tls_certificate = site.http.tls_certificate;
   options.tls_private_key = site.http.tls_private_key;
   options.users_file = site.http.users_file;
+  if (const std::string problem = http_api::exposure_problem(options); !problem.empty()) {
+    throw ArgumentError("--http " + bind + ": " + problem);
+  }
   return options;
 }
 

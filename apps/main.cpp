@@ -58,6 +58,9 @@ int run(int argc, char** argv) {
     const std::string name = subcommand->get_name();
     try {
       return action();
+    } catch (const apps::ArgumentError& failure) {
+      std::fprintf(stderr, "dronetrack %s: error: %s\n", name.c_str(), failure.what());
+      return 2;
     } catch (const config::ConfigError& failure) {
       for (const auto& problem : failure.problems()) {
         std::fprintf(stderr, "dronetrack %s: error: %s\n", name.c_str(), problem.c_str());

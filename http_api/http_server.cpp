@@ -154,31 +154,29 @@ void check_limits(const HttpOptions& options) {
   if (limits.max_failed_logins_per_client < 1) fail("max_failed_logins_per_client must be >= 1");
 }
 
+std::string retry_after_header(double seconds) {
+  return std::to_string(std::max(1, static_cast<int>(std::ceil(seconds))));
+}
+}  // namespace
+
 // Anyone who can reach a non-loopback address can read the site's tracks and watch its
 // defences: such an address is served only over TLS and to named users.
-void check_exposure(const HttpOptions& options, const std::string& host) {
+std::string exposure_problem(const HttpOptions& options) {
   if (options.tls_certificate.empty() != options.tls_private_key.empty()) {
-    throw std::runtime_error(
-        "HTTP: TLS needs both a certificate (http.tls_certificate) and its private key "
-        "(http.tls_private_key)");
+    return "HTTP: TLS needs both a certificate (http.tls_certificate) and its private key "
+           "(http.tls_private_key)";
   }
-  if (is_loopback_host(host)) return;
+  const std::string host = parse_bind_address(options.bind).first;
+  if (is_loopback_host(host)) return {};
   std::string missing;
   if (options.tls_certificate.empty()) missing = "TLS (http.tls_certificate, http.tls_private_key)";
   if (options.users_file.empty()) {
     missing += std::string(missing.empty() ? "" : " and ") + "users (http.users_file)";
   }
-  if (!missing.empty()) {
-    throw std::runtime_error("HTTP: refusing to serve on " + options.bind +
-                             " (beyond loopback) without " + missing +
-                             "; see docs/http_api.md, \"Access\"");
-  }
+  if (missing.empty()) return {};
+  return "HTTP: refusing to serve on " + options.bind + " (beyond loopback) without " + missing +
+         "; see docs/http_api.md, \"Access\"";
 }
-
-std::string retry_after_header(double seconds) {
-  return std::to_string(std::max(1, static_cast<int>(std::ceil(seconds))));
-}
-}  // namespace
 
 HttpServer::HttpServer(LiveState& state, HttpOptions options)
     : state_(state), options_(std::move(options)) {}
@@ -196,7 +194,9 @@ void HttpServer::start() {
   auto [host, port] = parse_bind_address(options_.bind);
   host_ = host;
   check_limits(options_);
-  check_exposure(options_, host_);
+  if (const std::string problem = exposure_problem(options_); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
   if (!options_.tls_certificate.empty()) {
     tls_ = std::make_shared<const TlsContext>(options_.tls_certificate, options_.tls_private_key);
   }

@@ -36,6 +36,11 @@ struct HttpOptions {
   ConnectionLimits limits;         // slow and hostile clients (connection_limits.hpp)
 };
 
+// Why `options` may not be served as they stand (a TLS half given, or an address beyond
+// loopback without TLS and users; docs/http_api.md "Access"), or "" if they may. start()
+// refuses them with the same line.
+std::string exposure_problem(const HttpOptions& options);
+
 class HttpServer {
  public:
   HttpServer(LiveState& state, HttpOptions options);
