@@ -65,7 +65,10 @@ node() {  # NAME SITE ARRAY: a node in step with the others
 capture=""
 if command -v tcpdump > /dev/null && [[ "$(id -u)" == 0 ]]; then
   capture="$work/loopback.pcap"
-  tcpdump -i lo -w "$capture" -U udp 2> /dev/null &
+  # Only this domain's ports (Cyclone: 7400 + 250 x domain, then up to ~75 per participant index),
+  # so another test's plain DDS traffic on the machine cannot be mistaken for ours.
+  port=$((7400 + 250 * domain))
+  tcpdump -i lo -w "$capture" -U "udp and portrange $port-$((port + 249))" 2> /dev/null &
   tcpdump_pid=$!
   pids+=($tcpdump_pid)
   sleep 0.5
@@ -85,8 +88,9 @@ if [[ -n "$capture" ]]; then
   [[ -s "$capture" ]] || fail "the loopback capture is empty"
   # Discovery announces each identity's subject name in the clear (that shows the capture sees
   # payloads); the samples, whose NodeStatus carries the software version, must never be.
-  grep -a -q "dronetrack site" "$capture" || fail "the capture holds no readable payload at all"
-  if grep -a -q "@DRONETRACK_VERSION@" "$capture"; then fail "plaintext sample payloads on the wire"; fi
+  grep -a -q -F "dronetrack site" "$capture" || fail "the capture holds no readable payload at all"
+  # -F: a fixed string (as a regex its dots would match any byte of the ciphertext).
+  if grep -a -q -F "@DRONETRACK_VERSION@" "$capture"; then fail "plaintext sample payloads on the wire"; fi
   echo "security test: loopback capture of $(stat -c %s "$capture") bytes: no plaintext sample"
 else
   echo "security test: no tcpdump (or not root): the plaintext check was skipped"
