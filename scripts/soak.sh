@@ -15,6 +15,7 @@ domain=149
   || { echo "soak: DURATION_S and INTERVAL_S (>= 15, one recording pass) are whole seconds" >&2; exit 2; }
 (( duration >= 2 * interval )) || { echo "soak: DURATION_S must be at least two intervals" >&2; exit 2; }
 mkdir -p "$work"
+rm -f "$work/tracks.jsonl"  # the fusion appends: a reused work dir would count old tracks
 export CYCLONEDDS_URI="file://$here/config/cyclonedds-loopback.xml"
 fail() { echo "soak: FAIL: $*" >&2; exit 1; }
 pids=()
@@ -52,7 +53,7 @@ for (( t = interval; t <= duration; t += interval )); do
     cpu=$(( (ticks - previous_ticks[i]) * 100 / (hz * interval) )); previous_ticks[$i]=$ticks
     if (( samples == 0 )); then first_rss[$i]=$rss; first_cpu[$i]=$cpu; fi
     last_rss[$i]=$rss; last_cpu[$i]=$cpu
-    printf " %10.1f %9d" "$(echo "$rss / 1024" | bc -l)" "$cpu"
+    printf " %10.1f %9d" "$(awk -v kb="$rss" 'BEGIN { print kb / 1024 }')" "$cpu"
   done
   now_confirmed=$(confirmed)
   printf " %10d\n" "$now_confirmed"
