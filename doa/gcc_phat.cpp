@@ -236,7 +236,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     double* level = levels_.data() + row;
     // One pass per mic: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit X / |X|. A silent
     // bin (X = 0) gets the unit phasor 0.
-    simd::unit_phasors({x, band_fft_bins_.data(), bins, level, unit_re, unit_im});
+    simd::unit_phasors({x, band_fft_bins_.data(), bins, level, {unit_re, unit_im}});
   }
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
   pair_phasors(units(), false, false);
@@ -263,9 +263,16 @@ void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted) {
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
     double* magnitude = magnitudes_.data() + p * bins;
-    const double magnitude_sum = simd::pair_products({a_re, a_im, b_re, b_im, level_i, level_j,
-                                                      masked ? keep_.data() : nullptr, weights,
-                                                      bins, kSilentBin, out, magnitude});
+    const double magnitude_sum = simd::pair_products({{a_re, a_im},
+                                                      {b_re, b_im},
+                                                      level_i,
+                                                      level_j,
+                                                      masked ? keep_.data() : nullptr,
+                                                      weights,
+                                                      bins,
+                                                      kSilentBin,
+                                                      out,
+                                                      magnitude});
     magnitude_sums_[p] = magnitude_sum;
   }
   weights_applied_ = weighted;

@@ -153,9 +153,12 @@ void GroundEcho::prepare(const GccPhat& gcc, std::span<const std::uint8_t> keep,
   // e^{+j w t_i} undoes the direct path's delay: aligned units add up in phase.
   for (std::size_t mic = 0; mic < mics; ++mic) {
     const std::size_t row = mic * kSearchBins;
-    phasors({search_omega_.data(), vector_bins(search_bins_), arrival_s_[mic], 1.0,
-             aligned_re_.data() + row, aligned_im_.data() + row, aligned_re_.data() + row,
-             aligned_im_.data() + row});
+    phasors({search_omega_.data(),
+             vector_bins(search_bins_),
+             arrival_s_[mic],
+             1.0,
+             {aligned_re_.data() + row, aligned_im_.data() + row},
+             {aligned_re_.data() + row, aligned_im_.data() + row}});
   }
 }
 
@@ -163,18 +166,24 @@ void GroundEcho::candidate(const Eigen::Vector3d& direction_site, double curvatu
   paths(direction_site, curvature_per_m);
   for (std::size_t mic = 0; mic < mics_m_.size(); ++mic) {
     const std::size_t row = mic * kSearchBins;
-    phasors({search_omega_.data(), vector_bins(search_bins_), -delay_s_[mic], level_[mic], nullptr,
-             nullptr, echo_re_.data() + row, echo_im_.data() + row});
+    phasors({search_omega_.data(),
+             vector_bins(search_bins_),
+             -delay_s_[mic],
+             level_[mic],
+             {nullptr, nullptr},
+             {echo_re_.data() + row, echo_im_.data() + row}});
   }
 }
 
 double GroundEcho::coherence(double gain) const {
   const std::size_t mics = mics_m_.size();
-  const double total =
-      simd::echo_coherence({aligned_re_.data(), aligned_im_.data(), echo_re_.data(),
-                            echo_im_.data(), search_weight_.data(), mics,
-                            static_cast<std::size_t>(kSearchBins), vector_bins(search_bins_)},
-                           gain);
+  const double total = simd::echo_coherence({{aligned_re_.data(), aligned_im_.data()},
+                                             {echo_re_.data(), echo_im_.data()},
+                                             search_weight_.data(),
+                                             mics,
+                                             static_cast<std::size_t>(kSearchBins),
+                                             vector_bins(search_bins_)},
+                                            gain);
   const double scale = search_weight_sum_ * static_cast<double>(mics * mics);
   return scale > 0.0 ? total / scale : 0.0;
 }
