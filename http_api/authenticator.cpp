@@ -51,7 +51,7 @@ Authenticator::Authenticator(std::filesystem::path users_file) : file_(std::move
   if (RAND_bytes(process_key_.data(), static_cast<int>(process_key_.size())) != 1) {
     throw std::runtime_error("no random bytes for the credential cache key");
   }
-  users_ = UserFile::load(file_);
+  users_ = std::make_shared<const UserFile>(UserFile::load(file_));
   std::error_code error;
   modified_ = std::filesystem::last_write_time(file_, error);
   size_ = std::filesystem::file_size(file_, error);
@@ -84,11 +84,11 @@ void Authenticator::reload_if_changed() {
   verified_.clear();
   ++generation_;
   try {
-    users_ = UserFile::load(file_);
+    users_ = std::make_shared<const UserFile>(UserFile::load(file_));
     usable_ = true;
     last_error_.clear();
   } catch (const std::exception& e) {
-    users_ = UserFile();
+    users_ = std::make_shared<const UserFile>();
     usable_ = false;
     last_error_ = e.what();
   }
@@ -112,14 +112,14 @@ Authenticator::Result Authenticator::check(std::string_view authorization, std::
   }
   // PBKDF2 outside the lock: one slow check must not hold up every other request. The users
   // read here may be replaced meanwhile; the cache entry is then dropped by the next reload.
-  UserFile users;
+  std::shared_ptr<const UserFile> users;
   std::uint64_t generation = 0;
   {
     std::lock_guard lock(mutex_);
     users = users_;
     generation = generation_;
   }
-  if (!users.verify(name, password)) return Result::rejected;
+  if (!users->verify(name, password)) return Result::rejected;
   std::lock_guard lock(mutex_);
   if (generation == generation_) verified_[name] = digest;
   user = name;

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
@@ -41,7 +42,9 @@ class Authenticator {
   const std::filesystem::path file_;
   std::array<unsigned char, 32> process_key_{};
   std::mutex mutex_;
-  UserFile users_;
+  // Shared, never changed once read: a slow check holds the users it started with while a
+  // reload swaps in new ones, without copying the file per check.
+  std::shared_ptr<const UserFile> users_;
   bool usable_ = true;
   std::string last_error_;
   std::filesystem::file_time_type modified_{};
