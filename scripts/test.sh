@@ -36,4 +36,4 @@ ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
 
 # libFuzzer harnesses (fuzz/README.md): a clang build plus 20 s per harness, about 3 min on CI.
 echo "== fuzz: ${DRONETRACK_FUZZ_SECONDS:-20} s per harness" >&2
-DRONETRACK_FUZZ_OPT="${DRONETRACK_FUZZ_OPT:--O0}" bash scripts/fuzz.sh "${DRONETRACK_FUZZ_SECONDS:-20}"
+bash scripts/fuzz.sh "${DRONETRACK_FUZZ_SECONDS:-20}"
