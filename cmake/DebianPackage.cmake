@@ -20,7 +20,8 @@ fusion serves a web page. Recordings replay through the same code.
 Ships the dronetrack executable, systemd units for nodes, fusion and alerts
 (not enabled), their configuration in /etc/dronetrack and the web page.")
 # Depends from the executable's shared libraries (dpkg-shlibdeps, dpkg-dev): FFTW, libsndfile,
-# Cyclone DDS, PortAudio, OpenSSL, Ceres, Highway, ... at the versions of the build machine.
+# Cyclone DDS, PortAudio, OpenSSL, Highway, what the static Ceres needs, ... at the versions of
+# the build machine.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS systemd)  # the units, and systemd-sysusers for the user
 # openssl: site-pki.sh; cyclonedds-tools: ddsperf, to check the network (docs/deployment.md).

@@ -4,7 +4,8 @@
 # --force-script-chrootless), run from there, then removed and purged. The running system is
 # never touched: its /etc/passwd, /etc/group and /etc/systemd are compared before and after.
 #  - control: Depends names the runtime libraries, conffiles lists exactly the files under /etc;
-#  - install: the system user in the root (postinst -> systemd-sysusers --root);
+#  - install: the system user in the root (postinst -> systemd-sysusers --root); a reinstall
+#    keeps an edited conffile;
 #  - the installed `dronetrack --help`; `sim` of an installed scenario, then `replay` of the
 #    installed /etc/dronetrack/site.json (its recordings/ pointed at the scene) with --http:
 #    confirmed tracks of both drones, and the page served is the installed copy;
@@ -35,7 +36,7 @@ say "built $(basename "$deb"), $(du -k "$deb" | cut -f1) KiB, in $((SECONDS - st
 dpkg-deb -e "$deb" "$work/control"
 depends=$(dpkg-deb -f "$deb" Depends)
 for library in libfftw3-double3 libsndfile1 libddsc0debian libportaudio2 libssl3 libhwy1 \
-    libceres3 libstdc++6 libc6; do
+    libcpp-httplib0.11 libstdc++6 libc6; do
   grep -q "\b$library\b" <<< "$depends" || fail "Depends lacks $library: $depends"
 done
 for script in postinst prerm postrm; do
@@ -69,6 +70,11 @@ done
 user=$(grep '^dronetrack:' "$root/etc/passwd" || true)
 [[ "$user" == *:/var/lib/dronetrack:/usr/sbin/nologin ]] || fail "user in the root's passwd: '$user'"
 grep -Eq '^audio:.*[:,]dronetrack(,|$)' "$root/etc/group" || fail "dronetrack is not in audio"
+# A reinstall (as an upgrade runs the scripts) keeps the site's edit of a conffile.
+sed -i 's/"description": "/"description": "edited here. /' "$root/etc/dronetrack/site.json"
+dpkg_root --install "$deb"
+grep -q '"description": "edited here. ' "$root/etc/dronetrack/site.json" \
+  || fail "reinstalling replaced the edited /etc/dronetrack/site.json"
 
 # The installed executable, with nothing of the source tree.
 unset DRONETRACK_WEB_ROOT
@@ -77,7 +83,7 @@ grep -q "replay" "$work/help.txt" || fail "--help lists no replay"
 "$bin" demo --help | grep -q "$root/usr/share/dronetrack/scenarios/perimeter-two-drones.json" \
   || fail "demo's default scenario is not the installed one"
 "$bin" sim "$root/usr/share/dronetrack/scenarios/perimeter-two-drones.json" --duration-s 12 \
-  --out "$work/scene" 2> "$work/sim.log" || fail "sim: $(tail -1 "$work/sim.log")"
+  --out "$work/scene" > "$work/sim.out" 2> "$work/sim.log" || fail "sim: $(tail -1 "$work/sim.log")"
 ln -s "$work/scene" "$root/etc/dronetrack/recordings"  # the site's recordings/N1.wav ...
 marker="<!-- installed copy $$ -->"
 echo "$marker" >> "$root/usr/share/dronetrack/web/index.html"
@@ -95,6 +101,7 @@ url=$(sed -n 's/^dronetrack: serving \(.*\)$/\1/p' "$work/replay.out")
 curl -fsS "$url" > "$work/index.html" || fail "GET $url failed"
 grep -qF "$marker" "$work/index.html" || fail "the page served is not the installed copy"
 curl -fsS "${url%/}/api/tracks" > "$work/api-tracks.json" || fail "GET /api/tracks failed"
+grep -q '"tracks":\[{' "$work/api-tracks.json" || fail "/api/tracks has no track: $(head -c 200 "$work/api-tracks.json")"
 kill -TERM $replay
 wait $replay && code=0 || code=$?
 trap - EXIT
