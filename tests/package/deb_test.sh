@@ -44,7 +44,7 @@ for script in postinst prerm postrm; do
 done
 etc_files=$(dpkg-deb -c "$deb" | awk '$1 !~ /^d/ {print $6}' | sed -n 's|^\./etc/|/etc/|p' | sort)
 [[ "$(sort "$work/control/conffiles")" == "$etc_files" ]] \
-  || fail "conffiles $(tr '\n' ' ' < "$work/control/conffiles") != files under /etc: $etc_files"
+  || fail "conffiles $(tr '\n' ' ' < "$work/control/conffiles")!= files under /etc: $(tr '\n' ' ' <<< "$etc_files")"
 
 # Install into a scratch root. The system's files, to prove they are left alone.
 host_state() { md5sum /etc/passwd /etc/group; find /etc/systemd -maxdepth 3 2>/dev/null | sort; }
