@@ -6,6 +6,7 @@
 
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
+#include "apps/data_paths.hpp"
 #include "apps/replay_session.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
@@ -20,7 +21,8 @@ struct Interrupted {};
 
 struct DemoArguments {
   std::string scenario =
-      std::string(DRONETRACK_SOURCE_DIR) + "/config/scenarios/perimeter-two-drones.json";
+      data_path("scenarios/perimeter-two-drones.json", "config/scenarios/perimeter-two-drones.json")
+          .string();
   std::string data_dir = "demo-data";
   std::string http = "127.0.0.1:8080";
   double duration_s = 0.0;

@@ -24,7 +24,8 @@ class LiveStateObserver : public FusionObserver {
   http_api::LiveState& state_;
 };
 
-// The page's files: $DRONETRACK_WEB_ROOT, else the source tree's web/ this binary was built from.
+// The page's files: $DRONETRACK_WEB_ROOT, else PREFIX/share/dronetrack/web beside the installed
+// executable, else the source tree's web/ this binary was built from (data_paths.hpp).
 std::filesystem::path default_web_root();
 
 // The server's options for serving `site` on `bind`: its TLS files and users file, the page

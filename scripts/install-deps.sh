@@ -2,7 +2,8 @@
 # Installs what dronetrack needs from Debian 12 packages, by name. Idempotent and quick when
 # everything is present (no apt-get update unless something is missing).
 #   scripts/install-deps.sh          build + run dependencies
-#   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core)
+#   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core,
+#                                    systemd-analyze for the package test)
 #   scripts/install-deps.sh --arm64  also the arm64 cross-build of the core (scripts/arm64-test.sh):
 #                                    Debian's cross compiler, qemu-user, multiarch arm64 libraries
 set -euo pipefail
@@ -10,6 +11,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 packages=(
   build-essential cmake pkg-config git      # toolchain
+  dpkg-dev file                             # the .deb's Depends (CPack: dpkg-shlibdeps, file)
   lld                                       # faster linker (cmake/BuildSpeed.cmake)
   libeigen3-dev                             # linear algebra of the DOA solver and filters
   libfftw3-dev                              # FFTs for GCC-PHAT
@@ -27,6 +29,7 @@ packages=(
 if [[ "${1:-}" == "--tests" ]]; then
   packages+=(chromium clang-format openssl tcpdump)  # openssl: test certificates; tcpdump: DDS capture
   packages+=(clang libclang-rt-dev)  # scripts/fuzz.sh: clang 14 with libFuzzer + sanitizer runtimes
+  packages+=(systemd curl)  # the package test: systemd-analyze verify on the units, GET the page
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)
 fi
