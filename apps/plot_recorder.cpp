@@ -1,0 +1,51 @@
+#include "apps/plot_recorder.hpp"
+
+#include <utility>
+
+#include "plot/figures.hpp"
+
+namespace dronetrack::apps {
+
+PlotRecorder::PlotRecorder(const std::string& path, std::string title)
+    : output_(path), title_(std::move(title)) {}
+
+void PlotRecorder::on_doa(const doa::DoaMeasurement& doa) {
+  if (doas_.size() >= kMaxRecords) {
+    truncated_ = true;
+    return;
+  }
+  eval::DoaRecord record;
+  record.time_s = doa.time_s;
+  record.array = doa.array_id;
+  record.direction = doa.direction;
+  record.source_index = doa.source_index;
+  doas_.push_back(std::move(record));
+}
+
+void PlotRecorder::on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) {
+  for (const auto& track : tracks) {
+    if (tracks_.size() >= kMaxRecords) {
+      truncated_ = true;
+      return;
+    }
+    eval::TrackRecord record;
+    record.time_s = time_s;
+    record.id = track.id;
+    record.position_m = track.position_m;
+    tracks_.push_back(record);
+  }
+}
+
+void PlotRecorder::write() {
+  std::vector<plot::Chart> charts = plot::track_charts(tracks_, nullptr);
+  for (auto& chart : plot::doa_charts(doas_)) charts.push_back(std::move(chart));
+  std::vector<std::string> notes = {std::to_string(tracks_.size()) + " track positions, " +
+                                    std::to_string(doas_.size()) + " DOAs; no truth"};
+  if (truncated_) {
+    notes.push_back("The run was longer than the plot keeps (" + std::to_string(kMaxRecords) +
+                    " records of each): the figures stop there.");
+  }
+  output_.write(plot::html_page(title_, notes, charts));
+}
+
+}  // namespace dronetrack::apps
