@@ -64,8 +64,7 @@ int run(const FusionArguments& arguments) {
     auto fusion_metrics = std::make_unique<FusionMetrics>("fusion", array_ids(site));
     // Live nodes stamp Unix time: the latency is the wall clock minus a tick's time.
     fusion_metrics->set_stream_clock([] {
-      return std::chrono::duration<double>(
-                 std::chrono::system_clock::now().time_since_epoch())
+      return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
           .count();
     });
     metrics = fusion_metrics.get();

@@ -19,12 +19,12 @@
 #include <thread>
 
 #include "apps/array_node.hpp"
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/live_pose_stamper.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/metrics.hpp"
-#include "apps/cli_checks.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
 #include "common/log.hpp"

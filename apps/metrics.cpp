@@ -115,8 +115,8 @@ std::string FusionMetrics::text() const {
              "Tracks started, confirmed and deleted");
   out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_started),
              {{"event", "started"}});
-  out.sample("dronetrack_fusion_track_events_total",
-             static_cast<double>(engine_.tracks_confirmed), {{"event", "confirmed"}});
+  out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_confirmed),
+             {{"event", "confirmed"}});
   out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_deleted),
              {{"event", "deleted"}});
   out.family("dronetrack_fusion_ticks_total", Type::counter, "Track output ticks emitted");
@@ -175,8 +175,7 @@ std::string FusionMetrics::text() const {
       const char* problem = dds::to_string(static_cast<dds::SampleProblem>(p));
       out.sample("dronetrack_dds_samples_rejected_total", static_cast<double>(doa_problems_[p]),
                  {{"topic", "Doa"}, {"problem", problem}});
-      out.sample("dronetrack_dds_samples_rejected_total",
-                 static_cast<double>(status_problems_[p]),
+      out.sample("dronetrack_dds_samples_rejected_total", static_cast<double>(status_problems_[p]),
                  {{"topic", "NodeStatus"}, {"problem", problem}});
     }
   }
@@ -202,8 +201,7 @@ std::string NodeMetrics::text() const {
   out.family("dronetrack_node_frames_total", Type::counter, "Analysis frames processed");
   out.sample("dronetrack_node_frames_total", static_cast<double>(diagnostics_.frames_processed),
              array);
-  out.family("dronetrack_node_doas_published_total", Type::counter,
-             "Doa samples written to DDS");
+  out.family("dronetrack_node_doas_published_total", Type::counter, "Doa samples written to DDS");
   out.sample("dronetrack_node_doas_published_total", static_cast<double>(doas_published_), array);
   out.family("dronetrack_node_doa_write_failures_total", Type::counter,
              "DDS writes (Doa, NodeStatus) that failed");

@@ -7,12 +7,12 @@
 #include <stdexcept>
 
 #include "apps/array_node.hpp"
+#include "apps/dds_support.hpp"
 #include "apps/doa_file_replay.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/metrics.hpp"
 #include "apps/plot_recorder.hpp"
-#include "apps/dds_support.hpp"
 #include "apps/replay_runner.hpp"
 #include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"

@@ -305,9 +305,8 @@ void HttpServer::install_routes() {
   svr.Get(R"(/api(/.*)?)", [](const httplib::Request& req, httplib::Response& res) {
     send_error(res, 404, "no such endpoint: " + req.path);
   });
-  svr.Get(R"(/.*)", [this](const httplib::Request& req, httplib::Response& res) {
-    serve_static(req, res);
-  });
+  svr.Get(R"(/.*)",
+          [this](const httplib::Request& req, httplib::Response& res) { serve_static(req, res); });
   // Everything is read-only: any other method is a 405 naming what is allowed.
   const auto method_not_allowed = [](const httplib::Request& req, httplib::Response& res) {
     res.set_header("Allow", "GET, HEAD");

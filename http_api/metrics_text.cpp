@@ -115,9 +115,8 @@ void MetricsText::histogram(std::string_view name, const Histogram& histogram,
   write_sample(name, "_count", labels, "", std::to_string(histogram.count()));
 }
 
-void MetricsText::write_sample(std::string_view name, std::string_view suffix,
-                               MetricLabels labels, std::string_view le,
-                               const std::string& value) {
+void MetricsText::write_sample(std::string_view name, std::string_view suffix, MetricLabels labels,
+                               std::string_view le, const std::string& value) {
   check_name(name);
   text_.append(name).append(suffix);
   if (labels.size() > 0 || !le.empty()) {

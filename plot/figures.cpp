@@ -39,9 +39,11 @@ std::vector<Chart> track_charts(const std::vector<eval::TrackRecord>& tracks,
     ++colour;
   }
   if (truth != nullptr) {
+    int shade = 0;
     for (const auto& source : truth->sources) {
-      Series xy{"truth " + source.id, {}, {}, true, false, 6};  // black, dashed
-      Series tz{"truth " + source.id, {}, {}, true, false, 6};
+      const int truth_colour = shade++ % 2 == 0 ? 6 : 8;  // dashed black, then dashed grey
+      Series xy{"truth " + source.id, {}, {}, true, false, truth_colour};
+      Series tz{"truth " + source.id, {}, {}, true, false, truth_colour};
       for (std::size_t i = 0; i < source.time_s.size(); ++i) {
         xy.x.push_back(source.position_m[i].x());
         xy.y.push_back(source.position_m[i].y());
@@ -56,8 +58,11 @@ std::vector<Chart> track_charts(const std::vector<eval::TrackRecord>& tracks,
 }
 
 Chart error_chart(const eval::EvalReport& report) {
-  Chart chart{"3-D error over time (track against the truth it was assigned to)", "time (s)",
-              "error (m)", {}, false};
+  Chart chart{"3-D error over time (track against the truth it was assigned to)",
+              "time (s)",
+              "error (m)",
+              {},
+              false};
   int colour = 0;
   for (const auto& source : report.sources) {
     std::map<int, Series> per_track;
@@ -87,8 +92,11 @@ Chart doa_error_chart(const eval::EvalReport& report) {
 }
 
 std::vector<Chart> doa_charts(const std::vector<eval::DoaRecord>& doas) {
-  Chart azimuth{"DOA azimuth over time, per array", "time (s)",
-                "azimuth (deg, counter-clockwise from east)", {}, false};
+  Chart azimuth{"DOA azimuth over time, per array",
+                "time (s)",
+                "azimuth (deg, counter-clockwise from east)",
+                {},
+                false};
   Chart elevation{"DOA elevation over time, per array", "time (s)", "elevation (deg)", {}, false};
   std::map<std::string, std::pair<Series, Series>> per_array;
   for (const auto& doa : doas) {

@@ -14,10 +14,10 @@ constexpr const char* kPalette[] = {"#0072B2", "#D55E00", "#009E73", "#CC79A7", 
                                     "#56B4E9", "#000000", "#8C564B", "#7F7F7F", "#BCBD22"};
 constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
 
-constexpr double kLeft = 70.0;     // room for the y tick labels and the y label
-constexpr double kRight = 210.0;   // the legend
-constexpr double kTop = 34.0;      // the title
-constexpr double kBottom = 52.0;   // x tick labels and the x label
+constexpr double kLeft = 70.0;                     // room for the y tick labels and the y label
+constexpr double kRight = 210.0;                   // the legend
+constexpr double kTop = 34.0;                      // the title
+constexpr double kBottom = 52.0;                   // x tick labels and the x label
 constexpr std::size_t kMaxPointsPerSeries = 4000;  // a long run is thinned evenly
 
 std::string number(double value) {
@@ -60,11 +60,20 @@ std::string escape_xml(const std::string& text) {
   out.reserve(text.size());
   for (char c : text) {
     switch (c) {
-      case '&': out.append("&amp;"); break;
-      case '<': out.append("&lt;"); break;
-      case '>': out.append("&gt;"); break;
-      case '"': out.append("&quot;"); break;
-      default: out.push_back(c);
+      case '&':
+        out.append("&amp;");
+        break;
+      case '<':
+        out.append("&lt;");
+        break;
+      case '>':
+        out.append("&gt;");
+        break;
+      case '"':
+        out.append("&quot;");
+        break;
+      default:
+        out.push_back(c);
     }
   }
   return out;
@@ -186,11 +195,10 @@ std::string render_svg(const Chart& chart) {
   // Series, then the legend beside the plot area.
   for (std::size_t k = 0; k < chart.series.size(); ++k) {
     const Series& s = chart.series[k];
-    const char* colour =
-        kPalette[(s.colour >= 0 ? s.colour : static_cast<int>(k)) % kPaletteSize];
+    const char* colour = kPalette[(s.colour >= 0 ? s.colour : static_cast<int>(k)) % kPaletteSize];
     const std::size_t n = std::min(s.x.size(), s.y.size());
-    const std::size_t stride = std::max<std::size_t>(1, (n + kMaxPointsPerSeries - 1) /
-                                                            kMaxPointsPerSeries);
+    const std::size_t stride =
+        std::max<std::size_t>(1, (n + kMaxPointsPerSeries - 1) / kMaxPointsPerSeries);
     svg.append("<g><title>").append(escape_xml(s.label)).append("</title>\n");
     std::string path;
     for (std::size_t i = 0; i < n; i += stride) {
@@ -216,7 +224,10 @@ std::string render_svg(const Chart& chart) {
     const double lx = kLeft + plot_w + 14.0;
     svg.append("<line x1=\"").append(number(lx)).append("\" y1=\"").append(number(ly));
     svg.append("\" x2=\"").append(number(lx + 22)).append("\" y2=\"").append(number(ly));
-    svg.append("\" stroke=\"").append(colour).append("\" stroke-width=\"").append(s.points ? "4" : "2");
+    svg.append("\" stroke=\"")
+        .append(colour)
+        .append("\" stroke-width=\"")
+        .append(s.points ? "4" : "2");
     svg.append(s.dashed ? "\" stroke-dasharray=\"6 4\"/>" : "\"/>");
     svg.append("<text x=\"").append(number(lx + 28)).append("\" y=\"").append(number(ly + 4));
     svg.append("\">").append(escape_xml(s.label)).append("</text>\n");

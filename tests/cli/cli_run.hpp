@@ -55,7 +55,7 @@ inline void write_text(const fs::path& path, const std::string& text) {
 
 // Runs the dronetrack binary; stdout and stderr go to files in `dir`.
 inline Outcome run(const std::vector<std::string>& arguments, const fs::path& dir,
-            const RunOptions& options = {}) {
+                   const RunOptions& options = {}) {
   const fs::path out_path = dir / "run.out";
   const fs::path err_path = dir / "run.err";
   // DRONETRACK_UNDER_TEST runs the cases against another build (e.g. an older commit's, to see

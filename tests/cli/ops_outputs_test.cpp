@@ -9,9 +9,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
-#include <nlohmann/json.hpp>
 
 #include "cli_run.hpp"
 #include "tests/http_api/exposition_checker.hpp"
@@ -69,19 +69,20 @@ std::vector<Svg> svgs_of(const std::string& html) {
     if (std::regex_search(svg.text, m, std::regex(R"(viewBox="0 0 ([0-9.]+) ([0-9.]+)")"))) {
       svg.width = std::stod(m[1]);
       svg.height = std::stod(m[2]);
-    }
-    static const std::regex attribute_pair(R"re((?:cx|x1|x2|x)="(-?[0-9.]+)" (?:cy|y1|y2|y)="(-?[0-9.]+)")re");
-    static const std::regex path_pair(R"([ML](-?[0-9.]+) (-?[0-9.]+))");
-    for (const auto* pattern : {&attribute_pair, &path_pair}) {
-      for (auto it = std::sregex_iterator(svg.text.begin(), svg.text.end(), *pattern);
-           it != std::sregex_iterator(); ++it) {
-        svg.points.push_back({std::stod((*it)[1]), std::stod((*it)[2])});
-      }
-    }
-    out.push_back(std::move(svg));
-    at = end;
   }
-  return out;
+  static const std::regex attribute_pair(
+      R"re((?:cx|x1|x2|x)="(-?[0-9.]+)" (?:cy|y1|y2|y)="(-?[0-9.]+)")re");
+  static const std::regex path_pair(R"([ML](-?[0-9.]+) (-?[0-9.]+))");
+  for (const auto* pattern : {&attribute_pair, &path_pair}) {
+    for (auto it = std::sregex_iterator(svg.text.begin(), svg.text.end(), *pattern);
+         it != std::sregex_iterator(); ++it) {
+      svg.points.push_back({std::stod((*it)[1]), std::stod((*it)[2])});
+    }
+  }
+  out.push_back(std::move(svg));
+  at = end;
+}
+return out;
 }
 
 void expect_self_contained(const std::string& html, std::size_t figures) {
@@ -110,10 +111,10 @@ class OpsOutputs : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("dronetrack_ops_" + std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    const Outcome sim =
-        run({"sim", std::string(DRONETRACK_SOURCE_DIR) + "/config/scenarios/perimeter-two-drones.json",
-             "--out", (dir_ / "scene").string(), "--duration-s", "4"},
-            dir_);
+    const Outcome sim = run(
+        {"sim", std::string(DRONETRACK_SOURCE_DIR) + "/config/scenarios/perimeter-two-drones.json",
+         "--out", (dir_ / "scene").string(), "--duration-s", "4"},
+        dir_);
     ASSERT_EQ(sim.exit_code, 0) << sim.err;
     RunOptions options;
     options.timeout = 60s;
@@ -150,9 +151,9 @@ TEST_F(OpsOutputs, MetricsAreValidExpositionMidRunAndAtTheEnd) {
   for (const std::string* body : {&mid_run_, &final_}) {
     const Exposition parsed = check_exposition(*body);
     EXPECT_TRUE(parsed.ok()) << parsed.problems.front();
-    EXPECT_EQ(parsed.value("dronetrack_build_info{version=\"" DRONETRACK_VERSION
-                           "\",role=\"replay\"}"),
-              1.0);
+    EXPECT_EQ(
+        parsed.value("dronetrack_build_info{version=\"" DRONETRACK_VERSION "\",role=\"replay\"}"),
+        1.0);
   }
 }
 
@@ -176,8 +177,7 @@ TEST_F(OpsOutputs, MetricsMatchTheRunsOwnOutputs) {
   int tracks = 0;
   for (const char* status : {"tentative", "confirmed", "coasting"}) {
     for (const char* cls : {"unknown", "drone", "ground", "aircraft"}) {
-      const std::string labels =
-          std::string("{status=\"") + status + "\",class=\"" + cls + "\"}";
+      const std::string labels = std::string("{status=\"") + status + "\",class=\"" + cls + "\"}";
       EXPECT_EQ(metrics.value("dronetrack_tracks" + labels), by_status_class[labels]) << labels;
       tracks += by_status_class[labels];
     }
@@ -196,8 +196,8 @@ TEST_F(OpsOutputs, MetricsMatchTheRunsOwnOutputs) {
   EXPECT_EQ(metrics.value("dronetrack_track_latency_seconds_bucket{le=\"0.2\"}"), 0.0);
   // Each array reported, with clean audio.
   for (const char* array : {"N1", "N2", "N3", "N4"}) {
-    EXPECT_EQ(metrics.value(std::string("dronetrack_node_clipped_samples_total{array=\"") +
-                            array + "\"}"),
+    EXPECT_EQ(metrics.value(std::string("dronetrack_node_clipped_samples_total{array=\"") + array +
+                            "\"}"),
               0.0)
         << array;
   }
@@ -238,10 +238,10 @@ TEST_F(OpsOutputs, EvalPlotDrawsTracksTruthAndErrors) {
 }
 
 TEST_F(OpsOutputs, BadPlotPathIsOneErrorLine) {
-  const Outcome eval = run({"eval", "--truth", (dir_ / "scene/truth.json").string(), "--tracks",
-                            (dir_ / "tracks.jsonl").string(), "--plot",
-                            (dir_ / "no/such/dir/report.html").string()},
-                           dir_);
+  const Outcome eval =
+      run({"eval", "--truth", (dir_ / "scene/truth.json").string(), "--tracks",
+           (dir_ / "tracks.jsonl").string(), "--plot", (dir_ / "no/such/dir/report.html").string()},
+          dir_);
   EXPECT_EQ(eval.exit_code, 1);
   EXPECT_EQ(std::count(eval.err.begin(), eval.err.end(), '\n'), 1) << eval.err;
   EXPECT_NE(eval.err.find("report.html"), std::string::npos) << eval.err;
@@ -249,9 +249,10 @@ TEST_F(OpsOutputs, BadPlotPathIsOneErrorLine) {
 }
 
 TEST_F(OpsOutputs, NodeServesItsOwnMetrics) {
-  setenv("CYCLONEDDS_URI",
-         ("file://" + std::string(DRONETRACK_SOURCE_DIR) + "/config/cyclonedds-loopback.xml").c_str(),
-         1);
+  setenv(
+      "CYCLONEDDS_URI",
+      ("file://" + std::string(DRONETRACK_SOURCE_DIR) + "/config/cyclonedds-loopback.xml").c_str(),
+      1);
   std::string body;
   RunOptions options;
   options.timeout = 30s;
@@ -269,8 +270,9 @@ TEST_F(OpsOutputs, NodeServesItsOwnMetrics) {
   EXPECT_EQ(node.exit_code, 130) << node.err;
   const Exposition metrics = check_exposition(body);
   ASSERT_TRUE(metrics.ok()) << (metrics.problems.empty() ? body : metrics.problems.front());
-  EXPECT_EQ(metrics.value("dronetrack_build_info{version=\"" DRONETRACK_VERSION "\",role=\"node\"}"),
-            1.0);
+  EXPECT_EQ(
+      metrics.value("dronetrack_build_info{version=\"" DRONETRACK_VERSION "\",role=\"node\"}"),
+      1.0);
   EXPECT_GT(metrics.value("dronetrack_node_frames_total{array=\"N2\"}"), 0.0);
   EXPECT_EQ(metrics.value("dronetrack_node_overruns_total{array=\"N2\"}"), 0.0);
   EXPECT_EQ(metrics.value("dronetrack_node_rejects_total{array=\"N2\",reason=\"bad_block\"}"), 0.0);

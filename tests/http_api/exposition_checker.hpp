@@ -46,7 +46,8 @@ inline bool parse_sample_value(const std::string& text, double& value) {
 inline Exposition check_exposition(const std::string& text) {
   Exposition out;
   const std::regex help_line("# HELP ([a-zA-Z_:][a-zA-Z0-9_:]*) (.*)");
-  const std::regex type_line("# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge|histogram|summary|untyped)");
+  const std::regex type_line(
+      "# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge|histogram|summary|untyped)");
   // name, optional {labels}, value (no timestamps are written).
   const std::regex sample_line(R"(([a-zA-Z_:][a-zA-Z0-9_:]*)(\{(.*)\})? (\S+))");
   const std::regex label(R"(([a-zA-Z_][a-zA-Z0-9_]*)="((?:[^"\\\n]|\\[\\"n])*)\"(,|$))");
@@ -57,7 +58,8 @@ inline Exposition check_exposition(const std::string& text) {
   // Histogram series (name + labels without le) -> (le, cumulative count) in order, and count.
   std::map<std::string, std::vector<std::pair<double, double>>> buckets;
   std::map<std::string, double> counts;
-  if (!text.empty() && text.back() != '\n') out.problems.push_back("body does not end in a newline");
+  if (!text.empty() && text.back() != '\n')
+    out.problems.push_back("body does not end in a newline");
   std::istringstream lines(text);
   std::string line;
   int number = 0;
@@ -103,7 +105,8 @@ inline Exposition check_exposition(const std::string& text) {
     std::string suffix;
     for (const char* s : {"_bucket", "_sum", "_count"}) {
       const std::string tail = s;
-      if (name.size() > tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0 &&
+      if (name.size() > tail.size() &&
+          name.compare(name.size() - tail.size(), tail.size(), tail) == 0 &&
           types.count(name.substr(0, name.size() - tail.size())) &&
           types[name.substr(0, name.size() - tail.size())] == "histogram") {
         family = name.substr(0, name.size() - tail.size());

@@ -1,8 +1,8 @@
 // The Prometheus text writer against known bodies, the checker the e2e tests use against bodies
 // it must refuse, and /metrics on a metrics-only server (a node's listener) over loopback.
 
-#include "http_api/http_server.hpp"
 #include "http_api/metrics_text.hpp"
+#include "http_api/http_server.hpp"
 #include "tests/http_api/exposition_checker.hpp"
 
 #include <gtest/gtest.h>
@@ -69,11 +69,11 @@ TEST(MetricsText, RefusesInvalidNames) {
 // The checker must be able to fail: each body breaks one rule.
 TEST(ExpositionChecker, RefusesBrokenBodies) {
   const char* broken[] = {
-      "x 1\n",                                                 // no TYPE
-      "# TYPE x gauge\nx{a=\"b\\q\"} 1\n",                     // bad escape
-      "# TYPE x gauge\nx one\n",                               // bad value
-      "# TYPE x gauge\nx 1",                                   // no final newline
-      "# TYPE x gauge\n# TYPE y gauge\ny 1\nx 2\n",            // x not contiguous
+      "x 1\n",                                       // no TYPE
+      "# TYPE x gauge\nx{a=\"b\\q\"} 1\n",           // bad escape
+      "# TYPE x gauge\nx one\n",                     // bad value
+      "# TYPE x gauge\nx 1",                         // no final newline
+      "# TYPE x gauge\n# TYPE y gauge\ny 1\nx 2\n",  // x not contiguous
       "# TYPE h histogram\nh_bucket{le=\"1\"} 3\nh_bucket{le=\"+Inf\"} 2\nh_count 2\n",
       "# TYPE h histogram\nh_bucket{le=\"1\"} 1\nh_bucket{le=\"+Inf\"} 2\nh_count 3\n",
       "# TYPE h histogram\nh_bucket{le=\"1\"} 1\nh_count 1\n",  // no +Inf
@@ -98,8 +98,9 @@ TEST(MetricsEndpoint, MetricsOnlyServerServesTextAndNothingElse) {
   ASSERT_TRUE(first);
   EXPECT_EQ(first->status, 200);
   EXPECT_EQ(first->get_header_value("Content-Type"), kMetricsContentType);
-  EXPECT_EQ(first->body, "# HELP scrapes_total scrapes\n# TYPE scrapes_total counter\n"
-                         "scrapes_total 1\n");
+  EXPECT_EQ(first->body,
+            "# HELP scrapes_total scrapes\n# TYPE scrapes_total counter\n"
+            "scrapes_total 1\n");
   EXPECT_EQ(client.Get("/metrics")->body.back(), '\n');
   EXPECT_EQ(client.Get("/metrics?x=1")->status, 400);
   EXPECT_EQ(client.Get("/api/tracks")->status, 404);
