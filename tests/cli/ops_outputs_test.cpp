@@ -66,23 +66,23 @@ std::vector<Svg> svgs_of(const std::string& html) {
     Svg svg;
     svg.text = html.substr(at, end - at);
     std::smatch m;
-    if (std::regex_search(svg.text, m, std::regex(R"(viewBox="0 0 ([0-9.]+) ([0-9.]+)")"))) {
+    if (std::regex_search(svg.text, m, std::regex(R"re(viewBox="0 0 ([0-9.]+) ([0-9.]+)")re"))) {
       svg.width = std::stod(m[1]);
       svg.height = std::stod(m[2]);
-  }
-  static const std::regex attribute_pair(
-      R"re((?:cx|x1|x2|x)="(-?[0-9.]+)" (?:cy|y1|y2|y)="(-?[0-9.]+)")re");
-  static const std::regex path_pair(R"([ML](-?[0-9.]+) (-?[0-9.]+))");
-  for (const auto* pattern : {&attribute_pair, &path_pair}) {
-    for (auto it = std::sregex_iterator(svg.text.begin(), svg.text.end(), *pattern);
-         it != std::sregex_iterator(); ++it) {
-      svg.points.push_back({std::stod((*it)[1]), std::stod((*it)[2])});
     }
+    static const std::regex attribute_pair(
+        R"re((?:cx|x1|x2|x)="(-?[0-9.]+)" (?:cy|y1|y2|y)="(-?[0-9.]+)")re");
+    static const std::regex path_pair(R"([ML](-?[0-9.]+) (-?[0-9.]+))");
+    for (const auto* pattern : {&attribute_pair, &path_pair}) {
+      for (auto it = std::sregex_iterator(svg.text.begin(), svg.text.end(), *pattern);
+           it != std::sregex_iterator(); ++it) {
+        svg.points.push_back({std::stod((*it)[1]), std::stod((*it)[2])});
+      }
+    }
+    out.push_back(std::move(svg));
+    at = end;
   }
-  out.push_back(std::move(svg));
-  at = end;
-}
-return out;
+  return out;
 }
 
 void expect_self_contained(const std::string& html, std::size_t figures) {
@@ -170,7 +170,8 @@ TEST_F(OpsOutputs, MetricsMatchTheRunsOwnOutputs) {
   }
   // Tracks by status and class: /api/tracks at the same (last) tick.
   std::map<std::string, int> by_status_class;
-  for (const auto& track : json::parse(api_tracks_)["tracks"]) {
+  const json api = json::parse(api_tracks_);
+  for (const auto& track : api["tracks"]) {
     ++by_status_class["{status=\"" + track["status"].get<std::string>() + "\",class=\"" +
                       track["class"].get<std::string>() + "\"}"];
   }

@@ -134,7 +134,7 @@ inline Exposition check_exposition(const std::string& text) {
       if (lm[1] == "le") {
         le = lm[2];
       } else {
-        without_le += lm.str(0);
+        without_le += lm[1].str() + "=\"" + lm[2].str() + "\";";  // separator-independent
       }
       rest = lm.suffix();
     }
