@@ -167,6 +167,12 @@ int run(const NodeArguments& arguments) {
                     " (arrays: " + known + ")");
   }
   const config::ArrayConfig& array = site.arrays[static_cast<std::size_t>(array_index)];
+  // Refused (exit 2) before any audio is opened: beyond loopback without TLS and users.
+  std::optional<http_api::HttpOptions> metrics_options;
+  if (!arguments.metrics_listen.empty()) {
+    metrics_options = http_options_for(site, arguments.metrics_listen, {}, "--metrics-listen");
+    metrics_options->web_root.clear();
+  }
   const int domain = resolve_domain(site, arguments.domain);
   const std::optional<int> device = arguments.device ? arguments.device : array.device;
   const bool live = arguments.device.has_value() ||
@@ -229,8 +235,7 @@ int run(const NodeArguments& arguments) {
   std::unique_ptr<http_api::HttpServer> metrics_server;
   if (!arguments.metrics_listen.empty()) {
     metrics = std::make_unique<NodeMetrics>(node.array_id());
-    http_api::HttpOptions options = http_options_for(site, arguments.metrics_listen);
-    options.web_root.clear();
+    http_api::HttpOptions options = *metrics_options;
     options.metrics = [&metrics] { return metrics->text(); };
     metrics_server = std::make_unique<http_api::HttpServer>(std::move(options));
     metrics_server->start();
