@@ -25,6 +25,24 @@ void build_info(http_api::MetricsText& out, const std::string& role) {
   out.sample("dronetrack_build_info", 1.0, {{"version", DRONETRACK_VERSION}, {"role", role}});
 }
 
+using Counts = std::pair<const char*, std::int64_t>;
+
+// One counter family, a sample per (value of `label`, count), each also labelled with the
+// array when one is given.
+template <std::size_t N>
+void labelled_counters(http_api::MetricsText& out, const char* name, const char* help,
+                       const char* label, const Counts (&counts)[N],
+                       const std::string* array = nullptr) {
+  out.family(name, Type::counter, help);
+  for (const auto& [value, count] : counts) {
+    if (array != nullptr) {
+      out.sample(name, static_cast<double>(count), {{"array", *array}, {label, value}});
+    } else {
+      out.sample(name, static_cast<double>(count), {{label, value}});
+    }
+  }
+}
+
 }  // namespace
 
 FusionMetrics::FusionMetrics(std::string role, std::vector<std::string> array_ids)
@@ -90,35 +108,26 @@ std::string FusionMetrics::text() const {
   http_api::MetricsText out;
   build_info(out, role_);
 
-  out.family("dronetrack_fusion_doas_total", Type::counter,
-             "DOAs that reached the fusion engine, by its verdict");
-  const std::pair<const char*, std::int64_t> verdicts[] = {
-      {"accepted", engine_.accepted},
-      {"non_finite", engine_.rejected_non_finite},
-      {"unknown_array", engine_.rejected_unknown_array},
-      {"too_late", engine_.rejected_too_late},
-      {"duplicate", engine_.rejected_duplicate},
-      {"bad_direction", engine_.rejected_bad_direction}};
-  for (const auto& [verdict, count] : verdicts) {
-    out.sample("dronetrack_fusion_doas_total", static_cast<double>(count), {{"verdict", verdict}});
-  }
+  const Counts verdicts[] = {{"accepted", engine_.accepted},
+                             {"non_finite", engine_.rejected_non_finite},
+                             {"unknown_array", engine_.rejected_unknown_array},
+                             {"too_late", engine_.rejected_too_late},
+                             {"duplicate", engine_.rejected_duplicate},
+                             {"bad_direction", engine_.rejected_bad_direction}};
+  labelled_counters(out, "dronetrack_fusion_doas_total",
+                    "DOAs that reached the fusion engine, by its verdict", "verdict", verdicts);
   out.family("dronetrack_fusion_doas_gated_out_total", Type::counter,
              "Accepted DOAs that matched no track and started none");
   out.sample("dronetrack_fusion_doas_gated_out_total", static_cast<double>(engine_.gated_out));
-  out.family("dronetrack_fusion_candidates_rejected_total", Type::counter,
-             "Triangulated candidate points refused, by reason");
-  out.sample("dronetrack_fusion_candidates_rejected_total",
-             static_cast<double>(engine_.ghosts_rejected), {{"reason", "ghost"}});
-  out.sample("dronetrack_fusion_candidates_rejected_total",
-             static_cast<double>(engine_.below_ground_rejected), {{"reason", "below_ground"}});
-  out.family("dronetrack_fusion_track_events_total", Type::counter,
-             "Tracks started, confirmed and deleted");
-  out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_started),
-             {{"event", "started"}});
-  out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_confirmed),
-             {{"event", "confirmed"}});
-  out.sample("dronetrack_fusion_track_events_total", static_cast<double>(engine_.tracks_deleted),
-             {{"event", "deleted"}});
+  const Counts candidates[] = {{"ghost", engine_.ghosts_rejected},
+                               {"below_ground", engine_.below_ground_rejected}};
+  labelled_counters(out, "dronetrack_fusion_candidates_rejected_total",
+                    "Triangulated candidate points refused, by reason", "reason", candidates);
+  const Counts track_events[] = {{"started", engine_.tracks_started},
+                                 {"confirmed", engine_.tracks_confirmed},
+                                 {"deleted", engine_.tracks_deleted}};
+  labelled_counters(out, "dronetrack_fusion_track_events_total",
+                    "Tracks started, confirmed and deleted", "event", track_events);
   out.family("dronetrack_fusion_ticks_total", Type::counter, "Track output ticks emitted");
   out.sample("dronetrack_fusion_ticks_total", static_cast<double>(ticks_));
 
@@ -143,26 +152,29 @@ std::string FusionMetrics::text() const {
              "--realtime)");
   out.histogram("dronetrack_track_latency_seconds", latency_s_);
 
-  out.family("dronetrack_node_overruns_total", Type::counter,
-             "Audio blocks a node lost because it was late, from its last NodeStatus");
-  for (std::size_t i = 0; i < array_ids_.size(); ++i) {
-    if (nodes_[i].reported)
-      out.sample("dronetrack_node_overruns_total", static_cast<double>(nodes_[i].overruns),
-                 {{"array", array_ids_[i]}});
-  }
-  out.family("dronetrack_node_clipped_samples_total", Type::counter,
-             "Samples at or beyond 0.999 of full scale, all channels, from the last NodeStatus");
-  for (std::size_t i = 0; i < array_ids_.size(); ++i) {
-    if (nodes_[i].reported)
-      out.sample("dronetrack_node_clipped_samples_total",
-                 static_cast<double>(nodes_[i].clipped_samples), {{"array", array_ids_[i]}});
-  }
-  out.family("dronetrack_node_non_finite_samples_total", Type::counter,
-             "NaN or infinite samples, all channels, from the last NodeStatus");
-  for (std::size_t i = 0; i < array_ids_.size(); ++i) {
-    if (nodes_[i].reported)
-      out.sample("dronetrack_node_non_finite_samples_total",
-                 static_cast<double>(nodes_[i].non_finite_samples), {{"array", array_ids_[i]}});
+  // Each array's counts from its last NodeStatus (those not yet heard from are left out).
+  struct NodeFamily {
+    const char* name;
+    const char* help;
+    std::int64_t NodeCounts::*count;
+  };
+  const NodeFamily node_families[] = {
+      {"dronetrack_node_overruns_total",
+       "Audio blocks a node lost because it was late, from its last NodeStatus",
+       &NodeCounts::overruns},
+      {"dronetrack_node_clipped_samples_total",
+       "Samples at or beyond 0.999 of full scale, all channels, from the last NodeStatus",
+       &NodeCounts::clipped_samples},
+      {"dronetrack_node_non_finite_samples_total",
+       "NaN or infinite samples, all channels, from the last NodeStatus",
+       &NodeCounts::non_finite_samples}};
+  for (const NodeFamily& family : node_families) {
+    out.family(family.name, Type::counter, family.help);
+    for (std::size_t i = 0; i < array_ids_.size(); ++i) {
+      if (nodes_[i].reported)
+        out.sample(family.name, static_cast<double>(nodes_[i].*family.count),
+                   {{"array", array_ids_[i]}});
+    }
   }
 
   if (have_intake_) {
@@ -207,17 +219,13 @@ std::string NodeMetrics::text() const {
              "DDS writes (Doa, NodeStatus) that failed");
   out.sample("dronetrack_node_doa_write_failures_total", static_cast<double>(write_failures_),
              array);
-  out.family("dronetrack_node_rejects_total", Type::counter,
-             "What the node's pipeline refused or dropped, by reason");
-  const std::pair<const char*, std::int64_t> rejects[] = {
-      {"below_horizon", diagnostics_.below_horizon_rejected},
-      {"unposed", diagnostics_.unposed_doas},
-      {"bad_block", diagnostics_.rejected_blocks},
-      {"stream_gap", diagnostics_.stream_gaps}};
-  for (const auto& [reason, count] : rejects) {
-    out.sample("dronetrack_node_rejects_total", static_cast<double>(count),
-               {{"array", array_id_}, {"reason", reason}});
-  }
+  const Counts rejects[] = {{"below_horizon", diagnostics_.below_horizon_rejected},
+                            {"unposed", diagnostics_.unposed_doas},
+                            {"bad_block", diagnostics_.rejected_blocks},
+                            {"stream_gap", diagnostics_.stream_gaps}};
+  labelled_counters(out, "dronetrack_node_rejects_total",
+                    "What the node's pipeline refused or dropped, by reason", "reason", rejects,
+                    &array_id_);
   out.family("dronetrack_node_overruns_total", Type::counter,
              "Audio blocks lost because the node was late");
   out.sample("dronetrack_node_overruns_total", static_cast<double>(overruns_), array);
