@@ -38,6 +38,7 @@ class ArrayNode {
   double sample_rate_hz() const { return sample_rate_hz_; }
   const capture::AudioSource& source() const { return *source_; }
   std::int64_t frames_processed() const { return pipeline_.diagnostics().frames_processed; }
+  const doa::NodeDiagnostics& diagnostics() const { return pipeline_.diagnostics(); }
   // DOAs dropped for want of a pose at their time (pose file).
   std::int64_t unposed_doas() const { return pipeline_.diagnostics().unposed_doas; }
 

@@ -1,5 +1,6 @@
 // `dronetrack eval`: accuracy of tracks (and DOAs) against the simulator's truth (SPEC 4.7), as a
 // table on stdout and optionally as JSON. The arithmetic lives in eval/ (metrics.hpp).
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -10,6 +11,7 @@
 #include "eval/metrics.hpp"
 #include "eval/readers.hpp"
 #include "eval/report.hpp"
+#include "plot/figures.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -20,18 +22,37 @@ struct EvalArguments {
   std::string doas;
   std::string alerts;
   std::string json_out;
+  std::string plot_out;  // HTML page of figures (docs/plots.md); "" for none
   eval::EvalOptions options;
 };
 
+// The figures' headline, as the table prints it.
+std::string eval_plot_note(const eval::EvalReport& report) {
+  char line[200];
+  std::snprintf(line, sizeof line,
+                "RMSE 3-D %.3f m over %d samples, coverage %.1f %%, %d id switches, "
+                "false-track time %.1f %%; evaluated from %.2f s to %.2f s",
+                report.position.rmse_3d_m, report.position.samples, 100.0 * report.coverage,
+                report.id_switches, 100.0 * report.false_track_fraction, report.start_s,
+                report.end_s);
+  return line;
+}
+
 int run_eval(const EvalArguments& arguments) {
   std::unique_ptr<OutputFile> json_file;
-  if (!arguments.json_out.empty()) {
+  std::unique_ptr<OutputFile> plot_file;
+  if (!arguments.json_out.empty() || !arguments.plot_out.empty()) {
+    std::vector<NamedPath> outputs;
+    if (!arguments.json_out.empty()) outputs.push_back({"--json", arguments.json_out});
+    if (!arguments.plot_out.empty()) outputs.push_back({"--plot", arguments.plot_out});
     check_output_paths({{"--truth", arguments.truth},
                         {"--tracks", arguments.tracks},
                         {"--doa", arguments.doas},
                         {"--alerts", arguments.alerts}},
-                       {{"--json", arguments.json_out}});
+                       outputs);
   }
+  // Opened first: an unwritable path is refused before anything is read or printed.
+  if (!arguments.plot_out.empty()) plot_file = std::make_unique<OutputFile>(arguments.plot_out);
   eval::Truth truth;
   std::vector<eval::TrackRecord> tracks;
   std::vector<eval::DoaRecord> doas;
@@ -60,6 +81,15 @@ int run_eval(const EvalArguments& arguments) {
     json_file->write(eval::to_json(report).dump(2) + "\n");
     outputs.add(*json_file);
   }
+  if (plot_file) {
+    std::vector<plot::Chart> charts = plot::track_charts(tracks, &truth);
+    charts.push_back(plot::error_chart(report));
+    if (!doas.empty()) charts.push_back(plot::doa_error_chart(report));
+    plot_file->write(plot::html_page("dronetrack eval: " + arguments.tracks,
+                                     {"Truth: " + arguments.truth, eval_plot_note(report)},
+                                     charts));
+    outputs.add(*plot_file);
+  }
   return outputs.finish("eval");
 }
 
@@ -82,6 +112,9 @@ void register_eval(CLI::App& root, CommandTable& table) {
                    "Alert lines (replay --alerts-out): counts zone entries by drones and by others")
       ->check(CLI::ExistingFile);
   command->add_option("--json", arguments->json_out, "Also write the report as JSON here");
+  command->add_option("--plot", arguments->plot_out,
+                      "Also draw the tracks against the truth, the error over time and the DOA "
+                      "error per array: one self-contained HTML page here (docs/plots.md)");
   command
       ->add_option("--gate-m", arguments->options.association_gate_m,
                    "Track-to-truth association gate, metres")

@@ -12,6 +12,7 @@
 #include "apps/dds_support.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
+#include "apps/metrics.hpp"
 #include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
@@ -54,14 +55,24 @@ int run(const FusionArguments& arguments) {
     owned.push_back(std::move(writer));
   }
   std::unique_ptr<http_api::LiveState> live_state;
+  FusionMetrics* metrics = nullptr;
   std::unique_ptr<http_api::HttpServer> server;
   if (!arguments.http.empty()) {
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     owned.push_back(std::make_unique<LiveStateObserver>(*live_state));
-    server = std::make_unique<http_api::HttpServer>(
-        *live_state,
-        http_options_for(site, arguments.http, std::filesystem::path(arguments.web_root)));
+    auto fusion_metrics = std::make_unique<FusionMetrics>("fusion", array_ids(site));
+    // Live nodes stamp Unix time: the latency is the wall clock minus a tick's time.
+    fusion_metrics->set_stream_clock([] {
+      return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
+    });
+    metrics = fusion_metrics.get();
+    owned.push_back(std::move(fusion_metrics));
+    auto options =
+        http_options_for(site, arguments.http, std::filesystem::path(arguments.web_root));
+    options.metrics = [metrics] { return metrics->text(); };
+    server = std::make_unique<http_api::HttpServer>(*live_state, std::move(options));
     server->start();
     log::info("fusion: serving ", server->url());
   }
@@ -79,6 +90,7 @@ int run(const FusionArguments& arguments) {
   const auto limit = std::chrono::duration<double>(arguments.duration_s);
   while (!stop_requested()) {
     service.poll(std::chrono::milliseconds(100));
+    if (metrics) metrics->set_intake_counters(service.counters());
     if (arguments.duration_s > 0.0 && std::chrono::steady_clock::now() - started > limit) break;
   }
   service.finish();

@@ -19,9 +19,12 @@
 #include <thread>
 
 #include "apps/array_node.hpp"
+#include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/live_pose_stamper.hpp"
+#include "apps/live_state_observer.hpp"
+#include "apps/metrics.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
 #include "common/log.hpp"
@@ -29,6 +32,7 @@
 #include "dds_idl/conversions.hpp"
 #include "dds_idl/dds.hpp"
 #include "dds_idl/topics.hpp"
+#include "http_api/http_server.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -48,6 +52,7 @@ struct NodeArguments {
   double sample_rate_hz = 48000.0;
   double block_s = 0.01;
   bool pose_topic = false;
+  std::string metrics_listen;  // HOST:PORT of the /metrics listener; "" for none
 };
 
 // ThrottledWarnings kinds of the pose stream, and their texts (which must outlive the log).
@@ -162,6 +167,12 @@ int run(const NodeArguments& arguments) {
                     " (arrays: " + known + ")");
   }
   const config::ArrayConfig& array = site.arrays[static_cast<std::size_t>(array_index)];
+  // Refused (exit 2) before any audio is opened: beyond loopback without TLS and users.
+  std::optional<http_api::HttpOptions> metrics_options;
+  if (!arguments.metrics_listen.empty()) {
+    metrics_options = http_options_for(site, arguments.metrics_listen, {}, "--metrics-listen");
+    metrics_options->web_root.clear();
+  }
   const int domain = resolve_domain(site, arguments.domain);
   const std::optional<int> device = arguments.device ? arguments.device : array.device;
   const bool live = arguments.device.has_value() ||
@@ -218,6 +229,18 @@ int run(const NodeArguments& arguments) {
     }
   }
   ArrayNode node(site, array_index, std::move(source), !pose_from_topic);
+  // The optional /metrics listener: the operator's server with no page and no API, so the
+  // same per-client limits, TLS and users rules hold.
+  std::unique_ptr<NodeMetrics> metrics;
+  std::unique_ptr<http_api::HttpServer> metrics_server;
+  if (!arguments.metrics_listen.empty()) {
+    metrics = std::make_unique<NodeMetrics>(node.array_id());
+    http_api::HttpOptions options = *metrics_options;
+    options.metrics = [&metrics] { return metrics->text(); };
+    metrics_server = std::make_unique<http_api::HttpServer>(std::move(options));
+    metrics_server->start();
+    log::info("node ", node.array_id(), ": metrics on ", metrics_server->url(), "metrics");
+  }
   log::info("node ", node.array_id(), ": ", node.source().describe(), ", ", node.sample_rate_hz(),
             " Hz, DDS domain ", domain, live ? ", live" : "",
             arguments.realtime ? ", real time" : "",
@@ -314,6 +337,10 @@ int run(const NodeArguments& arguments) {
     const std::int64_t offset_ns = time_offset_ns();
     if (pose_reader) stamp_from_topic(node.time_s(), offset_ns);
     publish_doas(offset_ns);
+    if (metrics) {
+      metrics->update(published, write_failures, node.diagnostics(),
+                      node.source().counters().overruns);
+    }
     if (node.status_due(status)) {
       dds::to_idl(status, offset_ns + dds::seconds_to_ns(status.time_s), status_sample);
       if (status_writer.try_write(status_sample) < 0) ++write_failures;
@@ -346,6 +373,11 @@ int run(const NodeArguments& arguments) {
   status_writer.try_write(status_sample);
   status_writer.wait_for_acks(std::chrono::milliseconds(500));
   doa_writer.wait_for_acks(std::chrono::milliseconds(500));
+  if (metrics) {
+    metrics->update(published, write_failures, node.diagnostics(),
+                    node.source().counters().overruns);
+  }
+  if (metrics_server) metrics_server->stop();
   log::info("node ", node.array_id(), ": ", node.time_s(), " s of audio, ", published,
             " DOAs published", write_failures ? ", " : "",
             write_failures ? std::to_string(write_failures) + " writes failed" : "",
@@ -397,6 +429,11 @@ void register_node(CLI::App& root, CommandTable& table) {
                       "DDS Security identity in dds.security.directory (default: the array id)");
   command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
       ->check(CLI::Range(0, 232));
+  command
+      ->add_option("--metrics-listen", arguments->metrics_listen,
+                   "Serve Prometheus metrics on HOST:PORT (GET /metrics; docs/http_api.md "
+                   "\"Metrics\")")
+      ->check(http_address());
   command->add_option("--sample-rate", arguments->sample_rate_hz, "Live capture sample rate, Hz")
       ->capture_default_str()
       ->check(CLI::Range(8000.0, 384000.0));

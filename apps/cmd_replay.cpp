@@ -46,6 +46,9 @@ void register_replay(CLI::App& root, CommandTable& table) {
                       "calibrate --tdoa; docs/calibration.md)");
   command->add_option("--alerts-out", arguments->session.alerts_out,
                       "Write zone alerts and track class changes as JSON lines here");
+  command->add_option("--plot", arguments->session.plot_out,
+                      "Draw the tracks (plan view, altitude) and every array's DOAs over time: "
+                      "one self-contained HTML page here (docs/plots.md)");
   auto* realtime =
       command->add_flag("--realtime", arguments->session.realtime, "Pace the replay at real time");
   auto* doa_in =

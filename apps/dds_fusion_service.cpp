@@ -129,6 +129,9 @@ class DdsFusionService::Outputs : public FusionObserver {
               event_.zone, " at t=", event_.time_s);
     for (auto* observer : observers_) observer->on_zone_event(event_);
   }
+  void on_counters(const fusion::FusionCounters& counters) override {
+    for (auto* observer : observers_) observer->on_counters(counters);
+  }
   void on_time(double time_s) override {
     for (auto* observer : observers_) observer->on_time(time_s + base_s());
   }

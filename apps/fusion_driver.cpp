@@ -59,6 +59,7 @@ void FusionDriver::emit_tick(double tick_s) {
   for (const auto& event : zone_events_) {
     for (auto* observer : observers_) observer->on_zone_event(event);
   }
+  for (auto* observer : observers_) observer->on_counters(engine_.counters());
   ++ticks_emitted_;
   next_tick_s_ = static_cast<double>(first_tick_index_ + ticks_emitted_) * output_period_s_;
 }

@@ -5,6 +5,7 @@
 
 #include "doa/doa_measurement.hpp"
 #include "doa/node_status.hpp"
+#include "fusion/fusion_engine.hpp"
 #include "fusion/track_report.hpp"
 #include "fusion/zone_monitor.hpp"
 
@@ -18,6 +19,8 @@ class FusionObserver {
   // All live tracks at one output tick.
   virtual void on_tracks(double /*time_s*/, const std::vector<fusion::TrackReport>& /*tracks*/) {}
   virtual void on_zone_event(const fusion::ZoneEvent& /*event*/) {}
+  // The engine's counters after each output tick (the metrics read them; nothing counts twice).
+  virtual void on_counters(const fusion::FusionCounters& /*counters*/) {}
   // Stream time advanced (for staleness and pacing displays).
   virtual void on_time(double /*time_s*/) {}
 };

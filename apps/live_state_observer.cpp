@@ -15,7 +15,8 @@ std::filesystem::path default_web_root() {
 }
 
 http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std::string& bind,
-                                       const std::filesystem::path& web_root) {
+                                       const std::filesystem::path& web_root,
+                                       const std::string& option) {
   http_api::HttpOptions options;
   options.bind = bind;
   options.web_root = web_root.empty() ? default_web_root() : web_root;
@@ -23,7 +24,7 @@ http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std
   options.tls_private_key = site.http.tls_private_key;
   options.users_file = site.http.users_file;
   if (const std::string problem = http_api::exposure_problem(options); !problem.empty()) {
-    throw ArgumentError("--http " + bind + ": " + problem);
+    throw ArgumentError(option + " " + bind + ": " + problem);
   }
   // The API still works without the page; say why the browser will get 404s.
   std::error_code error;

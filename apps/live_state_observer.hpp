@@ -30,7 +30,9 @@ std::filesystem::path default_web_root();
 
 // The server's options for serving `site` on `bind`: its TLS files and users file, the page
 // from `web_root` (empty: default_web_root()).
+// `option` names the command-line option in the refusal line.
 http_api::HttpOptions http_options_for(const config::SiteConfig& site, const std::string& bind,
-                                       const std::filesystem::path& web_root = {});
+                                       const std::filesystem::path& web_root = {},
+                                       const std::string& option = "--http");
 
 }  // namespace dronetrack::apps

@@ -121,6 +121,7 @@ ReplaySummary run_replay(const config::SiteConfig& site,
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   LaneRunner runner(lanes, threads);
   const auto wall_start = Clock::now();
+  if (options.on_start) options.on_start();
   auto next_progress = wall_start + std::chrono::seconds(3);
   double target_s = 0.0;
   bool first_frame_logged = false;

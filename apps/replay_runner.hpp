@@ -3,6 +3,7 @@
 // same message structs the DDS path carries), as fast as the CPU allows or paced at real time.
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "apps/fusion_observer.hpp"
@@ -18,6 +19,8 @@ struct ReplayOptions {
   bool progress = true;         // a progress line on stderr every few seconds
   double max_duration_s = 0.0;  // stop after this much stream time (0: whole recordings)
   unsigned threads = 0;         // node threads (0: one per core)
+  // Called once when stream time 0 is due on the wall clock (the metrics' latency clock).
+  std::function<void()> on_start;
 };
 
 struct ReplaySummary {

@@ -1,14 +1,18 @@
 #include "apps/replay_session.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
 
 #include "apps/array_node.hpp"
+#include "apps/dds_support.hpp"
 #include "apps/doa_file_replay.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
+#include "apps/metrics.hpp"
+#include "apps/plot_recorder.hpp"
 #include "apps/replay_runner.hpp"
 #include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
@@ -44,6 +48,7 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     if (!options.doa_out.empty()) outputs.push_back({"--doa-out", options.doa_out});
     if (!options.tdoa_out.empty()) outputs.push_back({"--tdoa-out", options.tdoa_out});
     if (!options.alerts_out.empty()) outputs.push_back({"--alerts-out", options.alerts_out});
+    if (!options.plot_out.empty()) outputs.push_back({"--plot", options.plot_out});
     check_output_paths(inputs, outputs);
   }
   if (options.doa_in.empty()) {
@@ -71,13 +76,16 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   // Serving: the live state is fed like any other output; the server reads snapshots of it.
   std::unique_ptr<http_api::LiveState> live_state;
   std::unique_ptr<LiveStateObserver> live_observer;
+  std::unique_ptr<FusionMetrics> metrics;
   std::unique_ptr<http_api::HttpServer> server;
   if (!options.http.empty()) {
     live_state = std::make_unique<http_api::LiveState>(
         http_api::SiteLayout{site.geometries(), site.zones, site.speed_of_sound_mps});
     live_observer = std::make_unique<LiveStateObserver>(*live_state);
-    server =
-        std::make_unique<http_api::HttpServer>(*live_state, http_options_for(site, options.http));
+    metrics = std::make_unique<FusionMetrics>("replay", array_ids(site));
+    auto http_options = http_options_for(site, options.http);
+    http_options.metrics = [&metrics] { return metrics->text(); };
+    server = std::make_unique<http_api::HttpServer>(*live_state, std::move(http_options));
     server->start();
   }
 
@@ -107,12 +115,19 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     outputs.add(alert_writer->output());
     observers.push_back(alert_writer.get());
   }
+  std::unique_ptr<PlotRecorder> plot;
+  if (!options.plot_out.empty()) {
+    plot = std::make_unique<PlotRecorder>(options.plot_out, "dronetrack replay");
+    outputs.add(plot->output());
+    observers.push_back(plot.get());
+  }
   if (!tracks_out.empty()) {
     track_writer = std::make_unique<TrackLinesWriter>(tracks_out);
     outputs.add(track_writer->output());
     observers.push_back(track_writer.get());
   }
   if (live_observer) observers.push_back(live_observer.get());
+  if (metrics) observers.push_back(metrics.get());
   if (server) {
     // The URL goes to stdout too: it is what a person running the demo looks for.
     std::printf("dronetrack: serving %s\n", server->url().c_str());
@@ -129,12 +144,22 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
     ReplayOptions replay_options;
     replay_options.realtime = options.realtime;
     replay_options.max_duration_s = options.max_duration_s;
+    if (metrics && options.realtime) {
+      // Paced: stream time t is due t seconds after the start, so the latency has a wall clock.
+      replay_options.on_start = [&metrics] {
+        const auto start = std::chrono::steady_clock::now();
+        metrics->set_stream_clock([start] {
+          return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        });
+      };
+    }
     summary = run_replay(site, observers, replay_options, &install_stop_handlers());
     log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
               summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
               " DOAs (", summary.doas_accepted, " accepted), ", summary.ticks, " track ticks");
   }
   log_fusion_counters(summary.counters);
+  if (plot) plot->write();
   const int exit_code = outputs.finish("replay", summary.cut_short);
   if (exit_code != 0) return exit_code;
   if (server && options.keep_serving && !stop_requested()) {

@@ -13,6 +13,7 @@ struct ReplaySessionOptions {
   std::string doa_out;
   std::string tdoa_out;    // full-rank DOAs' pair delays as JSON lines, for calibrate; "" for none
   std::string alerts_out;  // zone alerts and class changes as JSON lines; "" for none
+  std::string plot_out;    // HTML page of the tracks and DOAs (docs/plots.md); "" for none
   std::string doa_in;      // DOA lines to run the fusion alone on, instead of the recordings
   sim::DoaOutlierSettings
       doa_outliers;  // impulsive errors added to the doa_in lines (share 0: none)

@@ -118,8 +118,16 @@ struct PositionMetrics {
   Eigen::Vector3d pfe_axis_percent = Eigen::Vector3d::Zero();
 };
 
+// One tick's 3-D error of the track assigned to a source (for plots: error over time).
+struct ErrorSample {
+  double time_s = 0.0;
+  int track_id = 0;
+  double error_m = 0.0;
+};
+
 struct SourceMetrics {
   std::string id;
+  std::vector<ErrorSample> errors;  // every tick a counted track was assigned to it, in order
   // Drone or not (issue 14), over the ticks a counted track follows this drone:
   double tracked_time_s = 0.0;
   double drone_class_time_s = 0.0;   // of which the track said "drone"
@@ -143,6 +151,8 @@ struct SourceMetrics {
 
 struct DoaArrayMetrics {
   std::string array;
+  std::vector<double> time_s;     // each matched DOA's time ...
+  std::vector<double> error_deg;  // ... and its error (for plots: DOA error over time)
   int count = 0;
   double median_error_deg = 0.0;
   double p90_error_deg = 0.0;

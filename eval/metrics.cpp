@@ -182,6 +182,7 @@ std::optional<Eigen::Vector3d> TruthSource::direction_at(const std::string& arra
 std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<DoaRecord>& doas,
                                         int* unmatched) {
   std::map<std::string, std::vector<double>> errors;
+  std::map<std::string, std::vector<double>> times;
   int missing = 0;
   for (const DoaRecord& doa : doas) {
     double best = std::numeric_limits<double>::infinity();
@@ -193,6 +194,7 @@ std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<Do
     }
     if (std::isfinite(best)) {
       errors[doa.array].push_back(best);
+      times[doa.array].push_back(doa.time_s);
     } else {
       ++missing;
     }
@@ -208,6 +210,8 @@ std::vector<DoaArrayMetrics> doa_errors(const Truth& truth, const std::vector<Do
     double sum = 0.0;
     for (double v : values) sum += v;
     metrics.mean_error_deg = sum / static_cast<double>(values.size());
+    metrics.time_s = std::move(times[array]);
+    metrics.error_deg = values;
     out.push_back(metrics);
   }
   return out;
@@ -347,6 +351,7 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
         source_covered[s] = 1;
       if (live[r]->one_array) metrics.one_array_time_s += tick;
       metrics.final_error_m = error_m;
+      metrics.errors.push_back({live[r]->time_s, live[r]->id, error_m});
       if (error_m > options.converge_gate_m) {
         within_gate_since[s] = -1.0;
       } else if (within_gate_since[s] < 0.0) {

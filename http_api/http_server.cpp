@@ -19,6 +19,7 @@
 #include "http_api/client_address.hpp"
 #include "http_api/client_budget.hpp"
 #include "http_api/guarded_server.hpp"
+#include "http_api/metrics_text.hpp"
 #include "http_api/tls_context.hpp"
 
 namespace dronetrack::http_api {
@@ -179,7 +180,9 @@ std::string exposure_problem(const HttpOptions& options) {
 }
 
 HttpServer::HttpServer(LiveState& state, HttpOptions options)
-    : state_(state), options_(std::move(options)) {}
+    : state_(&state), options_(std::move(options)) {}
+
+HttpServer::HttpServer(HttpOptions options) : state_(nullptr), options_(std::move(options)) {}
 
 HttpServer::~HttpServer() { stop(); }
 
@@ -291,98 +294,19 @@ void HttpServer::install_routes() {
         return httplib::Server::HandlerResponse::Handled;
       }));
 
-  svr.Get("/api/site", [this](const httplib::Request& req, httplib::Response& res) {
-    if (!check_params(req, res, {})) return;
-    send_json(res, 200, state_.site_json());
-  });
-  svr.Get("/api/tracks", [this](const httplib::Request& req, httplib::Response& res) {
-    if (!check_params(req, res, {})) return;
-    send_json(res, 200, state_.tracks_json());
-  });
-  svr.Get("/api/tracks/history", [this](const httplib::Request& req, httplib::Response& res) {
-    double since = 0.0;
-    if (!check_params(req, res, {"since"}) ||
-        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
-      return;
-    }
-    send_json(res, 200, state_.history_json(since));
-  });
-  svr.Get("/api/nodes", [this](const httplib::Request& req, httplib::Response& res) {
-    if (!check_params(req, res, {})) return;
-    send_json(res, 200, state_.nodes_json());
-  });
-  svr.Get("/api/alerts", [this](const httplib::Request& req, httplib::Response& res) {
-    double since = 0.0;
-    if (!check_params(req, res, {"since"}) ||
-        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
-      return;
-    }
-    send_json(res, 200, state_.alerts_json(since));
-  });
-  svr.Get("/api/stream", [this](const httplib::Request& req, httplib::Response& res) {
-    if (!check_params(req, res, {})) return;
-    const std::string client = client_address_key(req.remote_addr);
-    if (!budget_->open_stream(client)) {
-      send_error(res, 429, "too many streams from this address");
-      return;
-    }
-    if (stream_clients_.fetch_add(1) >= options_.max_stream_clients) {
-      --stream_clients_;
-      budget_->close_stream(client);
-      send_error(res, 503, "too many stream clients");
-      return;
-    }
-    auto queue = state_.subscribe();
-    res.set_header("Cache-Control", "no-store");
-    res.set_header("X-Accel-Buffering", "no");
-    const auto heartbeat = std::chrono::milliseconds(std::max(50, options_.stream_heartbeat_ms));
-    auto next_nodes = std::chrono::steady_clock::now() + heartbeat;
-    res.set_chunked_content_provider(
-        "text/event-stream",
-        [this, queue, heartbeat, next_nodes,
-         batch = std::vector<std::shared_ptr<const std::string>>()](
-            std::size_t, httplib::DataSink& sink) mutable {
-          if (stopping_) return false;
-          batch.clear();
-          // Polling every 40 ms bounds the added latency and keeps >= 10 Hz delivery.
-          if (!queue->pop_all(batch, kStreamPollMs)) return false;  // dropped or closed
-          std::string out;
-          for (const auto& event : batch) out += *event;
-          const auto now = std::chrono::steady_clock::now();
-          if (now >= next_nodes) {
-            // Stale flags change with stream time alone; resend node health regularly.
-            out += sse_event("nodes", state_.nodes_json());
-            next_nodes = now + heartbeat;
-          }
-          return out.empty() || sink.write(out.data(), out.size());
-        },
-        [this, queue, client](bool) {
-          state_.unsubscribe(queue);
-          --stream_clients_;
-          budget_->close_stream(client);
-        });
-  });
+  if (options_.metrics) {
+    svr.Get("/metrics", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!check_params(req, res, {})) return;
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(options_.metrics(), kMetricsContentType);
+    });
+  }
+  if (state_ != nullptr) install_api_routes();
   svr.Get(R"(/api(/.*)?)", [](const httplib::Request& req, httplib::Response& res) {
     send_error(res, 404, "no such endpoint: " + req.path);
   });
-  svr.Get(R"(/.*)", [this](const httplib::Request& req, httplib::Response& res) {
-    if (options_.web_root.empty()) {
-      send_error(res, 404, "no web root configured");
-      return;
-    }
-    const auto file = resolve_static(options_.web_root, req.path);
-    if (!file) {
-      send_error(res, 404, "not found: " + req.path);
-      return;
-    }
-    std::string body;
-    if (!read_file(*file, body)) {
-      send_error(res, 500, "cannot read " + req.path);
-      return;
-    }
-    res.set_header("Cache-Control", "no-cache");
-    res.set_content(std::move(body), content_type_for(*file));
-  });
+  svr.Get(R"(/.*)",
+          [this](const httplib::Request& req, httplib::Response& res) { serve_static(req, res); });
   // Everything is read-only: any other method is a 405 naming what is allowed.
   const auto method_not_allowed = [](const httplib::Request& req, httplib::Response& res) {
     res.set_header("Allow", "GET, HEAD");
@@ -405,6 +329,100 @@ void HttpServer::install_routes() {
         method_not_allowed(req, res);
         return httplib::Server::HandlerResponse::Handled;
       });
+}
+
+void HttpServer::install_api_routes() {
+  httplib::Server& svr = *server_;
+  svr.Get("/api/site", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_->site_json());
+  });
+  svr.Get("/api/tracks", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_->tracks_json());
+  });
+  svr.Get("/api/tracks/history", [this](const httplib::Request& req, httplib::Response& res) {
+    double since = 0.0;
+    if (!check_params(req, res, {"since"}) ||
+        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
+      return;
+    }
+    send_json(res, 200, state_->history_json(since));
+  });
+  svr.Get("/api/nodes", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    send_json(res, 200, state_->nodes_json());
+  });
+  svr.Get("/api/alerts", [this](const httplib::Request& req, httplib::Response& res) {
+    double since = 0.0;
+    if (!check_params(req, res, {"since"}) ||
+        !number_param(req, res, "since", -std::numeric_limits<double>::max(), since)) {
+      return;
+    }
+    send_json(res, 200, state_->alerts_json(since));
+  });
+  svr.Get("/api/stream", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!check_params(req, res, {})) return;
+    const std::string client = client_address_key(req.remote_addr);
+    if (!budget_->open_stream(client)) {
+      send_error(res, 429, "too many streams from this address");
+      return;
+    }
+    if (stream_clients_.fetch_add(1) >= options_.max_stream_clients) {
+      --stream_clients_;
+      budget_->close_stream(client);
+      send_error(res, 503, "too many stream clients");
+      return;
+    }
+    auto queue = state_->subscribe();
+    res.set_header("Cache-Control", "no-store");
+    res.set_header("X-Accel-Buffering", "no");
+    const auto heartbeat = std::chrono::milliseconds(std::max(50, options_.stream_heartbeat_ms));
+    auto next_nodes = std::chrono::steady_clock::now() + heartbeat;
+    res.set_chunked_content_provider(
+        "text/event-stream",
+        [this, queue, heartbeat, next_nodes,
+         batch = std::vector<std::shared_ptr<const std::string>>()](
+            std::size_t, httplib::DataSink& sink) mutable {
+          if (stopping_) return false;
+          batch.clear();
+          // Polling every 40 ms bounds the added latency and keeps >= 10 Hz delivery.
+          if (!queue->pop_all(batch, kStreamPollMs)) return false;  // dropped or closed
+          std::string out;
+          for (const auto& event : batch) out += *event;
+          const auto now = std::chrono::steady_clock::now();
+          if (now >= next_nodes) {
+            // Stale flags change with stream time alone; resend node health regularly.
+            out += sse_event("nodes", state_->nodes_json());
+            next_nodes = now + heartbeat;
+          }
+          return out.empty() || sink.write(out.data(), out.size());
+        },
+        [this, queue, client](bool) {
+          state_->unsubscribe(queue);
+          --stream_clients_;
+          budget_->close_stream(client);
+        });
+  });
+}
+
+void HttpServer::serve_static(const httplib::Request& req, httplib::Response& res) const {
+  if (options_.web_root.empty()) {
+    send_error(res, 404, "no web root configured");
+    return;
+  }
+  const auto file = resolve_static(options_.web_root, req.path);
+  if (!file) {
+    send_error(res, 404, "not found: " + req.path);
+    return;
+  }
+  std::string body;
+  if (!read_file(*file, body)) {
+    send_error(res, 500, "cannot read " + req.path);
+    return;
+  }
+  res.set_header("Cache-Control", "no-cache");
+  res.set_content(std::move(body), content_type_for(*file));
 }
 
 bool HttpServer::admit(const httplib::Request& req, httplib::Response& res) {

@@ -3,6 +3,7 @@
 // static web page. Handlers only serialise snapshots; a slow client never slows the publisher.
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -34,6 +35,9 @@ struct HttpOptions {
   int max_stream_clients = 64;     // further /api/stream requests get 503
   int stream_heartbeat_ms = 1000;  // a nodes event (stale flags) at least this often
   ConnectionLimits limits;         // slow and hostile clients (connection_limits.hpp)
+  // GET /metrics: the Prometheus text body (http_api/metrics_text.hpp), built per scrape on the
+  // server's thread, so it must be thread-safe. Empty: no /metrics.
+  std::function<std::string()> metrics;
 };
 
 // Why `options` may not be served as they stand (a TLS half given, or an address beyond
@@ -44,6 +48,9 @@ std::string exposure_problem(const HttpOptions& options);
 class HttpServer {
  public:
   HttpServer(LiveState& state, HttpOptions options);
+  // Without a live state: only /metrics (a node's listener, `node --metrics-listen`), under
+  // the same limits, TLS and users rules.
+  explicit HttpServer(HttpOptions options);
   ~HttpServer();  // stops
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;
@@ -62,10 +69,12 @@ class HttpServer {
 
  private:
   void install_routes();
+  void install_api_routes();  // with a live state
+  void serve_static(const httplib::Request& req, httplib::Response& res) const;
   // The client's request budget and credentials; false: `res` holds the refusal (429, 401).
   bool admit(const httplib::Request& req, httplib::Response& res);
 
-  LiveState& state_;
+  LiveState* state_;  // null: /metrics only
   HttpOptions options_;
   std::string host_;
   int port_ = 0;

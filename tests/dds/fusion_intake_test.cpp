@@ -15,11 +15,13 @@
 #include <random>
 
 #include "apps/dds_fusion_service.hpp"
+#include "apps/metrics.hpp"
 #include "config/site_config.hpp"
 #include "dds_idl/conversions.hpp"
 #include "dds_idl/dds.hpp"
 #include "dds_idl/topics.hpp"
 #include "tests/dds/dds_test_support.hpp"
+#include "tests/http_api/exposition_checker.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -59,7 +61,8 @@ TEST(DdsFusionIntake, MalformedSamplesAreCountedAndIgnoredAndTrackingGoesOn) {
 
   dds::Participant participant(121);
   LastTracks last;
-  DdsFusionService service(site, participant, {&last});
+  FusionMetrics metrics("fusion", array_ids(site));  // what /metrics would say of this run
+  DdsFusionService service(site, participant, {&last, &metrics});
   dds::Topic<dronetrack_Doa> doa_topic(participant);
   dds::Topic<dronetrack_NodeStatus> status_topic(participant);
   dds::Qos doa_qos, status_qos;
@@ -234,6 +237,29 @@ TEST(DdsFusionIntake, MalformedSamplesAreCountedAndIgnoredAndTrackingGoesOn) {
     EXPECT_LT((track.position_m - drone_m).norm(), 2.0) << track.position_m.transpose();
   }
   EXPECT_EQ(confirmed, 1);
+
+  // /metrics says the same, against the test's own known counts.
+  metrics.set_intake_counters(counters);
+  const test::Exposition exposed = test::check_exposition(metrics.text());
+  ASSERT_TRUE(exposed.ok()) << exposed.problems.front();
+  for (int kind = 1; kind < dds::kSampleProblemCount; ++kind) {
+    const std::string problem = dds::to_string(static_cast<SampleProblem>(kind));
+    EXPECT_EQ(exposed.value("dronetrack_dds_samples_rejected_total{topic=\"Doa\",problem=\"" +
+                            problem + "\"}"),
+              expected[kind])
+        << problem;
+  }
+  EXPECT_EQ(
+      exposed.value(
+          "dronetrack_dds_samples_rejected_total{topic=\"NodeStatus\",problem=\"non_finite\"}"),
+      4);
+  EXPECT_EQ(exposed.value("dronetrack_dds_doa_samples_received_total"), sent_doas);
+  EXPECT_EQ(exposed.value("dronetrack_fusion_doas_total{verdict=\"accepted\"}"), clean_doas);
+  EXPECT_EQ(exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"drone\"}") +
+                exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"unknown\"}") +
+                exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"ground\"}") +
+                exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"aircraft\"}"),
+            confirmed);
 }
 
 // A secure site's fusion reads each array's partition and refuses a sample whose array id is

@@ -58,6 +58,11 @@ TEST(EvalMetrics, KnownOffsetGivesKnownErrors) {
   EXPECT_NEAR(report.false_track_fraction, 0.0, 1e-12);
   ASSERT_EQ(report.sources.size(), 1u);
   EXPECT_EQ(report.sources[0].track_ids, std::vector<int>{7});
+  // The series behind the figures (plots): one error per tick, the same 1.3 m, track 7.
+  ASSERT_EQ(report.sources[0].errors.size(), 101u);
+  EXPECT_NEAR(report.sources[0].errors[50].time_s, 5.0, 1e-9);
+  EXPECT_NEAR(report.sources[0].errors[50].error_m, 1.3, 1e-9);
+  EXPECT_EQ(report.sources[0].errors[50].track_id, 7);
 }
 
 TEST(EvalMetrics, PercentageFitErrorRelativeToArrayCentroid) {
@@ -142,6 +147,12 @@ TEST(EvalMetrics, DoaErrorAgainstTheNearestSource) {
   EXPECT_NEAR(metrics[0].mean_error_deg, 3.0, 1e-9);
   EXPECT_NEAR(metrics[0].p90_error_deg, 4.0, 1e-9);
   EXPECT_EQ(unmatched, 1);
+  // Each matched DOA's error with its time, in input order (plots).
+  ASSERT_EQ(metrics[0].time_s.size(), 20u);
+  ASSERT_EQ(metrics[0].error_deg.size(), 20u);
+  EXPECT_NEAR(metrics[0].time_s[2], 0.1, 1e-12);
+  EXPECT_NEAR(metrics[0].error_deg[0], 2.0, 1e-9);
+  EXPECT_NEAR(metrics[0].error_deg[1], 4.0, 1e-9);
 }
 
 // A static source whose track starts 8 m off and closes in at 1 m/s: converged once within the
