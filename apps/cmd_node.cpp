@@ -24,6 +24,7 @@
 #include "apps/live_pose_stamper.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
+#include "capture/wrapped_source.hpp"
 #include "common/log.hpp"
 #include "config/site_config.hpp"
 #include "dds_idl/conversions.hpp"
@@ -65,26 +66,21 @@ struct PoseWarningTexts {
 // Skips, without processing, the part of a recording whose due time has long passed: a node
 // restarted with the same --epoch resumes where the other nodes are instead of replaying
 // minutes of stale audio that the fusion would only count as too late.
-class SkippingSource : public capture::AudioSource {
+class SkippingSource : public capture::WrappedSource {
  public:
   SkippingSource(std::unique_ptr<capture::AudioSource> inner, double skip_to_s)
-      : inner_(std::move(inner)), skip_to_s_(skip_to_s) {}
+      : WrappedSource(std::move(inner)), skip_to_s_(skip_to_s) {}
   bool next(doa::AudioBlockView& block) override {
-    while (inner_->next(block)) {
+    while (inner().next(block)) {
       const double block_end_s =
           static_cast<double>(block.first_sample + static_cast<std::int64_t>(block.frames)) /
-          inner_->sample_rate_hz();
+          sample_rate_hz();
       if (block_end_s > skip_to_s_) return true;
     }
     return false;
   }
-  double sample_rate_hz() const override { return inner_->sample_rate_hz(); }
-  int channels() const override { return inner_->channels(); }
-  const capture::SourceCounters& counters() const override { return inner_->counters(); }
-  std::string describe() const override { return inner_->describe(); }
 
  private:
-  std::unique_ptr<capture::AudioSource> inner_;
   double skip_to_s_;
 };
 

@@ -12,12 +12,18 @@
 
 namespace dronetrack::apps {
 
+class IncidentRecorder;
+
 struct ReplayOptions {
   bool realtime = false;        // pace at real time (for serving the page)
   double block_s = 0.05;        // audio read granularity; the nodes frame internally
   bool progress = true;         // a progress line on stderr every few seconds
   double max_duration_s = 0.0;  // stop after this much stream time (0: whole recordings)
   unsigned threads = 0;         // node threads (0: one per core)
+  // Per array (site order), the stream sample index of its recording's first sample
+  // (apps/recording_alignment.hpp); empty: every recording starts at t = 0.
+  std::vector<std::int64_t> start_samples;
+  IncidentRecorder* incidents = nullptr;  // incident capture (also among the observers); or none
 };
 
 struct ReplaySummary {
