@@ -133,7 +133,10 @@ void IncidentRecorder::request(double time_s, const std::string& label,
     return;
   }
   const auto alert_ns = clock_.utc_start_unix_ns + std::llround(time_s * 1e9);
-  pending_.push_back({time_s, compact_utc(alert_ns) + "-" + label, event_line});
+  std::string name = compact_utc(alert_ns) + "-" + label;
+  // A node's clip (one array of several) names its array: nodes may share a directory.
+  if (lanes_.size() == 1 && site_.arrays.size() > 1) name.append("-").append(lanes_[0]->id);
+  pending_.push_back({time_s, std::move(name), event_line});
 }
 
 bool IncidentRecorder::ready(const Pending& incident) const {
