@@ -57,7 +57,16 @@ struct IncidentRecorder::Lane {
 
 IncidentRecorder::IncidentRecorder(const config::SiteConfig& site,
                                    std::vector<IncidentArray> arrays, IncidentClock clock)
-    : site_(site), settings_(site.incident), clock_(std::move(clock)) {
+    : site_(site),
+      settings_(site.incident),
+      clock_(std::move(clock)),
+      // Room for the window's lines: 100 DOAs/s per array (4 sources at 20 frames/s is 80) of
+      // 500 bytes (~350 plain, ~650 with the acoustic block), 100 track lines/s; a busier site
+      // loses the oldest lines of a clip's window (3.5 MB per array for the default 70 s).
+      doa_lines_(static_cast<std::size_t>(history_s() * 100.0 * 500.0) * arrays.size(),
+                 static_cast<std::size_t>(history_s() * 100.0) * arrays.size()),
+      track_lines_(static_cast<std::size_t>(history_s() * 100.0 * 400.0),
+                   static_cast<std::size_t>(history_s() * 100.0)) {
   const std::filesystem::path ring_folder = settings_.directory / "ring";
   std::error_code error;
   std::filesystem::create_directories(ring_folder, error);
@@ -92,27 +101,24 @@ void IncidentRecorder::on_audio(int array_index, const doa::AudioBlockView& bloc
   if (Lane* lane = lane_of(array_index)) lane->ring.append(block);
 }
 
-void IncidentRecorder::trim(std::deque<Line>& lines, double latest_s) {
-  const double keep_s = settings_.before_s + settings_.after_s + config::kIncidentAlertDelay_s;
-  while (!lines.empty() && lines.front().time_s < latest_s - keep_s) lines.pop_front();
+double IncidentRecorder::history_s() const {
+  return site_.incident.before_s + site_.incident.after_s + config::kIncidentAlertDelay_s;
 }
 
 void IncidentRecorder::on_doa(const doa::DoaMeasurement& doa) {
-  char buffer[2048];
-  const int length = format_doa_line(doa, buffer, sizeof buffer);
-  if (length <= 0 || static_cast<std::size_t>(length) >= sizeof buffer) return;
-  doa_lines_.push_back({doa.time_s, std::string(buffer, static_cast<std::size_t>(length))});
-  trim(doa_lines_, doa.time_s);
+  const int length = format_doa_line(doa, line_, sizeof line_);
+  if (length <= 0 || static_cast<std::size_t>(length) >= sizeof line_) return;
+  doa_lines_.add(doa.time_s, line_, static_cast<std::size_t>(length));
+  doa_lines_.drop_before(doa.time_s - history_s());
 }
 
 void IncidentRecorder::on_tracks(double time_s, const std::vector<fusion::TrackReport>& tracks) {
-  char buffer[1024];
   for (const fusion::TrackReport& track : tracks) {
-    const int length = format_track_line(time_s, track, buffer, sizeof buffer);
-    if (length <= 0 || static_cast<std::size_t>(length) >= sizeof buffer) continue;
-    track_lines_.push_back({time_s, std::string(buffer, static_cast<std::size_t>(length))});
+    const int length = format_track_line(time_s, track, line_, sizeof line_);
+    if (length <= 0 || static_cast<std::size_t>(length) >= sizeof line_) continue;
+    track_lines_.add(time_s, line_, static_cast<std::size_t>(length));
   }
-  trim(track_lines_, time_s);
+  track_lines_.drop_before(time_s - history_s());
 }
 
 void IncidentRecorder::on_zone_event(const fusion::ZoneEvent& event) {
@@ -238,12 +244,11 @@ void IncidentRecorder::write_clip(Lane& lane, const std::filesystem::path& folde
   writer.commit();
 }
 
-void IncidentRecorder::write_lines(const std::filesystem::path& file, const std::deque<Line>& lines,
-                                   double from_s, double to_s) const {
+void IncidentRecorder::write_lines(const std::filesystem::path& file, const LineHistory& lines,
+                                   double from_s, double to_s) {
   OutputFile out(file);
-  for (const Line& line : lines)
-    if (line.time_s >= from_s && line.time_s <= to_s)
-      out.write_line(line.text.data(), line.text.size());
+  lines.for_each(from_s, to_s,
+                 [&](const char* text, std::size_t length) { out.write_line(text, length); });
   out.commit();
 }
 

@@ -15,13 +15,13 @@
 // Threads: on_audio() runs on each array's node thread (one array's ring per thread); everything
 // else on the thread that runs the fusion, while no node is reading (replay's lock step).
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "apps/array_node.hpp"
 #include "apps/fusion_observer.hpp"
+#include "apps/line_history.hpp"
 #include "capture/disk_audio_ring.hpp"
 #include "config/site_config.hpp"
 
@@ -74,28 +74,25 @@ class IncidentRecorder : public FusionObserver, public AudioTap {
     std::string name;
     std::string event_line;
   };
-  struct Line {
-    double time_s = 0.0;
-    std::string text;
-  };
 
   Lane* lane_of(int site_index) const;
   bool ready(const Pending& incident) const;
   void save(const Pending& incident);
   void write_clip(Lane& lane, const std::filesystem::path& folder, std::int64_t first_sample,
                   std::int64_t end_sample);
-  void write_lines(const std::filesystem::path& file, const std::deque<Line>& lines, double from_s,
-                   double to_s) const;
+  static void write_lines(const std::filesystem::path& file, const LineHistory& lines,
+                          double from_s, double to_s);
   void write_site(const std::filesystem::path& file) const;
-  void trim(std::deque<Line>& lines, double latest_s);
+  double history_s() const;
 
   const config::SiteConfig& site_;
   config::IncidentConfig settings_;
   IncidentClock clock_;
   std::vector<std::unique_ptr<Lane>> lanes_;
   std::vector<float> chunk_;  // one second of the widest array, for copying a clip out
-  std::deque<Line> doa_lines_;
-  std::deque<Line> track_lines_;
+  LineHistory doa_lines_;
+  LineHistory track_lines_;
+  char line_[2048];  // the longest DOA line is ~1 kB (jsonl_output.hpp)
   std::vector<Pending> pending_;
   double fusion_time_s_ = 0.0;
   std::int64_t clips_saved_ = 0;
