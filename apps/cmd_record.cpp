@@ -137,7 +137,10 @@ int run(const RecordArguments& arguments) {
     time.utc_start_unix_ns = std::llround(
         (device->stream_start_unix_s() + static_cast<double>(first.first_sample) / rate_hz) * 1e9);
   } else {
-    time.utc_start_unix_ns = now_unix_ns();
+    // Paced, the first block came when its last sample would have been captured.
+    const double first_block_s =
+        arguments.realtime ? static_cast<double>(first.frames) / rate_hz : 0.0;
+    time.utc_start_unix_ns = now_unix_ns() - std::llround(first_block_s * 1e9);
   }
   capture::AudioFileWriter writer(arguments.out, time);
   const auto max_frames = static_cast<std::int64_t>(std::llround(arguments.duration_s * rate_hz));
