@@ -206,7 +206,8 @@ std::string pose_span_problem(const config::SiteConfig& site, std::size_t array_
 }
 
 ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
-                     std::unique_ptr<capture::AudioSource> source, bool pose_from_file)
+                     std::unique_ptr<capture::AudioSource> source, bool pose_from_file,
+                     std::int64_t start_sample)
     : array_id_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry.id),
       array_index_(array_index),
       channel_map_(site.arrays[static_cast<std::size_t>(array_index)].channel_map),
@@ -214,7 +215,9 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
       pipeline_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry, array_index,
                 site.doa_params(static_cast<std::size_t>(array_index)), source_->sample_rate_hz(),
                 site.speed_of_sound_mps),
-      sample_rate_hz_(source_->sample_rate_hz()) {
+      sample_rate_hz_(source_->sample_rate_hz()),
+      start_sample_(start_sample),
+      samples_read_(start_sample) {
   if (source_->channels() !=
       static_cast<int>(site.arrays[static_cast<std::size_t>(array_index)].geometry.mic_count())) {
     throw std::runtime_error(array_id_ + ": " + source_->describe() + " delivers " +
@@ -235,6 +238,8 @@ bool ArrayNode::step(std::vector<doa::DoaMeasurement>& doas) {
     }
     return false;
   }
+  block.first_sample += start_sample_;
+  if (tap_) tap_->on_audio(array_index_, block);
   pipeline_.process(block, doas);
   samples_read_ = block.first_sample + static_cast<std::int64_t>(block.frames);
   warn_health_problems();

@@ -16,12 +16,24 @@
 
 namespace dronetrack::apps {
 
+// Sees every block of raw audio a node reads, on the node's thread (incident capture).
+class AudioTap {
+ public:
+  virtual ~AudioTap() = default;
+  virtual void on_audio(int array_index, const doa::AudioBlockView& block) = 0;
+};
+
 class ArrayNode {
  public:
   // A moving array's DOAs are stamped with its pose file's pose at their time unless
   // `pose_from_file` is false (the live node, which stamps them from the ArrayPose stream).
+  // `start_sample`: the stream sample index of the source's first sample (a recording that
+  // started after the site's earliest, lined up by its recorded start time; 0 otherwise).
   ArrayNode(const config::SiteConfig& site, int array_index,
-            std::unique_ptr<capture::AudioSource> source, bool pose_from_file = true);
+            std::unique_ptr<capture::AudioSource> source, bool pose_from_file = true,
+            std::int64_t start_sample = 0);
+  // Every block read from now on also goes to `tap` (not owned; nullptr: none).
+  void set_audio_tap(AudioTap* tap) { tap_ = tap; }
 
   // Reads one block and appends the DOAs it completes. False at end of stream. Logs a warning
   // for every audio health problem raised (also on the last stretch, at the end).
@@ -51,7 +63,9 @@ class ArrayNode {
   std::unique_ptr<capture::AudioSource> source_;
   doa::NodePipeline pipeline_;
   double sample_rate_hz_;
+  std::int64_t start_sample_ = 0;
   std::int64_t samples_read_ = 0;
+  AudioTap* tap_ = nullptr;
   double next_status_s_ = 0.0;
   bool finished_ = false;
 };

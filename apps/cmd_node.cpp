@@ -22,11 +22,14 @@
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
+#include "apps/incident_recorder.hpp"
 #include "apps/live_pose_stamper.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/metrics.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
+#include "capture/recording_time.hpp"
+#include "capture/wrapped_source.hpp"
 #include "common/log.hpp"
 #include "config/site_config.hpp"
 #include "dds_idl/conversions.hpp"
@@ -70,26 +73,21 @@ struct PoseWarningTexts {
 // Skips, without processing, the part of a recording whose due time has long passed: a node
 // restarted with the same --epoch resumes where the other nodes are instead of replaying
 // minutes of stale audio that the fusion would only count as too late.
-class SkippingSource : public capture::AudioSource {
+class SkippingSource : public capture::WrappedSource {
  public:
   SkippingSource(std::unique_ptr<capture::AudioSource> inner, double skip_to_s)
-      : inner_(std::move(inner)), skip_to_s_(skip_to_s) {}
+      : WrappedSource(std::move(inner)), skip_to_s_(skip_to_s) {}
   bool next(doa::AudioBlockView& block) override {
-    while (inner_->next(block)) {
+    while (inner().next(block)) {
       const double block_end_s =
           static_cast<double>(block.first_sample + static_cast<std::int64_t>(block.frames)) /
-          inner_->sample_rate_hz();
+          sample_rate_hz();
       if (block_end_s > skip_to_s_) return true;
     }
     return false;
   }
-  double sample_rate_hz() const override { return inner_->sample_rate_hz(); }
-  int channels() const override { return inner_->channels(); }
-  const capture::SourceCounters& counters() const override { return inner_->counters(); }
-  std::string describe() const override { return inner_->describe(); }
 
  private:
-  std::unique_ptr<capture::AudioSource> inner_;
   double skip_to_s_;
 };
 
@@ -274,6 +272,48 @@ int run(const NodeArguments& arguments) {
     pose_reader =
         std::make_unique<dds::Reader<dronetrack_ArrayPose>>(participant, *pose_topic, pose_qos);
   }
+  // Incident capture (issue 19): the node's audio goes through the ring; every zone alert the
+  // fusion publishes cuts a clip of it, with this node's DOAs of the window.
+  std::unique_ptr<IncidentRecorder> incidents;
+  std::unique_ptr<dds::Topic<dronetrack_Alert>> alert_topic;
+  std::unique_ptr<dds::Reader<dronetrack_Alert>> alert_reader;
+  if (site.incident.enabled()) {
+    IncidentClock clock{dds::seconds_to_ns(arguments.realtime ? epoch_unix_s : unix_now_s()),
+                        "replay", false};
+    if (live_source) {
+      clock.utc_start_unix_ns = dds::seconds_to_ns(live_source->stream_start_unix_s());
+      clock.clock = "system";
+    } else if (const auto recorded = capture::read_recording_time(
+                   arguments.recording.empty() ? array.recording
+                                               : std::filesystem::path(arguments.recording))) {
+      clock.utc_start_unix_ns = recorded->utc_start_unix_ns;
+      clock.clock = recorded->clock;
+    }
+    incidents = std::make_unique<IncidentRecorder>(
+        site,
+        std::vector<IncidentArray>{
+            {array_index, node.sample_rate_hz(), static_cast<int>(array.geometry.mic_count())}},
+        clock);
+    node.set_audio_tap(incidents.get());
+    alert_topic = std::make_unique<dds::Topic<dronetrack_Alert>>(participant);
+    dds::Qos alert_qos;
+    dds::alert_reader_qos(alert_qos);
+    alert_reader =
+        std::make_unique<dds::Reader<dronetrack_Alert>>(participant, *alert_topic, alert_qos);
+  }
+  fusion::ZoneEvent alert;
+  double next_alert_poll_s = 0.0;
+  // Alerts carry wire time: moved to this node's stream time before a clip is asked for.
+  auto take_alerts = [&](std::int64_t offset_ns) {
+    dds::Samples<dronetrack_Alert> samples = alert_reader->take();
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (!samples.info(i).valid_data ||
+          dds::from_idl(samples.data(i), alert) != dds::SampleProblem::none)
+        continue;
+      alert.time_s -= dds::ns_to_seconds(offset_ns);
+      incidents->on_zone_event(alert);
+    }
+  };
   LivePoseStamper pose_stamper(array.geometry, array.pose_max_gap_s);
   const PoseWarningTexts pose_texts(node.array_id());
   ThrottledWarnings pose_warnings;
@@ -336,12 +376,21 @@ int run(const NodeArguments& arguments) {
     }
     const std::int64_t offset_ns = time_offset_ns();
     if (pose_reader) stamp_from_topic(node.time_s(), offset_ns);
+    if (incidents) {
+      for (const auto& measurement : doas) incidents->on_doa(measurement);
+      if (node.time_s() >= next_alert_poll_s) {  // ten times a second is soon enough
+        next_alert_poll_s = node.time_s() + 0.1;
+        take_alerts(offset_ns);
+      }
+      incidents->service(false);
+    }
     publish_doas(offset_ns);
     if (metrics) {
       metrics->update(published, write_failures, node.diagnostics(),
                       node.source().counters().overruns);
     }
     if (node.status_due(status)) {
+      if (incidents) incidents->fill_status(status);
       dds::to_idl(status, offset_ns + dds::seconds_to_ns(status.time_s), status_sample);
       if (status_writer.try_write(status_sample) < 0) ++write_failures;
     }
@@ -364,10 +413,15 @@ int run(const NodeArguments& arguments) {
   }
   if (live_source) live_source->request_stop();
   pose_warnings.flush();
+  if (incidents) {
+    take_alerts(time_offset_ns());
+    incidents->service(true);
+  }
 
   // Say goodbye: readers see alive = false, then the writers' deletion leaves the instances
   // without writers, exactly as a lost liveliness would.
   status = node.status();
+  if (incidents) incidents->fill_status(status);
   status.alive = false;
   dds::to_idl(status, time_offset_ns() + dds::seconds_to_ns(status.time_s), status_sample);
   status_writer.try_write(status_sample);

@@ -46,5 +46,6 @@ void register_demo(CLI::App& root, CommandTable& table);
 void register_pose_publish(CLI::App& root, CommandTable& table);
 void register_calibrate(CLI::App& root, CommandTable& table);
 void register_passwd(CLI::App& root, CommandTable& table);
+void register_record(CLI::App& root, CommandTable& table);
 
 }  // namespace dronetrack::apps

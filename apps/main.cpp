@@ -33,6 +33,7 @@ int run(int argc, char** argv) {
   apps::register_pose_publish(root, table);
   apps::register_calibrate(root, table);
   apps::register_passwd(root, table);
+  apps::register_record(root, table);
 
   try {
     root.parse(argc, argv);

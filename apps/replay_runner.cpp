@@ -10,6 +10,7 @@
 
 #include "apps/array_node.hpp"
 #include "apps/fusion_driver.hpp"
+#include "apps/incident_recorder.hpp"
 #include "common/log.hpp"
 
 namespace dronetrack::apps {
@@ -108,10 +109,14 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   for (std::size_t i = 0; i < site.arrays.size(); ++i) {
     const auto& array = site.arrays[i];
     auto recording = open_recording(array, array.recording, options.block_s);
+    const std::int64_t start_sample =
+        i < options.start_samples.size() ? options.start_samples[i] : 0;
     // Only for the progress line's denominator.
-    total_s = std::max(
-        total_s, static_cast<double>(recording->total_frames()) / recording->sample_rate_hz());
-    lanes.emplace_back(ArrayNode(site, static_cast<int>(i), std::move(recording)));
+    total_s = std::max(total_s, static_cast<double>(recording->total_frames() + start_sample) /
+                                    recording->sample_rate_hz());
+    lanes.emplace_back(
+        ArrayNode(site, static_cast<int>(i), std::move(recording), true, start_sample));
+    if (options.incidents) lanes.back().node.set_audio_tap(options.incidents);
   }
   if (options.max_duration_s > 0.0) total_s = std::min(total_s, options.max_duration_s);
 
@@ -150,7 +155,10 @@ ReplaySummary run_replay(const config::SiteConfig& site,
         log::info("replay: ", lane.node.array_id(), " recording ended at ", lane.node.time_s(),
                   " s, ", lane.node.frames_processed(), " frames analysed");
       }
-      if (lane.status_ready) driver.on_node_status(lane.status);
+      if (lane.status_ready) {
+        if (options.incidents) options.incidents->fill_status(lane.status);
+        driver.on_node_status(lane.status);
+      }
       for (const auto& doa : lane.doas) {
         ++summary.doas;
         if (driver.on_doa(doa) == fusion::DoaVerdict::accepted) ++summary.doas_accepted;
@@ -163,6 +171,8 @@ ReplaySummary run_replay(const config::SiteConfig& site,
       driver.advance_to(slowest_s);
       summary.stream_s = std::max(summary.stream_s, slowest_s);
     }
+    // Between steps no node reads audio: the clips can be cut from the rings.
+    if (options.incidents) options.incidents->service(false);
     if (options.realtime) {
       std::this_thread::sleep_until(wall_start + std::chrono::duration_cast<Clock::duration>(
                                                      std::chrono::duration<double>(target_s)));
@@ -183,12 +193,14 @@ ReplaySummary run_replay(const config::SiteConfig& site,
                           " s, before its header's end (truncated while being read)";
   }
   driver.finish();
+  if (options.incidents) options.incidents->service(true);
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
   summary.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   // Bad audio must not pass in silence: one line per array whose audio had problems.
   for (const auto& lane : lanes) {
     summary.nodes.push_back(lane.node.status());
+    if (options.incidents) options.incidents->fill_status(summary.nodes.back());
     if (const std::string problems = health_summary(summary.nodes.back()); !problems.empty())
       log::warn("replay: audio problems: ", problems);
   }

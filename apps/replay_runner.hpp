@@ -13,6 +13,8 @@
 
 namespace dronetrack::apps {
 
+class IncidentRecorder;
+
 struct ReplayOptions {
   bool realtime = false;        // pace at real time (for serving the page)
   double block_s = 0.05;        // audio read granularity; the nodes frame internally
@@ -21,6 +23,10 @@ struct ReplayOptions {
   unsigned threads = 0;         // node threads (0: one per core)
   // Called once when stream time 0 is due on the wall clock (the metrics' latency clock).
   std::function<void()> on_start;
+  // Per array (site order), the stream sample index of its recording's first sample
+  // (apps/recording_alignment.hpp); empty: every recording starts at t = 0.
+  std::vector<std::int64_t> start_samples;
+  IncidentRecorder* incidents = nullptr;  // incident capture (also among the observers); or none
 };
 
 struct ReplaySummary {

@@ -9,13 +9,16 @@
 #include "apps/array_node.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/doa_file_replay.hpp"
+#include "apps/incident_recorder.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/metrics.hpp"
 #include "apps/plot_recorder.hpp"
+#include "apps/recording_alignment.hpp"
 #include "apps/replay_runner.hpp"
 #include "apps/run_outputs.hpp"
 #include "apps/signals.hpp"
+#include "capture/recording_info.hpp"
 #include "common/log.hpp"
 #include "http_api/http_server.hpp"
 
@@ -63,6 +66,8 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
                   "fixed");
     }
   }
+  RecordingAlignment alignment;
+  if (options.doa_in.empty()) alignment = align_recordings(site);
   std::vector<doa::DoaMeasurement> recorded_doas;
   if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);
   if (options.doa_outliers.share > 0.0) {
@@ -128,6 +133,19 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   }
   if (live_observer) observers.push_back(live_observer.get());
   if (metrics) observers.push_back(metrics.get());
+  std::unique_ptr<IncidentRecorder> incidents;
+  if (site.incident.enabled() && options.doa_in.empty()) {
+    std::vector<IncidentArray> arrays;
+    for (std::size_t i = 0; i < site.arrays.size(); ++i)
+      arrays.push_back({static_cast<int>(i),
+                        capture::probe_recording(site.arrays[i].recording).sample_rate_hz,
+                        static_cast<int>(site.arrays[i].geometry.mic_count())});
+    incidents = std::make_unique<IncidentRecorder>(
+        site, std::move(arrays),
+        IncidentClock{alignment.utc_start_unix_ns, alignment.from_recordings ? "system" : "replay",
+                      true});
+    observers.push_back(incidents.get());
+  }
   if (server) {
     // The URL goes to stdout too: it is what a person running the demo looks for.
     std::printf("dronetrack: serving %s\n", server->url().c_str());
@@ -153,6 +171,8 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
         });
       };
     }
+    replay_options.start_samples = alignment.start_samples;
+    replay_options.incidents = incidents.get();
     summary = run_replay(site, observers, replay_options, &install_stop_handlers());
     log::info("replay: ", summary.stream_s, " s of audio in ", summary.wall_s, " s (",
               summary.stream_s / std::max(summary.wall_s, 1e-9), "x real time), ", summary.doas,
@@ -160,6 +180,12 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   }
   log_fusion_counters(summary.counters);
   if (plot) plot->write();
+  if (incidents) {
+    std::int64_t errors = 0;
+    for (const doa::NodeStatus& node : summary.nodes) errors += node.incident_write_errors;
+    log::info("incident: ", incidents->clips_saved(), " clip(s) saved in ",
+              site.incident.directory.string(), ", ", errors, " write error(s)");
+  }
   const int exit_code = outputs.finish("replay", summary.cut_short);
   if (exit_code != 0) return exit_code;
   if (server && options.keep_serving && !stop_requested()) {

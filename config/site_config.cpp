@@ -439,6 +439,27 @@ SiteConfig parse_site_config(const std::string& json_text, const std::filesystem
             "tls_certificate and tls_private_key go together");
       }
     }
+    {
+      ObjectReader incident = root.object("incident");
+      const std::string directory = incident.string("directory", "");
+      if (incident.has("directory") && directory.empty())
+        diagnostics.error(incident.path_of("directory"), "must not be empty");
+      if (!directory.empty()) {
+        const std::filesystem::path path(directory);
+        site.incident.directory = path.is_absolute() ? path : base_dir / path;
+      }
+      IncidentConfig& clips = site.incident;
+      clips.ring_s = incident.number("ring_s", clips.ring_s, 1.0, 86400.0);
+      clips.before_s = incident.number("before_s", clips.before_s, 0.0, 3600.0);
+      clips.after_s = incident.number("after_s", clips.after_s, 0.0, 3600.0);
+      if (clips.ring_s < clips.before_s + clips.after_s + kIncidentAlertDelay_s)
+        diagnostics.error(
+            incident.path_of("ring_s"),
+            format_number(clips.ring_s) + " s cannot hold a clip of before_s + " + "after_s = " +
+                format_number(clips.before_s + clips.after_s) + " s and the alert's delay (" +
+                format_number(kIncidentAlertDelay_s) + " s); make it at least " +
+                format_number(clips.before_s + clips.after_s + kIncidentAlertDelay_s));
+    }
     root.accept("description");
   }
   if (diagnostics.errors.empty() && options.check_recordings) {

@@ -54,6 +54,20 @@ struct HttpConfig {
   std::filesystem::path users_file;       // `dronetrack passwd` lines
 };
 
+// Incident capture at each node (docs/deployment.md "Incident recordings"): a ring of the last
+// ring_s seconds of raw audio per array on disk, and on every zone alert a clip from before_s
+// before to after_s after it, with its time sidecar and the DOA and track lines of that window.
+struct IncidentConfig {
+  std::filesystem::path directory;  // absolute (resolved against the config file); empty: off
+  double ring_s = 300.0;
+  double before_s = 30.0;
+  double after_s = 30.0;
+  bool enabled() const { return !directory.empty(); }
+};
+// The fusion emits an alert some seconds after the audio that raised it (node latency, the
+// reorder window): the ring keeps this much more than a clip so the clip's start is still held.
+inline constexpr double kIncidentAlertDelay_s = 10.0;
+
 struct SiteConfig {
   std::filesystem::path file;  // where it was read from (empty if built in memory)
   double speed_of_sound_mps = 343.0;
@@ -64,6 +78,7 @@ struct SiteConfig {
   fusion::AlertPolicy alerts;  // "alerts": which tracks' zone entries alert
   DdsConfig dds;
   HttpConfig http;
+  IncidentConfig incident;
 
   std::vector<doa::ArrayGeometry> geometries() const;
   // The DSP parameters of one array: `doa` with that array's own ground height, if it has one.

@@ -305,6 +305,8 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
   sample.closure_residual_us = status.closure_residual_us;
   sample.fit_residual_us = status.fit_residual_us;
   copy_bounded(sample.software_version, status.software_version);
+  sample.incident_clips = status.incident_clips;
+  sample.incident_write_errors = status.incident_write_errors;
   const std::size_t channels = std::min(status.channels.size(), doa::kMaxStatusChannels);
   sample.channel_count = static_cast<std::uint8_t>(channels);
   for (std::size_t c = 0; c < doa::kMaxStatusChannels; ++c) {
@@ -342,7 +344,8 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
       !(sample.fit_residual_us >= 0.0 && sample.fit_residual_us <= doa::kMaxHealthDelay_us))
     return SampleProblem::bad_value;
   if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
-      sample.non_finite_samples < 0 || sample.channel_count > doa::kMaxStatusChannels) {
+      sample.non_finite_samples < 0 || sample.incident_clips < 0 ||
+      sample.incident_write_errors < 0 || sample.channel_count > doa::kMaxStatusChannels) {
     return SampleProblem::bad_value;
   }
   constexpr unsigned kKnownProblems = (1U << doa::kHealthProblemCount) - 1U;
@@ -374,6 +377,8 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   out.closure_residual_us = sample.closure_residual_us;
   out.fit_residual_us = sample.fit_residual_us;
   out.software_version.assign(bounded_view(sample.software_version));
+  out.incident_clips = sample.incident_clips;
+  out.incident_write_errors = sample.incident_write_errors;
   out.channels.clear();
   for (std::size_t c = 0; c < sample.channel_count; ++c) {
     const dronetrack_ChannelHealth& channel = sample.channels[c];

@@ -42,6 +42,10 @@ struct NodeStatus {
   double closure_residual_us = 0.0;  // largest |running median| of a triple's delay closure
   double fit_residual_us = 0.0;      // running median RMS misfit of the pair delays to a plane wave
   std::string software_version;
+  // Incident capture (docs/deployment.md "Incident recordings"): clips saved, and writes that
+  // failed (the audio ring or a clip: a full disk, an I/O error; processing went on).
+  std::int64_t incident_clips = 0;
+  std::int64_t incident_write_errors = 0;
   std::vector<ChannelStatus> channels;  // index: mic (0-based); at most kMaxStatusChannels
 };
 

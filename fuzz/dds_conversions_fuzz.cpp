@@ -129,6 +129,8 @@ void fuzz_status(Bytes& in, const std::vector<std::string>& ids) {
   sample.snr_db = in.number();
   sample.detecting = in.flag();
   in.text(sample.software_version);
+  sample.incident_clips = in.take<std::int64_t>();
+  sample.incident_write_errors = in.take<std::int64_t>();
   sample.channel_count = in.take<std::uint8_t>();
   for (auto& channel : sample.channels) {
     channel.problems = in.take<std::uint8_t>();

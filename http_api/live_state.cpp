@@ -135,6 +135,8 @@ json status_json(const doa::NodeStatus& s) {
       {"closure_residual_us", s.closure_residual_us},
       {"fit_residual_us", s.fit_residual_us},
       {"software_version", s.software_version},
+      {"incident_clips", s.incident_clips},
+      {"incident_write_errors", s.incident_write_errors},
       {"channels", std::move(channels)},
   };
 }

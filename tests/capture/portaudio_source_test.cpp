@@ -28,6 +28,8 @@
 #include <gtest/gtest.h>
 
 #include "capture/devices.hpp"
+#include "capture/recording_source.hpp"
+#include "capture/stream_recorder.hpp"
 
 namespace dronetrack::capture {
 namespace {
@@ -186,6 +188,59 @@ TEST_F(TestCapture, DeliversTheDeviceSignalThroughTheChannelMapWithSampleTimesta
   EXPECT_GT(previous_first, 39 * 256) << "the blocks after the drops start later";
   EXPECT_GE(source.stream_start_unix_s(), before_unix_s - 1.0);
   EXPECT_LE(source.stream_start_unix_s(), before_unix_s + 5.0);
+}
+
+// `dronetrack record`'s path (issue 19) on the test PCM: the unpaced device overruns, and the
+// recorded file still holds sample k of the stream at frame k (the lost blocks as zeros), with
+// the stream's start time beside it.
+TEST_F(TestCapture, RecordsTheStreamWithItsStartTimeAndZerosForLostBlocks) {
+  PortAudioOptions settings = options();
+  settings.mics = 4;
+  PortAudioSource source(settings);
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));  // let the ring overflow
+  doa::AudioBlockView first;
+  ASSERT_TRUE(source.next(first));
+  const fs::path file =
+      fs::temp_directory_path() / ("dronetrack_record_" + std::to_string(::getpid()) + ".wav");
+  RecordingTime time;
+  time.array_id = "A1";
+  time.sample_rate_hz = 16000.0;
+  time.channels = 4;
+  time.utc_start_unix_ns = std::llround(source.stream_start_unix_s() * 1e9);
+  StreamRecording recording;
+  {
+    AudioFileWriter writer(file, time);
+    recording = record_stream(source, first, writer, 64 * 256, nullptr);
+    writer.commit();
+  }
+  EXPECT_EQ(recording.frames, 64 * 256);
+  EXPECT_GT(recording.gap_frames, 0) << "the unpaced device overruns: zeros fill the gaps";
+  EXPECT_EQ(recording.gap_frames % 256, 0);
+  const std::optional<RecordingTime> read = read_recording_time(file);
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(read->utc_start_unix_ns, time.utc_start_unix_ns);
+  RecordingSource back(file, {}, 256);
+  doa::AudioBlockView block;
+  std::int64_t from_file = 0;
+  std::int64_t zero_blocks = 0;
+  while (back.next(block)) {
+    const bool zeros = block.sample(0, 0) == 0.0F && block.sample(255, 3) == 0.0F;
+    if (zeros) {
+      ++zero_blocks;
+      continue;
+    }
+    // A block that was captured holds the device's samples at its own stream index.
+    for (std::size_t frame = 0; frame < block.frames; frame += 37) {
+      const std::int64_t index = block.first_sample + static_cast<std::int64_t>(frame);
+      if (index >= kFileFrames || index == kNanFrame) continue;
+      ASSERT_EQ(block.sample(frame, 2), file_signal(index, 2)) << "frame " << index;
+    }
+    ++from_file;
+  }
+  EXPECT_EQ(zero_blocks * 256, recording.gap_frames);
+  EXPECT_GE(from_file, 16);
+  fs::remove(file);
+  fs::remove(time_sidecar_path(file));
 }
 
 TEST_F(TestCapture, IdentityMapOverTheArrayMics) {

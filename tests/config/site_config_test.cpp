@@ -507,3 +507,33 @@ TEST(SiteConfig, CalibrationKeys) {
 
 }  // namespace
 }  // namespace dronetrack::config
+
+namespace dronetrack::config {
+namespace {
+
+TEST(SiteConfig, IncidentCaptureKeys) {
+  json site = two_array_site();
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(
+      parse_site_config(site.dump(), "/site", warnings, no_recordings()).incident.enabled());
+  site["incident"] = {
+      {"directory", "incidents"}, {"ring_s", 120}, {"before_s", 20}, {"after_s", 10}};
+  const SiteConfig parsed = parse_site_config(site.dump(), "/site", warnings, no_recordings());
+  EXPECT_EQ(parsed.incident.directory, std::filesystem::path("/site/incidents"));
+  EXPECT_DOUBLE_EQ(parsed.incident.ring_s, 120.0);
+  EXPECT_DOUBLE_EQ(parsed.incident.before_s, 20.0);
+  EXPECT_DOUBLE_EQ(parsed.incident.after_s, 10.0);
+  site["incident"]["ring_s"] = 35;
+  expect_problem(site,
+                 "incident.ring_s: 35 s cannot hold a clip of before_s + after_s = 30 s and the "
+                 "alert's delay (10 s); make it at least 40");
+  site["incident"]["ring_s"] = 120;
+  site["incident"]["after_s"] = -1;
+  expect_problem(site, "incident.after_s: must be in [0, 3600], got -1");
+  site["incident"]["after_s"] = 10;
+  site["incident"]["directory"] = "";
+  expect_problem(site, "incident.directory: must not be empty");
+}
+
+}  // namespace
+}  // namespace dronetrack::config

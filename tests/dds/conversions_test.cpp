@@ -204,6 +204,12 @@ TEST(DdsConversions, DamagedStatusTrackAndAlert) {
   status.level_dbfs = 0.0;
   status.overruns = -1;
   EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::bad_value);
+  status.overruns = 0;
+  status.incident_write_errors = -1;
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::bad_value);
+  status.incident_write_errors = 0;
+  status.incident_clips = -1;
+  EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::bad_value);
   status.array_id[0] = '\0';
   EXPECT_EQ(from_idl(status, kArrays, status_out), SampleProblem::empty_key);
 

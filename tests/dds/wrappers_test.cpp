@@ -129,6 +129,8 @@ TEST_F(DdsWrappers, NodeStatusTrackAndAlertRoundTrip) {
   status.snr_db = 12.0;
   status.detecting = true;
   status.software_version = "dronetrack 0.1.0";
+  status.incident_clips = 4;
+  status.incident_write_errors = 1;
   status.channels = {{0, 0, 0, 0, -31.0},
                      {doa::health_flag(doa::HealthProblem::silent),
                       doa::health_flag(doa::HealthProblem::silent), 0, 14, -120.0}};
@@ -169,6 +171,8 @@ TEST_F(DdsWrappers, NodeStatusTrackAndAlertRoundTrip) {
   EXPECT_EQ(got_status.noise_floor_dbfs, -60.25);
   EXPECT_TRUE(got_status.detecting);
   EXPECT_EQ(got_status.software_version, "dronetrack 0.1.0");
+  EXPECT_EQ(got_status.incident_clips, 4);
+  EXPECT_EQ(got_status.incident_write_errors, 1);
   ASSERT_EQ(got_status.channels.size(), 2U);
   EXPECT_EQ(got_status.channels[1].problems, doa::health_flag(doa::HealthProblem::silent));
   EXPECT_EQ(got_status.channels[1].clipped_samples, 14);
