@@ -74,7 +74,7 @@ std::string health_warning(const std::string& array_id, int input_channel,
 }
 
 std::string array_health_warning(const std::string& array_id, int input_channel,
-                                 const doa::ArrayHealthEvent& event) {
+                                 const doa::ArrayHealthEvent& event, int other_input_channel) {
   std::string line = channel_prefix(array_id, input_channel, event.channel);
   const std::string at = " at " + format("%.2f", event.time_s) + " s";
   switch (event.problem) {
@@ -104,6 +104,16 @@ std::string array_health_warning(const std::string& array_id, int input_channel,
               " us against the array's median channel (fit over the source directions)" + at +
               "; calibrate channel_delay_s";
       break;
+    case doa::ArrayProblem::swapped: {
+      std::string other = "channel " + std::to_string(event.other_channel);
+      if (other_input_channel != event.other_channel)
+        other += " (input channel " + std::to_string(other_input_channel) + ")";
+      line += "swapped with " + other + ": the pair delays fit a plane wave with the two " +
+              "relabelled (RMS misfit " + format("%.1f", event.swapped_misfit_us) + " us against " +
+              format("%.1f", event.wired_misfit_us) + " us as wired)" + at +
+              "; swap the two inputs or their channel_map entries";
+      break;
+    }
   }
   return line;
 }
@@ -260,7 +270,8 @@ void ArrayNode::warn_health_problems() const {
         (doa::has_problem(audio, doa::HealthProblem::silent) ||
          doa::has_problem(audio, doa::HealthProblem::non_finite)))
       continue;
-    log::warn(array_health_warning(array_id_, input_of(event.channel), event));
+    log::warn(array_health_warning(array_id_, input_of(event.channel), event,
+                                   input_of(event.other_channel)));
   }
 }
 

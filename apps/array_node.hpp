@@ -77,9 +77,10 @@ std::string health_warning(const std::string& array_id, int input_channel,
                            const doa::HealthEvent& event);
 // The warning line for one problem ArrayHealth raised on a channel, naming the array and the
 // channel, e.g. "A1 channel 2: polarity flipped: its pairs correlate negative on 100 % of the
-// frames with a source at 1.02 s; rewire the mic or invert the channel".
+// frames with a source at 1.02 s; rewire the mic or invert the channel". A swap names the other
+// channel too, on its input channel `other_input_channel`.
 std::string array_health_warning(const std::string& array_id, int input_channel,
-                                 const doa::ArrayHealthEvent& event);
+                                 const doa::ArrayHealthEvent& event, int other_input_channel = -1);
 // One line summing up a node's audio problems over the whole run ("" when it had none), e.g.
 // "A2 channel 3: non-finite 100 % of samples; channel 0: clipped 2.1 % of samples".
 std::string health_summary(const doa::NodeStatus& status);

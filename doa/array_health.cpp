@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -45,6 +47,8 @@ const char* to_string(ArrayProblem problem) {
       return "closure";
     case ArrayProblem::skew:
       return "skew";
+    case ArrayProblem::swapped:
+      return "swapped";
   }
   return "unknown";
 }
@@ -60,6 +64,10 @@ PairPeak correlation_extremes(std::span<const double> correlation) {
 
 namespace {
 double magnitude(const PairPeak& pair) { return std::max(pair.highest, -pair.lowest); }
+// The delay closure and the fit take: the source's own when measured.
+double source_delay_s(const PairPeak& pair) {
+  return std::isfinite(pair.source_tdoa_s) ? pair.source_tdoa_s : pair.tdoa_s;
+}
 }  // namespace
 
 ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mps, double hop_s,
@@ -92,6 +100,9 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
       !(settings.skew_prior_us > 0.0) || !(settings.min_skew_frames >= 1.0))
     fail("skew_us, skew_window_s, skew_prior_us must be > 0 and min_skew_frames >= 1");
   if (!(settings.rewarn_s >= 0.0)) fail("rewarn_s must be >= 0");
+  if (!(settings.min_swap_frames >= 1.0) || !(settings.swap_evidence_us > 0.0) ||
+      !(settings.swap_misfit_ratio > 0.0 && settings.swap_misfit_ratio < 1.0))
+    fail("min_swap_frames must be >= 1, swap_evidence_us > 0 and swap_misfit_ratio in (0, 1)");
 
   const auto n = static_cast<std::size_t>(channels_);
   for (int i = 0; i < channels_; ++i)
@@ -151,6 +162,77 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
     out_of_range_ = difference_ - geometry_ * slowness_of_delays_;
   }
   forgetting_ = std::exp(-hop_s / settings.skew_window_s);
+
+  // Each transposition's relabelling of the pairs: recorded pair (i, j) holds the delay of the
+  // mics (s(i), s(j)), s the swap, so that pair's delay goes to their pair with its sign.
+  for (int a = 0; a < channels_; ++a)
+    for (int b = a + 1; b < channels_; ++b) transpositions_.push_back({a, b});
+  relabel_source_.assign(transpositions_.size() * static_cast<std::size_t>(pairs_), 0);
+  relabel_sign_.assign(relabel_source_.size(), 1.0);
+  for (std::size_t t = 0; t < transpositions_.size(); ++t) {
+    const auto [a, b] = transpositions_[t];
+    auto swapped = [&](int mic) { return mic == a ? b : mic == b ? a : mic; };
+    for (int p = 0; p < pairs_; ++p) {
+      const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
+      const int x = swapped(i), y = swapped(j);
+      const std::size_t slot = t * static_cast<std::size_t>(pairs_) +
+                               static_cast<std::size_t>(pair_index(std::min(x, y), std::max(x, y)));
+      relabel_source_[slot] = p;
+      relabel_sign_[slot] = x < y ? 1.0 : -1.0;
+    }
+  }
+  swap_signature_us_.assign(transpositions_.size(), 0.0);
+  swap_square_sums_.assign(transpositions_.size() + 1, 0.0);
+  relabelled_.setZero(pairs_);
+  if (!fit_possible_) return;
+  // A swap's signature: its misfit on exact plane waves from directions spread evenly over the
+  // sphere (a Fibonacci lattice).
+  constexpr int kDirections = 256;
+  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  for (int d = 0; d < kDirections; ++d) {
+    const double z = 1.0 - (2.0 * d + 1.0) / kDirections;
+    const double radius = std::sqrt(1.0 - z * z);
+    const Eigen::Vector3d u(radius * std::cos(golden_angle * d),
+                            radius * std::sin(golden_angle * d), z);
+    frame_tdoas_.noalias() = geometry_ * (u / speed_of_sound_mps_);
+    for (std::size_t t = 0; t < transpositions_.size(); ++t) {
+      relabel(static_cast<int>(t), frame_tdoas_, relabelled_);
+      swap_signature_us_[t] += plane_wave_misfit_square(relabelled_) / kDirections;
+    }
+  }
+  for (double& signature : swap_signature_us_) signature = 1e6 * std::sqrt(signature);
+}
+
+int ArrayHealth::transposition_index(int a, int b) const {
+  if (a == b || a < 0 || b < 0 || a >= channels_ || b >= channels_) return -1;
+  const int low = std::min(a, b), high = std::max(a, b);
+  return low * (2 * channels_ - low - 1) / 2 + (high - low - 1);
+}
+
+double ArrayHealth::swap_signature_us(int a, int b) const {
+  const int t = transposition_index(a, b);
+  return t < 0 ? 0.0 : swap_signature_us_[static_cast<std::size_t>(t)];
+}
+
+bool ArrayHealth::swap_observable(int a, int b) const {
+  return fit_possible_ && swap_signature_us(a, b) >= settings_.swap_evidence_us;
+}
+
+void ArrayHealth::relabel(int transposition, const PairVector& tdoas, PairVector& out) const {
+  const std::size_t base =
+      static_cast<std::size_t>(transposition) * static_cast<std::size_t>(pairs_);
+  for (int q = 0; q < pairs_; ++q) {
+    const std::size_t slot = base + static_cast<std::size_t>(q);
+    out(q) = relabel_sign_[slot] * tdoas(relabel_source_[slot]);
+  }
+}
+
+double ArrayHealth::plane_wave_misfit_square(const PairVector& tdoas) const {
+  const Eigen::Vector3d slowness = geometry_inverse_ * tdoas;
+  const double norm = slowness.norm();
+  if (!(norm > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  const PairVector misfit = tdoas - geometry_ * (slowness / (norm * speed_of_sound_mps_));
+  return misfit.squaredNorm() / pairs_;
 }
 
 bool ArrayHealth::coherent_positive(const PairPeak& pair) const {
@@ -190,7 +272,9 @@ void ArrayHealth::observe(double time_s, std::span<const double> channel_power,
 
 void ArrayHealth::judge_delays(double time_s) {
   judge_closure(time_s);
-  if (fit_possible_) judge_skew(time_s);
+  if (!fit_possible_) return;
+  judge_swaps(time_s);
+  judge_skew(time_s);
 }
 
 void ArrayHealth::observe_levels(double time_s, std::span<const double> channel_power) {
@@ -309,7 +393,7 @@ void ArrayHealth::observe_closure(std::span<const PairPeak> pairs) {
       all_positive = false;
       continue;
     }
-    const double closure_s = a.tdoa_s + b.tdoa_s - c.tdoa_s;
+    const double closure_s = source_delay_s(a) + source_delay_s(b) - source_delay_s(c);
     frame_closure_s = std::max(frame_closure_s, std::fabs(closure_s));
     closure_ring_[t * window + static_cast<std::size_t>(closure_next_[t])] = closure_s;
     closure_next_[t] = (closure_next_[t] + 1) % settings_.closure_window_frames;
@@ -327,13 +411,14 @@ void ArrayHealth::observe_closure(std::span<const PairPeak> pairs) {
 // slowness's length), so the information on d gains M^T M and M^T (r + M d_est).
 void ArrayHealth::observe_fit(std::span<const PairPeak> pairs) {
   for (int p = 0; p < pairs_; ++p) frame_tdoas_(p) = pairs[static_cast<std::size_t>(p)].tdoa_s;
+  const double first_look_square = plane_wave_misfit_square(frame_tdoas_);
+  if (std::isfinite(first_look_square)) observe_swaps(first_look_square);
+  for (int p = 0; p < pairs_; ++p)
+    frame_tdoas_(p) = source_delay_s(pairs[static_cast<std::size_t>(p)]);
   // The LS DOA's misfit as the node measures it, before any delay is taken out.
-  const Eigen::Vector3d raw_slowness = geometry_inverse_ * frame_tdoas_;
-  const double raw_norm = raw_slowness.norm();
-  if (!(raw_norm > 0.0)) return;
-  frame_misfit_.noalias() =
-      frame_tdoas_ - geometry_ * (raw_slowness / (raw_norm * speed_of_sound_mps_));
-  fit_ring_[static_cast<std::size_t>(fit_next_)] = std::sqrt(frame_misfit_.squaredNorm() / pairs_);
+  const double wired_square = plane_wave_misfit_square(frame_tdoas_);
+  if (!std::isfinite(wired_square)) return;
+  fit_ring_[static_cast<std::size_t>(fit_next_)] = std::sqrt(wired_square);
   fit_next_ = (fit_next_ + 1) % settings_.closure_window_frames;
   fit_count_ = std::min(fit_count_ + 1, settings_.closure_window_frames);
 
@@ -353,6 +438,59 @@ void ArrayHealth::observe_fit(std::span<const PairPeak> pairs) {
   information_vector_.noalias() += frame_jacobian_.transpose() * frame_misfit_;
   fit_frames_ = forgetting_ * fit_frames_ + 1.0;
   fit_square_sum_ = forgetting_ * fit_square_sum_ + frame_misfit_.squaredNorm();
+}
+
+// Each observable swap's misfit on this frame's first-look delays (frame_tdoas_), beside the
+// wiring's.
+void ArrayHealth::observe_swaps(double wired_square) {
+  swap_frames_ = forgetting_ * swap_frames_ + 1.0;
+  swap_square_sums_[0] = forgetting_ * swap_square_sums_[0] + wired_square;
+  for (std::size_t t = 0; t < transpositions_.size(); ++t) {
+    double& sum = swap_square_sums_[t + 1];
+    sum *= forgetting_;
+    if (swap_signature_us_[t] < settings_.swap_evidence_us) continue;
+    relabel(static_cast<int>(t), frame_tdoas_, relabelled_);
+    const double square = plane_wave_misfit_square(relabelled_);
+    // A relabelling that leaves no slowness explains nothing: as bad as the wiring.
+    sum += std::isfinite(square) ? square : wired_square;
+  }
+}
+
+// A swap is said when relabelling its two channels lowers the RMS misfit over the recent source
+// frames to at most swap_misfit_ratio of the wiring's, by at least swap_evidence_us, and the
+// same swap wins two judgements in a row. A wiring that fits leaves no swap room to win: the
+// misfit it shows is the GCC noise and the model's (echo, near field), which no relabelling
+// removes; a swap's misfit is its signature, which the right relabelling removes entirely.
+void ArrayHealth::judge_swaps(double time_s) {
+  if (swap_frames_ < settings_.min_swap_frames) return;
+  const double wired_us = 1e6 * std::sqrt(swap_square_sums_[0] / swap_frames_);
+  int best = -1;
+  double best_us = wired_us;
+  for (std::size_t t = 0; t < transpositions_.size(); ++t) {
+    if (swap_signature_us_[t] < settings_.swap_evidence_us) continue;
+    const double misfit_us = 1e6 * std::sqrt(swap_square_sums_[t + 1] / swap_frames_);
+    if (misfit_us < best_us) {
+      best = static_cast<int>(t);
+      best_us = misfit_us;
+    }
+  }
+  const bool decisive = best >= 0 && best_us <= settings_.swap_misfit_ratio * wired_us &&
+                        wired_us - best_us >= settings_.swap_evidence_us;
+  const int candidate = decisive ? best : -1;
+  swap_flagged_ = candidate >= 0 && candidate == swap_candidate_ ? candidate : -1;
+  swap_candidate_ = candidate;
+  for (int c = 0; c < channels_; ++c) {
+    const bool flagged =
+        swap_flagged_ >= 0 && (transpositions_[static_cast<std::size_t>(swap_flagged_)][0] == c ||
+                               transpositions_[static_cast<std::size_t>(swap_flagged_)][1] == c);
+    const bool first = flagged && transpositions_[static_cast<std::size_t>(swap_flagged_)][0] == c;
+    if (first) {
+      swap_event_ = {transpositions_[static_cast<std::size_t>(swap_flagged_)][1], wired_us,
+                     best_us};
+    }
+    // One line names both channels: the first raises it, the second carries the flag.
+    update(c, ArrayProblem::swapped, flagged, time_s, 0.0, first || !flagged);
+  }
 }
 
 // A triple fails when its running median closure is off zero; a channel is named when it is the
@@ -425,7 +563,8 @@ void ArrayHealth::judge_skew(double time_s) {
     double& previous_us = previous_offset_us_[static_cast<std::size_t>(c)];
     // Linearised about an estimate still moving, the first fits can be off by the threshold:
     // a skew is said when two fits in a row agree on it.
-    const bool skewed = std::fabs(offset_us) > settings_.skew_us &&
+    // A swap's misfit is not a delay: while one is said, the fit says no skew.
+    const bool skewed = swap_flagged_ < 0 && std::fabs(offset_us) > settings_.skew_us &&
                         std::fabs(previous_us) > settings_.skew_us &&
                         std::fabs(offset_us - previous_us) < 0.5 * settings_.skew_us;
     previous_us = offset_us;
@@ -435,7 +574,7 @@ void ArrayHealth::judge_skew(double time_s) {
 }
 
 void ArrayHealth::update(int channel, ArrayProblem problem, bool present, double time_s,
-                         double share) {
+                         double share, bool announce) {
   ProblemState& state =
       states_[static_cast<std::size_t>(channel)][static_cast<std::size_t>(problem)];
   ArrayChannelHealth& health = channels_health_[static_cast<std::size_t>(channel)];
@@ -448,7 +587,7 @@ void ArrayHealth::update(int channel, ArrayProblem problem, bool present, double
   state.present = true;
   health.problems |= array_flag(problem);
   health.problems_seen |= array_flag(problem);
-  if (state.announced || time_s - state.last_raised_s < settings_.rewarn_s) return;
+  if (!announce || state.announced || time_s - state.last_raised_s < settings_.rewarn_s) return;
   state.announced = true;
   state.last_raised_s = time_s;
   if (events_.size() == events_.capacity()) return;  // never allocates
@@ -460,6 +599,11 @@ void ArrayHealth::update(int channel, ArrayProblem problem, bool present, double
   event.delay_offset_us = health.delay_offset_us;
   event.closure_residual_us = closure_residual_us_;
   event.share = share;
+  if (problem == ArrayProblem::swapped) {
+    event.other_channel = swap_event_.other_channel;
+    event.wired_misfit_us = swap_event_.wired_misfit_us;
+    event.swapped_misfit_us = swap_event_.swapped_misfit_us;
+  }
   events_.push_back(event);
 }
 

@@ -2,7 +2,7 @@
 // Health of an array's channels judged against each other, online, from what the node's
 // pipeline computes every frame anyway (issue 16): each channel's in-band power after the
 // calibrated gains, and every mic pair's GCC-PHAT peak (its refined lag and the signed largest
-// value of its correlation). Five problems, each raised once when it appears (as ChannelHealth):
+// value of its correlation). Six problems, each raised once when it appears (as ChannelHealth):
 //   level_imbalance  a channel's in-band level off the array's median by more than imbalance_db;
 //   dead             a channel far below the median (dead_level_db), or incoherent with every
 //                    other mic while the other pairs hear a source;
@@ -11,7 +11,13 @@
 //   closure          the pair delays of one source do not add up (tau_ij + tau_jk - tau_ik != 0,
 //                    running median per triple) on the triples holding the channel;
 //   skew             the channel's delay, fitted from the pair delays' misfit to a plane wave
-//                    of unit slowness over many source directions, is off the median channel's.
+//                    of unit slowness over many source directions, is off the median channel's;
+//   swapped          two channels wired to each other's inputs: the pair delays with the two
+//                    relabelled fit a plane wave decisively better than as wired. Closure cannot
+//                    see it (a relabelling keeps every sum), nor can anything at one node when
+//                    the swap is a symmetry of the array (a regular tetrahedron's every swap is a
+//                    mirror: the swapped array hears the mirror world exactly); such swaps are
+//                    not tested (swap_observable()).
 // A pure per-channel delay d cancels exactly in a closure sum ((d_i - d_j) + (d_j - d_k) -
 // (d_i - d_k) = 0); closure catches the GCC picking different sources or cycles on different
 // pairs, which is what a skewed channel does to a harmonic drone, and the delay fit catches the
@@ -20,6 +26,7 @@
 // allocates nothing.
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -36,9 +43,10 @@ enum class ArrayProblem : std::uint8_t {
   polarity_flipped = 2,
   closure = 3,
   skew = 4,
+  swapped = 5,
 };
-inline constexpr int kArrayProblemCount = 5;
-// "level_imbalance", "dead", "polarity_flipped", "closure", "skew".
+inline constexpr int kArrayProblemCount = 6;
+// "level_imbalance", "dead", "polarity_flipped", "closure", "skew", "swapped".
 const char* to_string(ArrayProblem problem);
 
 // Bit i set: ArrayProblem i.
@@ -68,6 +76,9 @@ struct ArrayHealthSettings {
   double skew_window_s = 30.0;     // the delay fit forgets with this time constant
   double skew_prior_us = 1000.0;   // channel delays a priori (keeps unseen ones at 0)
   double min_skew_frames = 200.0;  // source frames (forgetting-weighted) before judging it
+  double min_swap_frames = 60.0;   // source frames (forgetting-weighted) before judging swaps
+  double swap_evidence_us = 5.0;   // a swap must lower the RMS plane-wave misfit by this much
+  double swap_misfit_ratio = 0.5;  // and to at most this share of the misfit as wired
   double rewarn_s = 10.0;          // a problem raised is not raised again sooner than this
 };
 
@@ -76,6 +87,10 @@ struct PairPeak {
   double tdoa_s = 0.0;   // the refined highest peak's lag
   double highest = 0.0;  // the correlation's largest value over the physical lags (>= 0)
   double lowest = 0.0;   // and its smallest (<= 0)
+  // The frame's one source's delay measured again with its ground echo divided out; NaN when
+  // there is none. Closure and the delay fit take it in place of tdoa_s; the swap check takes
+  // tdoa_s, which no model of the array has touched.
+  double source_tdoa_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The largest and smallest values of a pair's correlation (lags within the physical limit),
@@ -97,7 +112,10 @@ struct ArrayHealthEvent {
   double level_offset_db = 0.0;      // the channel's, then
   double delay_offset_us = 0.0;      // the channel's, then
   double closure_residual_us = 0.0;  // the array's, then
-  double share = 0.0;  // dead (incoherent)/polarity: share of the judged frames that showed it
+  double share = 0.0;      // dead (incoherent)/polarity: share of the judged frames that showed it
+  int other_channel = -1;  // swapped: the channel it is wired with
+  double wired_misfit_us = 0.0;    // swapped: RMS plane-wave misfit of the delays as wired
+  double swapped_misfit_us = 0.0;  // and with the two channels relabelled
 };
 
 class ArrayHealth {
@@ -125,6 +143,12 @@ class ArrayHealth {
   // unit slowness (us): grows for a moved mic or a skewed channel; 0 before any.
   double fit_residual_us() const { return fit_residual_us_; }
   const ArrayHealthSettings& settings() const { return settings_; }
+  // Whether swapping channels a and b leaves a plane-wave misfit the swap check can see: its
+  // RMS over the sphere of directions is at least swap_evidence_us. False for a swap that is a
+  // symmetry of the array (every swap of a regular tetrahedron), and for arrays without a fit.
+  bool swap_observable(int a, int b) const;
+  // RMS over the sphere of directions of the misfit a swap of a and b leaves (us).
+  double swap_signature_us(int a, int b) const;
 
  private:
   using PairVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxPairs, 1>;
@@ -147,7 +171,16 @@ class ArrayHealth {
   void observe_fit(std::span<const PairPeak> pairs);
   void judge_closure(double time_s);
   void judge_skew(double time_s);
-  void update(int channel, ArrayProblem problem, bool present, double time_s, double share);
+  void observe_swaps(double wired_square);
+  void judge_swaps(double time_s);
+  // The mean over pairs of the squared misfit of `tdoas` to a plane wave of unit slowness (s^2);
+  // NaN when they give no slowness.
+  double plane_wave_misfit_square(const PairVector& tdoas) const;
+  // `tdoas` with the channels of transposition t relabelled into `out`.
+  void relabel(int transposition, const PairVector& tdoas, PairVector& out) const;
+  int transposition_index(int a, int b) const;
+  void update(int channel, ArrayProblem problem, bool present, double time_s, double share,
+              bool announce = true);
   bool coherent_positive(const PairPeak& pair) const;
   // +1 positive main lobe, -1 negative, 0 neither dominates or too weak.
   int lobe_sign(const PairPeak& pair) const;
@@ -202,6 +235,24 @@ class ArrayHealth {
   PairByChannel frame_jacobian_{};
   PairVector frame_tdoas_{};
   PairVector frame_misfit_{};
+  // Swap check: per transposition (a < b, lexicographic), the source pair and sign of each pair
+  // after relabelling, the misfit it leaves over the sphere, and the forgetting-weighted sums of
+  // squared misfits (index 0: as wired, 1 + t: transposition t).
+  std::vector<std::array<int, 2>> transpositions_{};
+  std::vector<int> relabel_source_{};   // transposition-major, per pair
+  std::vector<double> relabel_sign_{};  // transposition-major, per pair
+  std::vector<double> swap_signature_us_{};
+  std::vector<double> swap_square_sums_{};
+  double swap_frames_ = 0.0;
+  int swap_candidate_ = -1;  // the transposition the last judgement favoured
+  int swap_flagged_ = -1;    // the transposition flagged, -1 none
+  struct SwapEvidence {
+    int other_channel = -1;
+    double wired_misfit_us = 0.0;
+    double swapped_misfit_us = 0.0;
+  };
+  SwapEvidence swap_event_{};  // the flagged swap's, for its event
+  PairVector relabelled_{};
 };
 
 }  // namespace dronetrack::doa

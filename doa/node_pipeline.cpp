@@ -43,6 +43,7 @@ double NodePipeline::Impl::begin_frame(const FrameView& frame) {
   ++diagnostics.frames_processed;
   diagnostics.level_dbfs = 10.0 * std::log10(std::max(frame.recent_mean_square, 1e-20));
   candidate_count = 0;
+  for (Candidate& candidate : candidates) candidate.echo_removed = false;
   return (static_cast<double>(frame.first_sample) + 0.5 * (frame.length - 1)) / sample_rate_hz;
 }
 
@@ -115,6 +116,16 @@ bool NodePipeline::Impl::gate_frame(DetectionInput& detection, double time_s) {
 
 void NodePipeline::Impl::judge_channels(double time_s, bool frame_clean, bool sharp,
                                         int frame_sources) {
+  // One source found and its ground echo divided out: its delays measured again feed the
+  // closure and the delay fit. The first look's peaks carry the echo, whose pull on the pairs
+  // holding the top mic changes with the elevation as a delay on that mic would.
+  const Candidate& first = candidates.front();
+  const bool echo_free = frame_sources == 1 && first.echo_removed && first.time_offset_s == 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& own = first.tdoas[static_cast<std::size_t>(p)];
+    health_pairs[static_cast<std::size_t>(p)].source_tdoa_s =
+        echo_free && own.variance_s2 > 0.0 ? own.tdoa_s : std::numeric_limits<double>::quiet_NaN();
+  }
   array_health.observe(
       time_s,
       std::span<const double>(channel_power.data(), static_cast<std::size_t>(fft.channels())),

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -62,6 +63,7 @@ struct NodePipeline::Impl {
     double coherence = 0.0;
     double time_offset_s = 0.0;  // the tracker's output delay (primary only)
     int slot = -1;               // its acoustic history (source track slot, or its index)
+    bool echo_removed = false;   // tdoas measured again with its ground echo divided out
   };
 
   void analyse(const FrameView& frame, std::vector<DoaMeasurement>& out);
@@ -81,7 +83,7 @@ struct NodePipeline::Impl {
   bool already_found(const Eigen::Vector3d& direction_site) const;
   // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
   // a grid step): Newton from the known lags, no lag grids.
-  void remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
+  bool remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
   void remove_ground_echoes();
   // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
   void only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);

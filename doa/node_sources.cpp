@@ -271,13 +271,14 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
   const bool others = candidate_count > 1;
   if (others && echo.search_due(direction)) only_bins_of(source, gcc.units());
   if (!echo.observe(gcc, direction, others ? std::as_const(gcc).bin_keep() : frame_mask)) return;
-  remeasure(source, echo.corrected(gcc.units(), direction), true);
+  candidates[static_cast<std::size_t>(source)].echo_removed =
+      remeasure(source, echo.corrected(gcc.units(), direction), true);
 }
 
 // A source was measured with every other source's bins in its correlation (the first), or on a
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
-void NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
+bool NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
                                    bool near_known_lags) {
   only_bins_of(source, units, true);
   if (!near_known_lags) gcc.correlate(false);
@@ -294,9 +295,10 @@ void NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
   }
   const std::span<const PairTdoa> again(remeasured.data(), tdoas.size());
   const DoaSolution solution = solver.solve(again);
-  if (!solution.accepted) return;
+  if (!solution.accepted) return false;
   candidate.solution = solution;
   std::copy(again.begin(), again.end(), candidate.tdoas.begin());
+  return true;
 }
 
 // Drops the bins a found source owns and correlates what is left (the frame's earlier

@@ -30,6 +30,8 @@ bool ArrayErrors::flipped(std::size_t mic) const {
 nlohmann::json ArrayErrors::to_json() const {
   nlohmann::json offsets = nlohmann::json::array();
   for (const auto& offset : mic_offset_m) offsets.push_back({offset.x(), offset.y(), offset.z()});
+  nlohmann::json swapped = nlohmann::json::array();
+  for (const auto& [a, b] : swapped_channels) swapped.push_back({a, b});
   return {{"mic_offset_m", offsets},
           {"channel_gain_db", channel_gain_db},
           {"channel_delay_s", channel_delay_s},
@@ -38,7 +40,8 @@ nlohmann::json ArrayErrors::to_json() const {
           {"roll_deg", roll_deg},
           {"clock_offset_s", clock_offset_s},
           {"dead_mics", dead_mics},
-          {"flipped_mics", flipped_mics}};
+          {"flipped_mics", flipped_mics},
+          {"swapped_channels", swapped}};
 }
 
 std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
@@ -64,6 +67,9 @@ std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
       if (ref.array_id == site.arrays[a].geometry.id) errors.dead_mics.push_back(ref.mic);
     for (const MicRef& ref : spec.flipped_mics)
       if (ref.array_id == site.arrays[a].geometry.id) errors.flipped_mics.push_back(ref.mic);
+    for (const MicRef& ref : spec.swapped_channels)
+      if (ref.array_id == site.arrays[a].geometry.id)
+        errors.swapped_channels.push_back({ref.mic, ref.other_mic});
   }
   return out;
 }

@@ -4,6 +4,7 @@
 // in gain and delay, a yaw set by compass to a degree or two, a tilted mast, a node clock that is
 // milliseconds off. The scene is rendered with the arrays as drawn; site.json keeps the nominal
 // values (what the operator believes), truth.json records the draws.
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -15,24 +16,26 @@
 
 namespace dronetrack::sim {
 
-// One mic of one array (array_errors.dead_mics, flipped_mics).
+// One mic of one array (array_errors.dead_mics, flipped_mics), or two (swapped_channels).
 struct MicRef {
   std::string array_id;
   int mic = 0;
+  int other_mic = -1;  // swapped_channels: the mic whose channel `mic`'s is swapped with
 };
 
 // The keys, each a 1-sigma spread (0: none), and the faults set by name.
 struct ArrayErrorSpec {
   bool enabled = false;
-  std::uint64_t seed = 0;              // draws; default the scenario's seed
-  double mic_position_std_m = 0.0;     // each mic coordinate, array frame
-  double gain_spread_db = 0.0;         // each channel's gain
-  double channel_delay_std_s = 0.0;    // each channel's delay (channel 0 included)
-  double yaw_std_deg = 0.0;            // the array's yaw
-  double tilt_std_deg = 0.0;           // its pitch and its roll
-  double clock_offset_std_s = 0.0;     // the node's clock: its recording starts this late
-  std::vector<MicRef> dead_mics{};     // record their sensor noise only (no sound reaches them)
-  std::vector<MicRef> flipped_mics{};  // record everything inverted (polarity flipped)
+  std::uint64_t seed = 0;                  // draws; default the scenario's seed
+  double mic_position_std_m = 0.0;         // each mic coordinate, array frame
+  double gain_spread_db = 0.0;             // each channel's gain
+  double channel_delay_std_s = 0.0;        // each channel's delay (channel 0 included)
+  double yaw_std_deg = 0.0;                // the array's yaw
+  double tilt_std_deg = 0.0;               // its pitch and its roll
+  double clock_offset_std_s = 0.0;         // the node's clock: its recording starts this late
+  std::vector<MicRef> dead_mics{};         // record their sensor noise only (no sound reaches them)
+  std::vector<MicRef> flipped_mics{};      // record everything inverted (polarity flipped)
+  std::vector<MicRef> swapped_channels{};  // two mics wired to each other's channel
 };
 
 // One array's draws.
@@ -46,6 +49,8 @@ struct ArrayErrors {
   double clock_offset_s = 0.0;
   std::vector<int> dead_mics{};     // mic indices
   std::vector<int> flipped_mics{};  // mic indices
+  std::vector<std::array<int, 2>>
+      swapped_channels{};  // mic index pairs, each recorded on the other's channel
   bool dead(std::size_t mic) const;
   bool flipped(std::size_t mic) const;
   // How late channel `mic` records the sound that reaches the mic at t: clock + channel delay.

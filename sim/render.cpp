@@ -252,6 +252,13 @@ class Renderer {
         for (std::size_t n = 0; n < out.frames(); ++n)
           out.samples[n * out.channels + channel] *= gain;
       }
+      // Two mics wired to each other's inputs: each channel records what the other mic hears.
+      for (const auto& [a, b] : errors->swapped_channels) {
+        const std::size_t first = channel_of(array, static_cast<std::size_t>(a));
+        const std::size_t second = channel_of(array, static_cast<std::size_t>(b));
+        for (std::size_t n = 0; n < out.frames(); ++n)
+          std::swap(out.samples[n * out.channels + first], out.samples[n * out.channels + second]);
+      }
     }
     return out;
   }

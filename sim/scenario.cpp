@@ -281,29 +281,49 @@ void parse_noise_level(ObjectReader& parent, const std::string& key, NoiseLevel&
   level.enabled = level.snr_db.has_value() || level.level_db_spl.has_value();
 }
 
-// A list of {"array": id, "mic": index}: the array must be the site's, the mic one of its mics.
+// A list of {"array": id, "mic": index} (or, for pairs, {"array": id, "mics": [a, b]}, two
+// different mics): the array must be the site's, the mics its mics.
 void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::SiteConfig& site,
-                    std::vector<MicRef>& out) {
+                    std::vector<MicRef>& out, bool pairs = false) {
+  const std::string mic_key = pairs ? "mics" : "mic";
   parent.for_each(key, false, [&](const nlohmann::json& element, const std::string& path) {
     ObjectReader reader(element, path, parent.diagnostics());
     const std::string id = reader.required_string("array").value_or("");
     const int array = id.empty() ? -1 : site.array_index(id);
     if (!id.empty() && array < 0) {
       reader.diagnostics().error(reader.path_of("array"), "no array '" + id + "' in the site");
-      reader.accept("mic");
+      reader.accept(mic_key);
       return;
     }
     const int mics =
         array < 0
             ? 8
             : static_cast<int>(site.arrays[static_cast<std::size_t>(array)].geometry.mic_count());
-    const std::optional<int> mic = reader.optional_integer("mic", 0, mics - 1);
-    if (!mic) {
-      if (!reader.has("mic"))
-        reader.diagnostics().error(reader.path_of("mic"), "required mic is missing");
+    if (!reader.has(mic_key)) {
+      reader.diagnostics().error(reader.path_of(mic_key), "required " + mic_key + " is missing");
       return;
     }
-    if (array >= 0) out.push_back({id, *mic});
+    MicRef ref{id, 0, -1};
+    if (pairs) {
+      const std::optional<std::vector<double>> both = reader.numbers(mic_key, 2, true);
+      if (!both) return;
+      const double a = (*both)[0], b = (*both)[1];
+      const bool valid = a == std::floor(a) && b == std::floor(b) && a >= 0 && b >= 0 && a < mics &&
+                         b < mics && a != b;
+      if (!valid) {
+        reader.diagnostics().error(
+            reader.path_of(mic_key),
+            "two different mic indices in [0, " + std::to_string(mics - 1) + "] required");
+        return;
+      }
+      ref.mic = static_cast<int>(a);
+      ref.other_mic = static_cast<int>(b);
+    } else {
+      const std::optional<int> mic = reader.optional_integer(mic_key, 0, mics - 1);
+      if (!mic) return;
+      ref.mic = *mic;
+    }
+    if (array >= 0) out.push_back(ref);
   });
 }
 
@@ -569,6 +589,7 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       spec.clock_offset_std_s = errors.number("clock_offset_std_s", 0.0, 0.0, 1.0);
       parse_mic_refs(errors, "dead_mics", scenario.site, spec.dead_mics);
       parse_mic_refs(errors, "flipped_mics", scenario.site, spec.flipped_mics);
+      parse_mic_refs(errors, "swapped_channels", scenario.site, spec.swapped_channels, true);
     }
     scenario.array_errors = draw_array_errors(scenario.array_error_spec, scenario.site);
     apply_geometry_errors(scenario.array_errors, scenario.site);

@@ -379,7 +379,7 @@
       ];
       // Audio health: channels (0-based mic index) with a problem on their last judgement, their
       // own audio's (silent, clipped, ...) and against the array's other channels (dead,
-      // polarity flipped, level imbalance, closure, skew).
+      // polarity flipped, level imbalance, closure, skew, swapped).
       const audio = (s.channels || [])
         .map((c, index) => (c.problems || []).length
           ? `channel ${index}: ${c.problems.map((p) => p.replaceAll('_', ' ')).join(', ')}` : '')

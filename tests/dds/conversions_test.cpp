@@ -285,11 +285,12 @@ TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
   status.array_id = "N2";
   status.closure_residual_us = 12.5;
   status.fit_residual_us = 3.25;
-  status.channels = {{0, 0, 0, 0, -31.5, 0, 0, 0.25, -1.5},
-                     {0, 0, 0, 0, -31.0, doa::array_flag(doa::ArrayProblem::polarity_flipped),
-                      doa::array_flag(doa::ArrayProblem::polarity_flipped) |
-                          doa::array_flag(doa::ArrayProblem::skew),
-                      6.0, 200.0}};
+  status.channels = {
+      {0, 0, 0, 0, -31.5, 0, 0, 0.25, -1.5},
+      {0, 0, 0, 0, -31.0, doa::array_flag(doa::ArrayProblem::polarity_flipped),
+       doa::array_flag(doa::ArrayProblem::polarity_flipped) |
+           doa::array_flag(doa::ArrayProblem::skew) | doa::array_flag(doa::ArrayProblem::swapped),
+       6.0, 200.0}};
   dronetrack_NodeStatus sample{};
   to_idl(status, 0, sample);
   doa::NodeStatus out;
@@ -312,7 +313,7 @@ TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
   sample.channels[0].delay_offset_us = nan;
   EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
   sample.channels[0].delay_offset_us = 0.0;
-  sample.channels[0].array_problems_seen = 0x20;  // no such check
+  sample.channels[0].array_problems_seen = 0x40;  // no such check
   EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
   sample.channels[0].array_problems_seen = 0;
   sample.closure_residual_us = nan;
