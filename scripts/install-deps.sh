@@ -2,7 +2,7 @@
 # Installs what dronetrack needs from Debian 12 packages, by name. Idempotent and quick when
 # everything is present (no apt-get update unless something is missing).
 #   scripts/install-deps.sh          build + run dependencies
-#   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core)
+#   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core, nftables)
 #   scripts/install-deps.sh --arm64  also the arm64 cross-build of the core (scripts/arm64-test.sh):
 #                                    Debian's cross compiler, qemu-user, multiarch arm64 libraries
 set -euo pipefail
@@ -26,6 +26,7 @@ packages=(
 )
 if [[ "${1:-}" == "--tests" ]]; then
   packages+=(chromium clang-format openssl tcpdump)  # openssl: test certificates; tcpdump: DDS capture
+  packages+=(nftables)  # dds.lossy_network: packet loss on loopback in a network namespace
   packages+=(clang libclang-rt-dev)  # scripts/fuzz.sh: clang 14 with libFuzzer + sanitizer runtimes
   command -v node >/dev/null 2>&1 || packages+=(nodejs)
   command -v npm >/dev/null 2>&1 || packages+=(npm)
