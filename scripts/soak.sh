@@ -3,8 +3,10 @@
 # a `fusion` over DDS on loopback, for DURATION_S seconds, sampling each process's RSS and CPU
 # and the fusion's track output every INTERVAL_S (issue 18). Fails on drift:
 #  - a process died, or the fusion exited with an error;
-#  - RSS grew, from the sample ending the warm-up to the last, by more than SOAK_MAX_DRIFT_KB
-#    (default max(8 MB, 10 %): loose enough for the short CI run's allocator noise);
+#  - private anonymous memory (RssAnon: heap, stacks; what a leak grows) grew, from the sample
+#    ending the warm-up to the last, by more than SOAK_MAX_DRIFT_KB (default max(8 MB, 10 % of
+#    RSS): loose enough for the short CI run's allocator noise). VmRSS is printed too; it also
+#    counts mapped pages of the binary and libraries, which the page cache brings and takes;
 #  - a process used more than 1.5x the CPU in the last interval than in the first full one;
 #  - an interval (of at least one 14 s pass) without new confirmed track lines;
 #  - counters: the fusion received more DOAs than the nodes published (duplicated), fewer by
@@ -17,7 +19,7 @@
 #        scripts/soak.sh DRONETRACK_BINARY DURATION_S [INTERVAL_S=60] [WORK_DIR]
 # SOAK_DOMAIN: the DDS domain (default 149; no test uses it, so a soak can run beside the
 # tests). SOAK_WARMUP_S: samples before this are warm-up (default: a sixth of the run, at least
-# one interval): the RSS drift is measured from the sample at its end.
+# one interval): the drift is measured from the sample at its end.
 set -euo pipefail
 bin="$1"; duration="$2"; interval="${3:-60}"; here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 work="${4:-$(mktemp -d /tmp/dronetrack-soak-XXXXXX)}"
@@ -50,14 +52,18 @@ for id in N1 N2 N3; do
 done
 
 rss_kb() { awk '/^VmRSS/ {print $2}' "/proc/$1/status" 2>/dev/null || echo 0; }
+# Private anonymous memory (heap, stacks): what a leak grows. VmRSS also counts the pages of the
+# binary and shared libraries mapped in, which come and go with the machine's page cache.
+anon_kb() { awk '/^RssAnon/ {print $2}' "/proc/$1/status" 2>/dev/null || echo 0; }
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat" 2>/dev/null || echo 0; }
 confirmed() {  # grep -c prints 0 and fails on no match
   local n; n=$(grep -c '"status": *"confirmed"' "$work/tracks.jsonl" 2> /dev/null || true); echo "${n:-0}"
 }
 hz=$(getconf CLK_TCK)
-printf "%8s" "t_s"; for name in "${names[@]}"; do printf " %10s %9s" "$name.rss_MB" "cpu_%"; done
+printf "%8s" "t_s"
+for name in "${names[@]}"; do printf " %10s %11s %5s" "$name.rss_MB" "anon_MB" "cpu_%"; done
 printf " %10s\n" "confirmed"
-declare -a first_rss last_rss first_cpu last_cpu previous_ticks
+declare -a first_rss last_rss first_anon last_anon first_cpu last_cpu previous_ticks
 for i in "${!pids[@]}"; do previous_ticks[$i]=$(cpu_ticks "${pids[$i]}"); done
 previous_confirmed=0; quiet_intervals=0; samples=0
 for (( t = interval; t <= duration; t += interval )); do
@@ -66,12 +72,15 @@ for (( t = interval; t <= duration; t += interval )); do
   for i in "${!pids[@]}"; do
     pid="${pids[$i]}"
     kill -0 "$pid" 2> /dev/null || fail "${names[$i]} died at ~$t s: $(tail -1 "$work/$([[ $i == 0 ]] && echo fusion || echo "node-${names[$i]}").log")"
-    rss=$(rss_kb "$pid"); ticks=$(cpu_ticks "$pid")
+    rss=$(rss_kb "$pid"); anon=$(anon_kb "$pid"); ticks=$(cpu_ticks "$pid")
     cpu=$(( (ticks - previous_ticks[i]) * 100 / (hz * interval) )); previous_ticks[$i]=$ticks
     if (( samples == 0 )); then first_cpu[$i]=$cpu; fi
-    if (( t >= warmup )) && [[ -z "${first_rss[$i]:-}" ]]; then first_rss[$i]=$rss; baseline_t=$t; fi
-    last_rss[$i]=$rss; last_cpu[$i]=$cpu
-    printf " %10.1f %9d" "$(awk -v kb="$rss" 'BEGIN { print kb / 1024 }')" "$cpu"
+    if (( t >= warmup )) && [[ -z "${first_rss[$i]:-}" ]]; then
+      first_rss[$i]=$rss; first_anon[$i]=$anon; baseline_t=$t
+    fi
+    last_rss[$i]=$rss; last_anon[$i]=$anon; last_cpu[$i]=$cpu
+    printf " %10.1f %11.2f %5d" "$(awk -v kb="$rss" 'BEGIN { print kb / 1024 }')" \
+      "$(awk -v kb="$anon" 'BEGIN { print kb / 1024 }')" "$cpu"
   done
   now_confirmed=$(confirmed)
   printf " %10d\n" "$now_confirmed"
@@ -88,16 +97,15 @@ code=0; wait "$fusion" || code=$?
 # Every figure is printed before the verdict: a failed check does not hide the others.
 problems=()
 problem() { echo "soak: $*" >&2; problems+=("$*;"); }
-drift_line="RSS drift over the last $((t - interval - baseline_t)) s (after $baseline_t s warm-up):"
+drift_line="drift over the last $((t - interval - baseline_t)) s (after $baseline_t s warm-up), RSS / anonymous:"
 for i in "${!pids[@]}"; do
-  growth=$(( last_rss[i] - first_rss[i] ))
-  drift_line+=" ${names[$i]} $(printf '%+d' "$growth") kB"
+  drift_line+=" ${names[$i]} $(printf '%+d / %+d' $(( last_rss[i] - first_rss[i] )) $(( last_anon[i] - first_anon[i] ))) kB"
 done
 echo "soak: $drift_line"
 for i in "${!pids[@]}"; do
-  growth=$(( last_rss[i] - first_rss[i] ))
+  growth=$(( last_anon[i] - first_anon[i] ))
   allowed=${SOAK_MAX_DRIFT_KB:-$(( first_rss[i] / 10 > 8192 ? first_rss[i] / 10 : 8192 ))}
-  (( growth <= allowed )) || problem "${names[$i]} RSS grew by $growth kB (allowed $allowed kB)"
+  (( growth <= allowed )) || problem "${names[$i]} anonymous memory grew by $growth kB (allowed $allowed kB)"
   (( last_cpu[i] * 2 <= first_cpu[i] * 3 + 2 )) \
     || problem "${names[$i]} CPU rose from ${first_cpu[$i]} % to ${last_cpu[$i]} %"
 done
