@@ -10,7 +10,6 @@
 #include "apps/commands.hpp"
 #include "apps/dds_fusion_service.hpp"
 #include "apps/dds_support.hpp"
-#include "apps/heap_trim.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
 #include "apps/run_outputs.hpp"
@@ -80,10 +79,8 @@ int run(const FusionArguments& arguments) {
   install_stop_handlers();
   const auto started = std::chrono::steady_clock::now();
   const auto limit = std::chrono::duration<double>(arguments.duration_s);
-  HeapTrim heap_trim;
   while (!stop_requested()) {
     service.poll(std::chrono::milliseconds(100));
-    heap_trim.poll();
     if (arguments.duration_s > 0.0 && std::chrono::steady_clock::now() - started > limit) break;
   }
   service.finish();

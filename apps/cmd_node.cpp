@@ -21,7 +21,6 @@
 #include "apps/array_node.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_support.hpp"
-#include "apps/heap_trim.hpp"
 #include "apps/live_pose_stamper.hpp"
 #include "apps/signals.hpp"
 #include "capture/portaudio_source.hpp"
@@ -305,10 +304,8 @@ int run(const NodeArguments& arguments) {
     doas.clear();
   };
 
-  HeapTrim heap_trim;
   while (!stop_requested()) {
     if (!node.step(doas)) break;
-    heap_trim.poll();
     if (arguments.realtime && !live) {
       // The block is due when its last sample would have been captured.
       std::this_thread::sleep_until(wall_epoch + std::chrono::duration_cast<Clock::duration>(
