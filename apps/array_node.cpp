@@ -250,6 +250,13 @@ bool ArrayNode::step(std::vector<doa::DoaMeasurement>& doas) {
   }
   block.first_sample += start_sample_;
   if (tap_) tap_->on_audio(array_index_, block);
+  // A real microphone never reads exactly 0 on every channel for a whole block: that is a
+  // capture gap filled with zeros. One stretch counts once.
+  const std::size_t count = block.frames * static_cast<std::size_t>(block.channels);
+  const bool silent = count > 0 && std::all_of(block.interleaved, block.interleaved + count,
+                                               [](float sample) { return sample == 0.0F; });
+  if (silent && !in_silence_) ++silent_stretches_;
+  in_silence_ = silent;
   pipeline_.process(block, doas);
   samples_read_ = block.first_sample + static_cast<std::int64_t>(block.frames);
   warn_health_problems();
@@ -283,6 +290,7 @@ doa::NodeStatus ArrayNode::status() const {
   status.alive = true;
   status.sample_rate_hz = sample_rate_hz_;
   status.overruns = source_->counters().overruns;
+  status.dropouts = silent_stretches_ + diagnostics.stream_gaps;
   status.clipped_samples = diagnostics.clipped_samples;
   status.non_finite_samples = diagnostics.non_finite_samples;
   status.level_dbfs = diagnostics.level_dbfs;

@@ -68,6 +68,8 @@ class ArrayNode {
   AudioTap* tap_ = nullptr;
   double next_status_s_ = 0.0;
   bool finished_ = false;
+  std::int64_t silent_stretches_ = 0;  // blocks of digital silence on every channel, per run
+  bool in_silence_ = false;
 };
 
 // The warning line for one audio health problem of `array_id`'s channel (mic) `event.channel`,

@@ -31,6 +31,7 @@ struct FusionArguments {
   std::optional<int> domain;
   double duration_s = 0.0;
   std::string identity = "fusion";
+  std::string track_ids;
 };
 
 int run(const FusionArguments& arguments) {
@@ -83,6 +84,7 @@ int run(const FusionArguments& arguments) {
   dds::Participant participant(domain, security ? &*security : nullptr);  // first: destroyed last
   FusionServiceOptions service_options;
   service_options.array_partitions = site.dds.secure();
+  service_options.track_id_file = arguments.track_ids;
   DdsFusionService service(site, participant, observers, service_options);
   log::info("fusion: ", site.arrays.size(), " arrays, DDS domain ", domain);
   install_stop_handlers();
@@ -102,7 +104,8 @@ int run(const FusionArguments& arguments) {
             engine.rejected_duplicate, "); ", engine.tracks_started, " tracks started; ",
             counters.tracks_published, " track samples and ", counters.alerts_published,
             " alerts published; nodes lost ", counters.nodes_lost, ", rejoined ",
-            counters.nodes_rejoined);
+            counters.nodes_rejoined, "; samples ahead of the site clock ", counters.clock_ahead,
+            ", clock re-anchored ", counters.clock_reanchors);
   if (server) server->stop();
   if (track_writer) track_writer->output().commit();
   return stop_requested() ? interrupted_exit_code() : 0;
@@ -130,6 +133,9 @@ void register_fusion(CLI::App& root, CommandTable& table) {
       ->check(CLI::Range(0, 232));
   command->add_option("--identity", arguments->identity,
                       "DDS Security identity in dds.security.directory (default: fusion)");
+  command->add_option("--track-ids", arguments->track_ids,
+                      "State file of the track id high-water mark: a restarted fusion never "
+                      "reuses an id an earlier one published (docs/contract.md)");
   command
       ->add_option("--duration", arguments->duration_s,
                    "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")

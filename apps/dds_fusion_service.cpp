@@ -31,7 +31,8 @@ const char* doa_problem_text(SampleProblem problem) {
     case SampleProblem::non_finite:
       return "Doa with NaN/Inf values";
     case SampleProblem::absurd_time:
-      return "Doa with an absurd time";
+      return "Doa with an absurd time (negative, past 2100, or ahead of the site clock: a node "
+             "whose clock jumped?)";
     case SampleProblem::oversized_sequence:
       return "Doa with an oversized TDOA sequence";
     case SampleProblem::bad_value:
@@ -54,7 +55,7 @@ const char* status_problem_text(SampleProblem problem) {
     case SampleProblem::non_finite:
       return "NodeStatus with NaN/Inf values";
     case SampleProblem::absurd_time:
-      return "NodeStatus with an absurd time";
+      return "NodeStatus with an absurd time (negative, past 2100, or ahead of the site clock)";
     case SampleProblem::oversized_sequence:
     case SampleProblem::bad_value:
       return "NodeStatus with an invalid value";
@@ -79,10 +80,12 @@ std::int64_t IntakeCounters::doa_ignored() const {
 // a track that has ended.
 class DdsFusionService::Outputs : public FusionObserver {
  public:
-  Outputs(const std::int64_t& base_ns, const dds::Writer<dronetrack_Track>& track_writer,
+  Outputs(const std::int64_t& base_ns, TrackIdReservation& track_ids,
+          const dds::Writer<dronetrack_Track>& track_writer,
           const dds::Writer<dronetrack_Alert>& alert_writer, std::vector<FusionObserver*> observers,
           IntakeCounters& counters)
       : base_ns_(base_ns),
+        track_ids_(track_ids),
         track_writer_(track_writer),
         alert_writer_(alert_writer),
         observers_(std::move(observers)),
@@ -107,6 +110,7 @@ class DdsFusionService::Outputs : public FusionObserver {
     for (auto& track : tracks_) {
       track.time_s += shift_s;
       track.last_update_s += shift_s;
+      track.id = track_ids_.wire_id(track.id);
       current_ids_.push_back(track.id);
       dds::to_idl(track, track_sample_);
       if (track_writer_.try_write(track_sample_) >= 0) ++counters_.tracks_published;
@@ -123,6 +127,7 @@ class DdsFusionService::Outputs : public FusionObserver {
   void on_zone_event(const fusion::ZoneEvent& event) override {
     event_ = event;
     event_.time_s += base_s();
+    event_.track_id = track_ids_.wire_id(event_.track_id);
     dds::to_idl(event_, alert_sample_);
     if (alert_writer_.try_write(alert_sample_) >= 0) ++counters_.alerts_published;
     log::info("alert: track ", event_.track_id, event_.entered ? " entered " : " left ",
@@ -140,6 +145,7 @@ class DdsFusionService::Outputs : public FusionObserver {
   double base_s() const { return static_cast<double>(base_ns_ / 1'000'000'000); }
 
   const std::int64_t& base_ns_;
+  TrackIdReservation& track_ids_;
   const dds::Writer<dronetrack_Track>& track_writer_;
   const dds::Writer<dronetrack_Alert>& alert_writer_;
   std::vector<FusionObserver*> observers_;
@@ -181,7 +187,8 @@ DdsFusionService::DdsFusionService(const config::SiteConfig& site,
       track_writer_(participant, track_topic_, make_qos(dds::track_writer_qos, false)),
       alert_writer_(participant, alert_topic_, make_qos(dds::alert_writer_qos, false)),
       waitset_(participant),
-      outputs_(std::make_unique<Outputs>(base_ns_, track_writer_, alert_writer_,
+      track_ids_(options.track_id_file),
+      outputs_(std::make_unique<Outputs>(base_ns_, track_ids_, track_writer_, alert_writer_,
                                          std::move(observers), counters_)),
       driver_(site, {outputs_.get()}) {
   waitset_.attach(doa_reader_.read_condition());
@@ -221,12 +228,29 @@ double DdsFusionService::rebased(std::int64_t time_ns) const {
 }
 
 bool DdsFusionService::plausible_time(std::int64_t time_ns, SampleProblem& problem) {
-  const auto max_jump_ns = static_cast<std::int64_t>(options_.max_time_jump_s * 1e9);
-  if (time_ns < 0 || time_ns > kLatestPlausibleNs ||
-      (have_time_ && time_ns > newest_ns_ + max_jump_ns)) {
+  if (time_ns < 0 || time_ns > kLatestPlausibleNs) {
     problem = SampleProblem::absurd_time;
     return false;
   }
+  const auto now = std::chrono::steady_clock::now();
+  if (have_time_) {
+    const std::int64_t clock_ns =
+        newest_ns_ + std::chrono::duration_cast<std::chrono::nanoseconds>(now - newest_at_).count();
+    const double lead_s = dds::ns_to_seconds(time_ns - clock_ns);
+    if (lead_s > options_.max_clock_lead_s) {
+      if (now - consistent_at_ < options_.clock_reanchor_after) {
+        problem = SampleProblem::absurd_time;
+        ++counters_.clock_ahead;
+        return false;
+      }
+      ++counters_.clock_reanchors;
+      log::warn("fusion: no sample on the site clock for ",
+                std::chrono::duration<double>(now - consistent_at_).count(),
+                " s; the clock follows the nodes heard now, ", lead_s, " s ahead");
+    }
+  }
+  consistent_at_ = now;
+  if (time_ns > newest_ns_ || !have_time_) newest_at_ = now;
   if (!have_time_) {
     have_time_ = true;
     // Live times are rebased to a whole second so the driver's tick counter starts near 0;

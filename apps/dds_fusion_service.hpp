@@ -20,6 +20,7 @@
 #include "apps/dds_support.hpp"
 #include "apps/fusion_driver.hpp"
 #include "apps/fusion_observer.hpp"
+#include "apps/track_id_reservation.hpp"
 #include "config/site_config.hpp"
 #include "dds_idl/conversions.hpp"
 #include "dds_idl/dds.hpp"
@@ -39,14 +40,26 @@ struct IntakeCounters {
   std::int64_t alerts_published = 0;
   std::int64_t nodes_lost = 0;
   std::int64_t nodes_rejoined = 0;
+  // Doa and NodeStatus samples ahead of the site clock (also counted as absurd_time): a node
+  // whose clock jumped forward. Re-anchors: the clock followed them (no other node was heard).
+  std::int64_t clock_ahead = 0;
+  std::int64_t clock_reanchors = 0;
 
   std::int64_t doa_ignored() const;
 };
 
 struct FusionServiceOptions {
-  // A sample this far ahead of the newest time seen is absurd (a broken clock would otherwise
-  // drag every track's output clock along with it). Nodes report at least once a second.
-  double max_time_jump_s = 30.0;
+  // The site clock is the newest sample time seen, run on by the wall clock since. A sample
+  // further ahead of it than this comes from a node whose clock jumped: refused and counted
+  // (it would drag every track's output clock along and make every other node's DOAs late).
+  // Nodes in step differ by far less (clock sync: ms; DOA latency: < 1 s).
+  double max_clock_lead_s = 3.0;
+  // ... unless no sample was consistent with the clock for this long (wall time): then every
+  // node the site hears has moved on (a site-wide clock step), and the clock follows them.
+  std::chrono::milliseconds clock_reanchor_after{5000};
+  // Track ids on the wire start above the high-water mark kept in this file (empty: from 1;
+  // see TrackIdReservation).
+  std::filesystem::path track_id_file;
   // No NodeStatus for this long (wall time) while the writer is still alive: stale anyway
   // (a hung node whose DDS thread still asserts liveliness).
   std::chrono::milliseconds status_silence_limit{3500};
@@ -103,6 +116,7 @@ class DdsFusionService {
   dds::Writer<dronetrack_Track> track_writer_;
   dds::Writer<dronetrack_Alert> alert_writer_;
   dds::WaitSet waitset_;
+  TrackIdReservation track_ids_;
   std::unique_ptr<Outputs> outputs_;
   FusionDriver driver_;
   IntakeCounters counters_;
@@ -111,7 +125,9 @@ class DdsFusionService {
   bool have_time_ = false;
   std::int64_t base_ns_ = 0;
   std::int64_t newest_ns_ = 0;
-  doa::DoaMeasurement measurement_;  // reused: no allocation per sample
+  std::chrono::steady_clock::time_point newest_at_{};      // when newest_ns_ last moved
+  std::chrono::steady_clock::time_point consistent_at_{};  // the last sample the clock took
+  doa::DoaMeasurement measurement_;                        // reused: no allocation per sample
   doa::NodeStatus status_;
   // Writer (publication handle) -> its partitions, looked up once per writer.
   std::unordered_map<dds_instance_handle_t, std::vector<std::string>> writer_partitions_;

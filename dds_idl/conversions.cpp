@@ -296,6 +296,7 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
   sample.alive = status.alive;
   sample.sample_rate_hz = status.sample_rate_hz;
   sample.overruns = status.overruns;
+  sample.dropouts = status.dropouts;
   sample.clipped_samples = status.clipped_samples;
   sample.non_finite_samples = status.non_finite_samples;
   sample.level_dbfs = status.level_dbfs;
@@ -343,8 +344,8 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
         sample.closure_residual_us <= doa::kMaxHealthDelay_us) ||
       !(sample.fit_residual_us >= 0.0 && sample.fit_residual_us <= doa::kMaxHealthDelay_us))
     return SampleProblem::bad_value;
-  if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.clipped_samples < 0 ||
-      sample.non_finite_samples < 0 || sample.incident_clips < 0 ||
+  if (sample.sample_rate_hz < 0.0 || sample.overruns < 0 || sample.dropouts < 0 ||
+      sample.clipped_samples < 0 || sample.non_finite_samples < 0 || sample.incident_clips < 0 ||
       sample.incident_write_errors < 0 || sample.channel_count > doa::kMaxStatusChannels) {
     return SampleProblem::bad_value;
   }
@@ -368,6 +369,7 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   out.alive = sample.alive;
   out.sample_rate_hz = sample.sample_rate_hz;
   out.overruns = sample.overruns;
+  out.dropouts = sample.dropouts;
   out.clipped_samples = sample.clipped_samples;
   out.non_finite_samples = sample.non_finite_samples;
   out.level_dbfs = sample.level_dbfs;

@@ -33,6 +33,9 @@ struct NodeStatus {
   bool alive = true;    // false: the node said goodbye or the fusion lost its liveliness
   double sample_rate_hz = 0.0;
   std::int64_t overruns = 0;
+  // Capture gaps since the node started: jumps of the sample index (lost blocks) and stretches
+  // of digital silence on every channel (what many drivers deliver for a lost buffer).
+  std::int64_t dropouts = 0;
   std::int64_t clipped_samples = 0;     // all channels, |x| >= 0.999
   std::int64_t non_finite_samples = 0;  // all channels, NaN/inf (replaced by 0)
   double level_dbfs = -120.0;

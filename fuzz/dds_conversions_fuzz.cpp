@@ -122,6 +122,7 @@ void fuzz_status(Bytes& in, const std::vector<std::string>& ids) {
   sample.alive = in.flag();
   sample.sample_rate_hz = in.number();
   sample.overruns = in.take<std::int64_t>();
+  sample.dropouts = in.take<std::int64_t>();
   sample.clipped_samples = in.take<std::int64_t>();
   sample.non_finite_samples = in.take<std::int64_t>();
   sample.level_dbfs = in.number();

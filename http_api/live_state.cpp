@@ -126,6 +126,7 @@ json status_json(const doa::NodeStatus& s) {
       {"alive", s.alive},
       {"sample_rate_hz", s.sample_rate_hz},
       {"overruns", s.overruns},
+      {"dropouts", s.dropouts},
       {"clipped_samples", s.clipped_samples},
       {"non_finite_samples", s.non_finite_samples},
       {"level_dbfs", s.level_dbfs},

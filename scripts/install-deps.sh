@@ -3,7 +3,7 @@
 # everything is present (no apt-get update unless something is missing).
 #   scripts/install-deps.sh          build + run dependencies
 #   scripts/install-deps.sh --tests  also what the tests need (Chromium, playwright-core,
-#                                    systemd-analyze for the package test)
+#                                    systemd-analyze for the package test, nftables)
 #   scripts/install-deps.sh --arm64  also the arm64 cross-build of the core (scripts/arm64-test.sh):
 #                                    Debian's cross compiler, qemu-user, multiarch arm64 libraries
 set -euo pipefail
@@ -28,6 +28,7 @@ packages=(
 )
 if [[ "${1:-}" == "--tests" ]]; then
   packages+=(chromium clang-format openssl tcpdump)  # openssl: test certificates; tcpdump: DDS capture
+  packages+=(nftables)  # dds.lossy_network: packet loss on loopback in a network namespace
   packages+=(clang libclang-rt-dev)  # scripts/fuzz.sh: clang 14 with libFuzzer + sanitizer runtimes
   packages+=(systemd curl)  # the package test: systemd-analyze verify on the units, GET the page
   command -v node >/dev/null 2>&1 || packages+=(nodejs)

@@ -6,12 +6,6 @@
 // pose at its time (centre on the path), pointing along the array-frame direction turned by the
 // heading AT ITS TIME. A DOA turned by the config's yaw, or by a pose 0.1 s off, is off by
 // 20 deg or 1 deg.
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <gtest/gtest.h>
 #include <sndfile.h>
 
@@ -31,80 +25,22 @@
 #include "doa/array_geometry.hpp"
 #include "doa/pose_track.hpp"
 #include "tests/dds/dds_test_support.hpp"
+#include "tests/dds/process_support.hpp"
 #include "tests/doa/synthetic_audio.hpp"
-
-extern char** environ;
 
 namespace {
 
-namespace fs = std::filesystem;
 using namespace std::chrono_literals;
-using Clock = std::chrono::steady_clock;
+using dronetrack::dds::testing::Clock;
+namespace fs = std::filesystem;
 
 constexpr int kDomain = 137;
 constexpr int kRate = 16000;
 constexpr double kSeconds = 4.0;
 
-class Process {
- public:
-  Process(const std::vector<std::string>& arguments, const fs::path& log_path) {
-    std::vector<char*> argv;
-    copies_ = arguments;
-    for (auto& argument : copies_) argv.push_back(argument.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&actions, 2, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
-    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
-  }
-  ~Process() {
-    if (pid_ > 0 && !status_) {
-      kill(pid_, SIGKILL);
-      wait_exit(5s);
-    }
-  }
-  Process(const Process&) = delete;
-  Process& operator=(const Process&) = delete;
-  std::optional<int> wait_exit(std::chrono::nanoseconds timeout) {
-    const auto deadline = Clock::now() + timeout;
-    while (pid_ > 0 && !status_) {
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        break;
-      }
-      if (Clock::now() > deadline) return std::nullopt;
-      std::this_thread::sleep_for(20ms);
-    }
-    return status_;
-  }
-  void interrupt(int signal_number) {
-    if (pid_ > 0 && !status_) kill(pid_, signal_number);
-  }
-
- private:
-  std::vector<std::string> copies_;
-  pid_t pid_ = -1;
-  std::optional<int> status_;
-};
-
-std::string read_text(const fs::path& path) {
-  std::string text;
-  if (std::FILE* file = std::fopen(path.c_str(), "rb")) {
-    char chunk[4096];
-    std::size_t got = 0;
-    while ((got = std::fread(chunk, 1, sizeof chunk, file)) > 0) text.append(chunk, got);
-    std::fclose(file);
-  }
-  return text;
-}
-
-double unix_now_s() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+using dronetrack::dds::testing::Process;
+using dronetrack::dds::testing::read_text;
+using dronetrack::dds::testing::unix_now_s;
 
 double heading_deg(double time_s) { return -20.0 + 10.0 * time_s; }
 Eigen::Vector3d origin_m(double time_s) { return {5.0 + 1.5 * time_s, -3.0, 2.0}; }
@@ -165,15 +101,15 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
   const std::string domain = std::to_string(kDomain);
   Process poses({binary, "pose-publish", "--array", "M1", "--pose-file",
                  (dir / "pose.jsonl").string(), "--epoch", epoch_text, "--domain", domain},
-                dir / "pose.err");
+                "/dev/null", dir / "pose.err");
   // The fusion process takes the same stream: the poses travel inside the DOAs, it never reads
   // ArrayPose.
   Process fusion({binary, "fusion", (dir / "site.json").string(), "--domain", domain,
                   "--tracks-out", (dir / "tracks.jsonl").string()},
-                 dir / "fusion.err");
+                 "/dev/null", dir / "fusion.err");
   Process node({binary, "node", (dir / "site.json").string(), "--array", "M1", "--realtime",
                 "--epoch", epoch_text, "--domain", domain},
-               dir / "node.err");
+               "/dev/null", dir / "node.err");
 
   std::vector<dronetrack::doa::DoaMeasurement> doas;
   const std::vector<std::string> ids{"M1"};
@@ -210,8 +146,8 @@ TEST(DdsMovingNode, DoasArriveStampedWithThePoseAtTheirTime) {
 
   // The fusion took every one of them as a valid moving-array DOA (pose checked on intake).
   std::this_thread::sleep_for(1s);  // its reorder window
-  fusion.interrupt(SIGTERM);
-  ASSERT_EQ(fusion.wait_exit(10s), 128 + SIGTERM) << read_text(dir / "fusion.err");
+  fusion.signal(SIGTERM);
+  ASSERT_EQ(fusion.wait_exit(10s), (128 + SIGTERM) << 8) << read_text(dir / "fusion.err");
   const std::string fusion_log = read_text(dir / "fusion.err");
   long received = -1;
   long accepted = -1;
