@@ -185,6 +185,55 @@ async function httpsWithUsers() {
   }
 }
 
+// The engineer's report (issue 19): `eval --plot` of a replay of the same scene, opened from disk
+// in the browser: one figure per chart, every track and every truth source drawn, nothing
+// fetched; a screenshot for the README.
+async function evalPlot(browserContext) {
+  const tracks = path.join(work, 'plot-tracks.jsonl');
+  const doas = path.join(work, 'plot-doas.jsonl');
+  const report = path.join(work, 'report.html');
+  const replayed = spawnSync(dronetrack, ['--log-level', 'warn', 'replay', path.join(work, 'scene', 'site.json'),
+                                          '--tracks-out', tracks, '--doa-out', doas], { encoding: 'utf8' });
+  if (replayed.status !== 0) fail(`replay for the plot exited ${replayed.status}: ${replayed.stderr}`);
+  const evaluated = spawnSync(dronetrack, ['eval', '--truth', path.join(work, 'scene', 'truth.json'), '--tracks', tracks,
+                                           '--doa', doas, '--plot', report], { encoding: 'utf8' });
+  if (evaluated.status !== 0) fail(`eval --plot exited ${evaluated.status}: ${evaluated.stderr}`);
+  const trackIds = new Set(fs.readFileSync(tracks, 'utf8').trim().split('\n').map((line) => JSON.parse(line).id));
+  const truthIds = JSON.parse(fs.readFileSync(path.join(work, 'scene', 'truth.json'), 'utf8')).sources.map((s) => s.id);
+  const page = await browserContext.newPage();
+  const fetched = [];
+  page.on('request', (r) => { if (!r.url().startsWith('file://')) fetched.push(r.url()); });
+  await page.setViewportSize({ width: 1000, height: 900 });
+  await page.goto(`file://${report}`);
+  const drawn = await page.evaluate(() => {
+    const figures = [...document.querySelectorAll('svg')];
+    return {
+      titles: figures.map((svg) => svg.querySelector('title')?.textContent || ''),
+      // The legend's labels, per figure, and how many drawn lines have a visible extent.
+      labels: figures.map((svg) => [...svg.querySelectorAll('text')].map((t) => t.textContent)),
+      lines: figures.map((svg) => [...svg.querySelectorAll('polyline, path')]
+        .filter((line) => { const box = line.getBBox(); return box.width > 1 || box.height > 1; }).length),
+    };
+  });
+  if (drawn.titles.length < 4) fail(`eval plot: ${drawn.titles.length} figures (${drawn.titles.join(', ')})`);
+  const plan = drawn.titles.findIndex((title) => /plan/i.test(title));
+  if (plan < 0) fail(`eval plot: no plan view among ${drawn.titles.join(', ')}`);
+  for (const id of trackIds) {
+    if (!drawn.labels[plan].includes(`track ${id}`)) fail(`eval plot: track ${id} missing from the plan view's legend`);
+  }
+  for (const id of truthIds) {
+    if (!drawn.labels[plan].includes(`truth ${id}`)) fail(`eval plot: truth ${id} missing from the plan view's legend`);
+  }
+  if (drawn.lines[plan] < trackIds.size + truthIds.length) {
+    fail(`eval plot: ${drawn.lines[plan]} lines drawn on the plan view for ${trackIds.size} tracks and ${truthIds.length} truths`);
+  }
+  if (fetched.length) fail(`eval plot fetched: ${fetched.join(' ')}`);
+  const shot = path.join(outDir, 'eval_plot.png');
+  await page.screenshot({ path: shot, fullPage: true });
+  await page.close();
+  log(`eval --plot: ${drawn.titles.length} figures, ${trackIds.size} tracks and ${truthIds.length} truths on the plan view; screenshot ${shot}`);
+}
+
 const work = fs.mkdtempSync(path.join(os.tmpdir(), 'dronetrack-browser-'));
 let replay = null;
 let context = null;
@@ -400,6 +449,7 @@ try {
   if (pageErrors.length) fail(`page errors: ${pageErrors.join(' | ')}`);
   if (foreign.length) fail(`requests outside the server: ${foreign.join(' ')}`);
   await httpsWithUsers();
+  await evalPlot(context);
   log(`PASS in ${((Date.now() - replayStart) / 1000).toFixed(1)} s of replay`);
 } catch (error) {
   if (!process.exitCode) console.error(`browser test: FAIL: ${error.message}`);
