@@ -170,8 +170,9 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
   relabel_source_.assign(transpositions_.size() * static_cast<std::size_t>(pairs_), 0);
   relabel_sign_.assign(relabel_source_.size(), 1.0);
   for (std::size_t t = 0; t < transpositions_.size(); ++t) {
-    const auto [a, b] = transpositions_[t];
-    auto swapped = [&](int mic) { return mic == a ? b : mic == b ? a : mic; };
+    // Plain copies, not a structured binding: clang 14 (the fuzz build) cannot capture those.
+    const int a = transpositions_[t][0], b = transpositions_[t][1];
+    auto swapped = [a, b](int mic) { return mic == a ? b : mic == b ? a : mic; };
     for (int p = 0; p < pairs_; ++p) {
       const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
       const int x = swapped(i), y = swapped(j);
