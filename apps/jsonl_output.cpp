@@ -51,7 +51,7 @@ int append_doa_geometry(const doa::DoaMeasurement& doa, char* buffer, std::size_
     const int peaks = std::clamp(doa.cone_peak_count, 0, doa::kMaxConePeaks);
     if (peaks > 0) {
       for (int pass = 0; pass < 2; ++pass) {
-        length = append_formatted(buffer, size, length,
+        length = append_formatted(buffer, size, length, "%s",
                                   pass == 0 ? R"(,"peaks_deg":[)" : R"(,"peak_weights":[)");
         for (int k = 0; k < peaks; ++k) {
           const auto index = static_cast<std::size_t>(k);
@@ -59,10 +59,10 @@ int append_doa_geometry(const doa::DoaMeasurement& doa, char* buffer, std::size_
               pass == 0 ? doa.cone_peak_angle_rad[index] * kDegPerRad : doa.cone_peak_weight[index];
           length = append_formatted(buffer, size, length, k == 0 ? "%.5f" : ",%.5f", value);
         }
-        length = append_formatted(buffer, size, length, "]");
+        length = append_formatted(buffer, size, length, "%s", "]");
       }
     }
-    length = append_formatted(buffer, size, length, "}");
+    length = append_formatted(buffer, size, length, "%s", "}");
   } else if (doa.ambiguity == doa::DoaAmbiguity::mirror_up_down) {
     length = append_formatted(buffer, size, length, R"(,"mirror_normal":[%.9f,%.9f,%.9f])",
                               axis.x(), axis.y(), axis.z());
@@ -98,7 +98,7 @@ int format_doa_line(const doa::DoaMeasurement& doa, char* buffer, std::size_t si
         a.fundamental_hz, a.comb_strength, a.harmonic_count, a.broadband_share, a.comb_persistence,
         a.fundamental_spread, a.level_modulation_db, a.history_s);
   }
-  return append_formatted(buffer, size, total, "}");
+  return append_formatted(buffer, size, total, "%s", "}");
 }
 
 int format_track_line(double time_s, const fusion::TrackReport& track, char* buffer,
