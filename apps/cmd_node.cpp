@@ -192,8 +192,7 @@ int run(const NodeArguments& arguments) {
     options.mics = static_cast<int>(array.geometry.mic_count());
     options.channel_map = array.channel_map;
     options.sample_rate_hz = arguments.sample_rate_hz;
-    options.block_frames =
-        static_cast<std::size_t>(std::max(64.0, std::round(0.02 * arguments.sample_rate_hz)));
+    options.block_frames = capture::live_block_frames(arguments.sample_rate_hz);
     auto portaudio = std::make_unique<capture::PortAudioSource>(options);
     live_source = portaudio.get();
     source = std::move(portaudio);

@@ -99,8 +99,7 @@ int run(const RecordArguments& arguments) {
     options.device_index = arguments.device.value_or(-1);
     options.mics = arguments.channels;
     options.sample_rate_hz = arguments.sample_rate_hz;
-    options.block_frames =
-        static_cast<std::size_t>(std::max(64.0, std::round(0.02 * arguments.sample_rate_hz)));
+    options.block_frames = capture::live_block_frames(arguments.sample_rate_hz);
     auto live = std::make_unique<capture::PortAudioSource>(options);
     device = live.get();
     source = std::move(live);

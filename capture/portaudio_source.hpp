@@ -14,7 +14,9 @@
 // stream has stopped by itself, and throws if no block arrives within the timeout while the
 // stream claims to be running (a stalled device must not hang a node silently).
 #include <atomic>
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -26,6 +28,12 @@
 #include "capture/spsc_ring.hpp"
 
 namespace dronetrack::capture {
+
+// The block a live node and `record` capture in: 20 ms (the pipeline's hop is a few of them),
+// at least 64 frames.
+inline std::size_t live_block_frames(double sample_rate_hz) {
+  return static_cast<std::size_t>(std::max(64.0, std::round(0.02 * sample_rate_hz)));
+}
 
 struct PortAudioOptions {
   int device_index = -1;  // PortAudio index (see `dronetrack devices`); -1 = default input
