@@ -13,8 +13,8 @@
 // channels, unsupported rate). next() returns false once request_stop() was called or the
 // stream has stopped by itself, and throws if no block arrives within the timeout while the
 // stream claims to be running (a stalled device must not hang a node silently).
-#include <atomic>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
