@@ -16,6 +16,7 @@
 #include "apps/signals.hpp"
 #include "calib/channel_gains.hpp"
 #include "calib/site_calibration.hpp"
+#include "common/input_file.hpp"
 #include "common/log.hpp"
 #include "common/output_file.hpp"
 #include "config/config_reader.hpp"
@@ -182,7 +183,7 @@ int run(const CalibrateArguments& arguments) {
   std::fputs(calibration_table(result).c_str(), stdout);
 
   const nlohmann::ordered_json original = nlohmann::ordered_json::parse(
-      config::read_text_file(arguments.site, config::kMaxConfigBytes, "site config"));
+      read_text_file(arguments.site, config::kMaxConfigBytes, "site config"));
   const std::filesystem::path out_path(arguments.out);
   const nlohmann::ordered_json calibrated = calibrated_site_document(
       original, site, result, std::filesystem::path(arguments.site).parent_path(),

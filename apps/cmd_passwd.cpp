@@ -5,13 +5,13 @@
 // atomically with mode 0600, and a running server picks the change up within a second.
 #include <sys/stat.h>
 
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
 #include <string>
 
 #include "apps/commands.hpp"
+#include "common/input_file.hpp"
 #include "common/log.hpp"
 #include "common/output_file.hpp"
 #include "http_api/user_file.hpp"
@@ -32,11 +32,11 @@ int run(const PasswdArguments& arguments) {
   }
   std::string text;
   if (std::filesystem::exists(arguments.users_file)) {
-    std::ifstream in(arguments.users_file, std::ios::binary);
-    std::ostringstream content;
-    content << in.rdbuf();
-    if (!in) throw UserError(arguments.users_file + ": cannot read the users file");
-    text = content.str();
+    try {
+      text = read_text_file(arguments.users_file, http_api::kMaxUserFileBytes, "users file");
+    } catch (const std::runtime_error& error) {
+      throw UserError(error.what());
+    }
     http_api::UserFile::parse(text, arguments.users_file);  // refuse to rewrite a broken file
   }
   std::string new_line;

@@ -1,7 +1,6 @@
 #include "config/config_reader.hpp"
 
 #include <cmath>
-#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
@@ -47,31 +46,6 @@ void Diagnostics::warn(const std::string& path, const std::string& what) {
     warnings.back() =
         "... and " + std::to_string(warning_count - kMaxReportedWarnings) + " more warnings";
   }
-}
-
-std::string read_text_file(const std::filesystem::path& file, std::size_t max_bytes,
-                           const std::string& what) {
-  std::error_code error;
-  if (std::filesystem::is_directory(file, error))
-    throw std::runtime_error(file.string() + ": is a directory, not a " + what);
-  std::ifstream stream(file, std::ios::binary);
-  if (!stream) throw std::runtime_error(file.string() + ": cannot open " + what);
-  const auto size = std::filesystem::file_size(file, error);
-  if (!error && size > max_bytes) {
-    throw std::runtime_error(file.string() + ": " + std::to_string(size) + " bytes; a " + what +
-                             " may be at most " + std::to_string(max_bytes >> 20) + " MiB");
-  }
-  // Read in bounded chunks: a FIFO or /proc file has no size to check up front.
-  std::string text;
-  char chunk[65536];
-  while (stream.read(chunk, sizeof chunk) || stream.gcount() > 0) {
-    text.append(chunk, static_cast<std::size_t>(stream.gcount()));
-    if (text.size() > max_bytes)
-      throw std::runtime_error(file.string() + ": larger than " + std::to_string(max_bytes >> 20) +
-                               " MiB; a " + what + " may be at most that");
-  }
-  if (stream.bad()) throw std::runtime_error(file.string() + ": read error");
-  return text;
 }
 
 bool LineReader::next(std::string& line) {

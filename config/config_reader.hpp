@@ -80,11 +80,6 @@ inline constexpr std::size_t kMaxTruthBytes = 512u << 20;  // truth.json: 4-7 MB
 inline constexpr std::size_t kMaxLineBytes = 64u << 10;    // a DOA/track/alert line: < 1 kB
 inline constexpr std::size_t kMaxReportedWarnings = 20;    // then "... and N more"
 
-// The whole file as text; throws std::runtime_error "FILE: ..." if it cannot be read or is
-// larger than `max_bytes` (`what` names the kind of file in that message).
-std::string read_text_file(const std::filesystem::path& file, std::size_t max_bytes,
-                           const std::string& what);
-
 // Lines of a JSON-lines stream, each at most `max_bytes`; a longer one stops the reader with
 // too_long() set (its text is skipped, never held).
 class LineReader {

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "capture/recording_info.hpp"
+#include "common/input_file.hpp"
 #include "config/config_reader.hpp"
 #include "config/parse_sections.hpp"
 #include "config/pose_file.hpp"

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/input_file.hpp"
 #include "config/config_reader.hpp"
 #include "config/site_config.hpp"
 
@@ -16,7 +17,7 @@ using config::ObjectReader;
 
 std::string read_file(const std::filesystem::path& file, std::size_t max_bytes) {
   try {
-    return config::read_text_file(file, max_bytes, "file");
+    return read_text_file(file, max_bytes, "file");
   } catch (const std::runtime_error& error) {
     throw InputError(error.what());
   }

@@ -5,9 +5,9 @@
 #include <openssl/rand.h>
 
 #include <charconv>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
+
+#include "common/input_file.hpp"
 
 namespace dronetrack::http_api {
 namespace {
@@ -74,11 +74,7 @@ bool valid_user_name(std::string_view name) {
 }
 
 UserFile UserFile::load(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(file.string() + ": cannot read the users file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse(text.str(), file.string());
+  return parse(read_text_file(file, kMaxUserFileBytes, "users file"), file.string());
 }
 
 UserFile UserFile::parse(std::string_view text, const std::string& origin) {

@@ -4,6 +4,7 @@
 // (blank lines and lines starting with '#' are ignored). Only salted PBKDF2-HMAC-SHA256
 // hashes are stored, never a password; `dronetrack passwd` writes the lines. The file is named
 // by the site config (http.users_file), so no secret lives in the config itself.
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -24,6 +25,9 @@ struct UserEntry {
 inline constexpr std::uint32_t kDefaultPasswordIterations = 600000;
 // Fewer iterations are refused when a file is read: such a hash falls to a GPU in hours.
 inline constexpr std::uint32_t kMinimumPasswordIterations = 100000;
+// A users file line is ~150 bytes: 1 MiB holds thousands of operators, and a wrong path (a log,
+// a disk image) is refused before it is read into memory.
+inline constexpr std::size_t kMaxUserFileBytes = 1u << 20;
 
 class UserFile {
  public:

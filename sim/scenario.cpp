@@ -8,6 +8,7 @@
 
 #include <sndfile.h>
 
+#include "common/input_file.hpp"
 #include "config/config_reader.hpp"
 #include "doa/array_geometry.hpp"
 
@@ -624,7 +625,7 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
 Scenario load_scenario(const std::filesystem::path& file, std::vector<std::string>& warnings) {
   std::string text;
   try {
-    text = config::read_text_file(file, config::kMaxConfigBytes, "scenario file");
+    text = read_text_file(file, config::kMaxConfigBytes, "scenario file");
   } catch (const std::runtime_error& failure) {
     throw config::ConfigError({failure.what()});
   }
