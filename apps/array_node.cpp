@@ -100,8 +100,10 @@ std::string array_health_warning(const std::string& array_id, int input_channel,
               "; its pairs pick different peaks: a skewed or moved mic";
       break;
     case doa::ArrayProblem::skew:
-      line += "delay " + format("%+.1f", event.delay_offset_us) +
-              " us against the array's median channel (fit over the source directions)" + at +
+      line += "delay " + format("%+.1f", event.delay_offset_us) + " +- " +
+              format("%.1f", event.delay_std_us) +
+              " us against the array's median channel (fit over " +
+              std::to_string(event.delay_sectors) + " direction sectors)" + at +
               "; calibrate channel_delay_s";
       break;
     case doa::ArrayProblem::swapped: {

@@ -7,7 +7,6 @@
 #include <stdexcept>
 #include <string>
 
-#include <Eigen/Cholesky>
 #include <Eigen/SVD>
 
 namespace dronetrack::doa {
@@ -17,8 +16,6 @@ namespace {
 // Raised problems one observe() can hold per problem and channel (a frame judges each check at
 // most once, so one suffices; the rest is slack for a node that skips clear_events()).
 constexpr std::size_t kEventsPerProblem = 4;
-// The delay fit's floor on a pair delay's noise: a sub-sample GCC estimate is not better.
-constexpr double kMinDelayNoise_s = 2e-6;
 
 // Median of `values` (reordered); 0 for none.
 double median_of(std::span<double> values) {
@@ -96,9 +93,15 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
   if (settings.closure_persistence < 1) fail("closure_persistence must be >= 1");
   if (!(settings.closure_us > 0.0) || !(settings.frame_closure_us > 0.0))
     fail("closure_us and frame_closure_us must be > 0");
-  if (!(settings.skew_us > 0.0) || !(settings.skew_window_s > 0.0) ||
-      !(settings.skew_prior_us > 0.0) || !(settings.min_skew_frames >= 1.0))
-    fail("skew_us, skew_window_s, skew_prior_us must be > 0 and min_skew_frames >= 1");
+  if (!(settings.skew_sigmas > 0.0) || !(settings.min_skew_us > 0.0) ||
+      !(settings.skew_window_s > 0.0) || !(settings.skew_prior_us > 0.0) ||
+      !(settings.min_skew_frames >= 1.0))
+    fail(
+        "skew_sigmas, min_skew_us, skew_window_s, skew_prior_us must be > 0 and "
+        "min_skew_frames >= 1");
+  if (settings.skew_sectors < 2 || settings.min_skew_sectors < 1 ||
+      settings.min_skew_sectors > settings.skew_sectors)
+    fail("skew_sectors must be >= 2 and min_skew_sectors in [1, skew_sectors]");
   if (!(settings.rewarn_s >= 0.0)) fail("rewarn_s must be >= 0");
   if (!(settings.min_swap_frames >= 1.0) || !(settings.swap_evidence_us > 0.0) ||
       !(settings.swap_misfit_ratio > 0.0 && settings.swap_misfit_ratio < 1.0))
@@ -123,7 +126,7 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
   const auto window = static_cast<std::size_t>(settings.closure_window_frames);
   scratch_.assign(std::max({n, static_cast<std::size_t>(pairs_), window}), 0.0);
   incoherent_frames_.assign(n, 0);
-  previous_offset_us_.assign(n, 0.0);
+  previous_skewed_.assign(n, 0);
   level_dead_.assign(n, 0);
   incoherent_dead_.assign(n, 0);
   coherent_frames_.assign(static_cast<std::size_t>(pairs_), 0);
@@ -136,30 +139,25 @@ ArrayHealth::ArrayHealth(const ArrayGeometry& geometry, double speed_of_sound_mp
 
   // The delay fit needs the slowness in three dimensions: a planar or linear array leaves it out.
   geometry_.resize(pairs_, 3);
-  difference_.setZero(pairs_, channels_);
   for (int p = 0; p < pairs_; ++p) {
     const auto [i, j] = pair_mics_[static_cast<std::size_t>(p)];
     geometry_.row(p) = (geometry.mics_m[static_cast<std::size_t>(j)] -
                         geometry.mics_m[static_cast<std::size_t>(i)])
                            .transpose();
-    difference_(p, i) = 1.0;
-    difference_(p, j) = -1.0;
   }
   const Eigen::MatrixXd pair_vectors = geometry_;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(pair_vectors);
   const Eigen::VectorXd singular = svd.singularValues();
   fit_possible_ = singular.size() == 3 && singular(0) > 0.0 && singular(2) > 1e-3 * singular(0);
-  information_.setZero(channels_, channels_);
-  information_vector_.setZero(channels_);
-  delay_estimate_s_.setZero(channels_);
-  frame_jacobian_.setZero(pairs_, channels_);
   frame_tdoas_.setZero(pairs_);
-  frame_misfit_.setZero(pairs_);
   if (fit_possible_) {
     const Eigen::Matrix3d normal = geometry_.transpose() * geometry_;
     geometry_inverse_ = normal.inverse() * geometry_.transpose();
-    slowness_of_delays_ = geometry_inverse_ * difference_;
-    out_of_range_ = difference_ - geometry_ * slowness_of_delays_;
+    ChannelDelayFit::Settings fit;
+    fit.window_s = settings.skew_window_s;
+    fit.prior_us = settings.skew_prior_us;
+    fit.sectors = settings.skew_sectors;
+    delay_fit_.emplace(geometry_, channels_, speed_of_sound_mps, hop_s, fit);
   }
   forgetting_ = std::exp(-hop_s / settings.skew_window_s);
 
@@ -405,11 +403,8 @@ void ArrayHealth::observe_closure(std::span<const PairPeak> pairs) {
     observe_fit(pairs);
 }
 
-// One frame of the delay fit. tau = G u / c + D d: the slowness G^+ tau of the pair delays
-// freed of the current estimate is turned to unit length, and what that leaves of the delays
-// is the misfit r. Around the estimate, r = M (d - d_est) with M = E + (G u)(F^T u) (E: the
-// part of D outside G's range, F = G^+ D; the u-part is the radial error a delay puts on the
-// slowness's length), so the information on d gains M^T M and M^T (r + M d_est).
+// One frame of the plane-wave fits: the swap check on the first look's delays, the delay fit
+// (ChannelDelayFit) on the source's.
 void ArrayHealth::observe_fit(std::span<const PairPeak> pairs) {
   for (int p = 0; p < pairs_; ++p) frame_tdoas_(p) = pairs[static_cast<std::size_t>(p)].tdoa_s;
   const double first_look_square = plane_wave_misfit_square(frame_tdoas_);
@@ -422,23 +417,7 @@ void ArrayHealth::observe_fit(std::span<const PairPeak> pairs) {
   fit_ring_[static_cast<std::size_t>(fit_next_)] = std::sqrt(wired_square);
   fit_next_ = (fit_next_ + 1) % settings_.closure_window_frames;
   fit_count_ = std::min(fit_count_ + 1, settings_.closure_window_frames);
-
-  frame_tdoas_.noalias() -= difference_ * delay_estimate_s_;
-  const Eigen::Vector3d slowness = geometry_inverse_ * frame_tdoas_;
-  const double length = slowness.norm() * speed_of_sound_mps_;
-  if (!(length > 0.5 && length < 1.5)) return;  // not one plane wave: a stray frame
-  const Eigen::Vector3d direction = slowness.normalized();
-  frame_misfit_.noalias() = frame_tdoas_ - geometry_ * (direction / speed_of_sound_mps_);
-  frame_jacobian_ = out_of_range_;
-  frame_jacobian_.noalias() +=
-      (geometry_ * direction) * (slowness_of_delays_.transpose() * direction).transpose();
-  frame_misfit_.noalias() += frame_jacobian_ * delay_estimate_s_;
-  information_ *= forgetting_;
-  information_.noalias() += frame_jacobian_.transpose() * frame_jacobian_;
-  information_vector_ *= forgetting_;
-  information_vector_.noalias() += frame_jacobian_.transpose() * frame_misfit_;
-  fit_frames_ = forgetting_ * fit_frames_ + 1.0;
-  fit_square_sum_ = forgetting_ * fit_square_sum_ + frame_misfit_.squaredNorm();
+  delay_fit_->observe(frame_tdoas_);
 }
 
 // Each observable swap's misfit on this frame's first-look delays (frame_tdoas_), beside the
@@ -533,43 +512,36 @@ void ArrayHealth::judge_closure(double time_s) {
   }
 }
 
-// The channel delays that best explain the misfits, with a weak prior keeping what the source
-// directions did not reveal at 0 and the mean delay at 0 (a delay common to all channels is
-// the clock's); a channel is judged only once its offset is known to a third of skew_us.
+// A channel is skewed when its fitted delay offset is skew_sigmas of its cluster-robust std from
+// 0 and over min_skew_us, once the fit has seen min_skew_sectors direction sectors (fewer leave a
+// delay indistinguishable from a change of direction or of the slowness's scale: unexcited, so
+// unsaid), on two judgements in a row.
 void ArrayHealth::judge_skew(double time_s) {
-  if (fit_frames_ < settings_.min_skew_frames) return;
-  const auto n = static_cast<double>(channels_);
-  const double scale_s2 =
-      std::max(kMinDelayNoise_s * kMinDelayNoise_s, fit_square_sum_ / (fit_frames_ * pairs_));
-  const double prior_s = 1e-6 * settings_.skew_prior_us;
-  ChannelMatrix system = information_;
-  system.diagonal().array() += scale_s2 / (prior_s * prior_s);
-  system.array() += std::max(1.0, information_.trace()) / (n * n);
-  const Eigen::LDLT<ChannelMatrix> solve(system);
-  const ChannelVector delay_s = solve.solve(information_vector_);
-  const double square_sum = fit_square_sum_ - 2.0 * delay_s.dot(information_vector_) +
-                            delay_s.dot(information_ * delay_s);
-  const double dof = std::max(1.0, fit_frames_ * (pairs_ - 2) - (n - 1.0));
-  const double noise_s2 = std::max(kMinDelayNoise_s * kMinDelayNoise_s, square_sum / dof);
-  std::copy(delay_s.data(), delay_s.data() + channels_, scratch_.begin());
-  const double median_s =
-      median_of(std::span<double>(scratch_.data(), static_cast<std::size_t>(channels_)));
-  delay_estimate_s_ = delay_s;
+  // Solved at every judgement, judged or not: each solve is the point the next frames are
+  // linearised at, and frames taken far from the answer bias it by the square of the distance.
+  delay_fit_->solve();
+  if (delay_fit_->frames() < settings_.min_skew_frames) return;
+  // Each sector is one look (its frames share their biases): twice as many looks as free
+  // parameters at least, or the cluster-robust std is itself too uncertain to judge by.
+  const bool excited = delay_fit_->sectors_seen() >=
+                       std::max(settings_.min_skew_sectors, 2 * delay_fit_->free_parameters());
+  delay_sectors_ = delay_fit_->sectors_seen();
   for (int c = 0; c < channels_; ++c) {
-    ChannelVector unit = ChannelVector::Zero(channels_);
-    unit(c) = 1.0;
-    const double std_us = 1e6 * std::sqrt(noise_s2 * solve.solve(unit)(c));
-    if (!(std_us < settings_.skew_us / 3.0)) continue;  // not seen well enough to say
-    const double offset_us = 1e6 * (delay_s(c) - median_s);
-    double& previous_us = previous_offset_us_[static_cast<std::size_t>(c)];
-    // Linearised about an estimate still moving, the first fits can be off by the threshold:
-    // a skew is said when two fits in a row agree on it.
+    const auto index = static_cast<std::size_t>(c);
+    const ChannelDelayFit::ChannelDelay& delay = delay_fit_->channel_delays()[index];
+    ArrayChannelHealth& health = channels_health_[index];
     // A swap's misfit is not a delay: while one is said, the fit says no skew.
-    const bool skewed = swap_flagged_ < 0 && std::fabs(offset_us) > settings_.skew_us &&
-                        std::fabs(previous_us) > settings_.skew_us &&
-                        std::fabs(offset_us - previous_us) < 0.5 * settings_.skew_us;
-    previous_us = offset_us;
-    channels_health_[static_cast<std::size_t>(c)].delay_offset_us = offset_us;
+    const bool over = excited && swap_flagged_ < 0 &&
+                      std::fabs(delay.offset_us) > settings_.skew_sigmas * delay.std_us &&
+                      std::fabs(delay.offset_us) > settings_.min_skew_us;
+    // Said when over on two judgements in a row that agree to a quarter of the minimum (the
+    // linearisation has settled).
+    const bool settled =
+        std::fabs(delay.offset_us - health.delay_offset_us) < 0.25 * settings_.min_skew_us;
+    const bool skewed = over && settled && previous_skewed_[index] != 0;
+    previous_skewed_[index] = over ? 1 : 0;
+    health.delay_offset_us = delay.offset_us;
+    health.delay_std_us = excited ? delay.std_us : std::numeric_limits<double>::infinity();
     update(c, ArrayProblem::skew, skewed, time_s, 0.0);
   }
 }
@@ -598,6 +570,8 @@ void ArrayHealth::update(int channel, ArrayProblem problem, bool present, double
   event.time_s = time_s;
   event.level_offset_db = health.level_offset_db;
   event.delay_offset_us = health.delay_offset_us;
+  event.delay_std_us = health.delay_std_us;
+  event.delay_sectors = delay_sectors_;
   event.closure_residual_us = closure_residual_us_;
   event.share = share;
   if (problem == ArrayProblem::swapped) {

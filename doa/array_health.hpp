@@ -11,7 +11,8 @@
 //   closure          the pair delays of one source do not add up (tau_ij + tau_jk - tau_ik != 0,
 //                    running median per triple) on the triples holding the channel;
 //   skew             the channel's delay, fitted from the pair delays' misfit to a plane wave
-//                    of unit slowness over many source directions, is off the median channel's;
+//                    over many source directions (ChannelDelayFit), is off the median
+//                    channel's by several of its cluster-robust standard deviations;
 //   swapped          two channels wired to each other's inputs: the pair delays with the two
 //                    relabelled fit a plane wave decisively better than as wired. Closure cannot
 //                    see it (a relabelling keeps every sum), nor can anything at one node when
@@ -27,12 +28,14 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "doa/array_geometry.hpp"
+#include "doa/channel_delay_fit.hpp"
 #include "doa/doa_measurement.hpp"
 
 namespace dronetrack::doa {
@@ -72,7 +75,10 @@ struct ArrayHealthSettings {
   double closure_us = 40.0;        // |median closure| above this: the triple is off
   int closure_persistence = 3;     // and fails when off on this many judgements in a row
   double frame_closure_us = 30.0;  // a frame with a larger closure feeds no delay fit
-  double skew_us = 150.0;          // a channel's fitted delay off the median's by more
+  double skew_sigmas = 6.0;        // a channel's delay offset this many of its std off 0
+  double min_skew_us = 10.4;       // and over this (half a sample: the node sets it)
+  int min_skew_sectors = 8;        // direction sectors seen before a delay is judged
+  int skew_sectors = 32;           // the sphere's direction sectors (ChannelDelayFit)
   double skew_window_s = 30.0;     // the delay fit forgets with this time constant
   double skew_prior_us = 1000.0;   // channel delays a priori (keeps unseen ones at 0)
   double min_skew_frames = 200.0;  // source frames (forgetting-weighted) before judging it
@@ -102,6 +108,7 @@ struct ArrayChannelHealth {
   ArrayFlags problems_seen = 0;  // present at any time so far
   double level_offset_db = 0.0;  // in-band level minus the array's median, last stretch
   double delay_offset_us = 0.0;  // fitted channel delay minus the median channel's
+  double delay_std_us = std::numeric_limits<double>::infinity();  // its std (inf: not judged)
 };
 
 // A problem raised on one channel.
@@ -111,6 +118,8 @@ struct ArrayHealthEvent {
   double time_s = 0.0;               // stream time of the judgement that raised it
   double level_offset_db = 0.0;      // the channel's, then
   double delay_offset_us = 0.0;      // the channel's, then
+  double delay_std_us = 0.0;         // and its std
+  int delay_sectors = 0;             // skew: the direction sectors the fit had seen
   double closure_residual_us = 0.0;  // the array's, then
   double share = 0.0;      // dead (incoherent)/polarity: share of the judged frames that showed it
   int other_channel = -1;  // swapped: the channel it is wired with
@@ -143,6 +152,10 @@ class ArrayHealth {
   // unit slowness (us): grows for a moved mic or a skewed channel; 0 before any.
   double fit_residual_us() const { return fit_residual_us_; }
   const ArrayHealthSettings& settings() const { return settings_; }
+  // The skew check's delay fit (ChannelDelayFit): the direction sectors it has seen, and the
+  // slowness's scale error it found; 0 for arrays without one (planar, linear, two mics).
+  int delay_sectors_seen() const { return delay_fit_ ? delay_fit_->sectors_seen() : 0; }
+  double slowness_scale_error() const { return delay_fit_ ? delay_fit_->scale_error() : 0.0; }
   // Whether swapping channels a and b leaves a plane-wave misfit the swap check can see: its
   // RMS over the sphere of directions is at least swap_evidence_us. False for a swap that is a
   // symmetry of the array (every swap of a regular tetrahedron), and for arrays without a fit.
@@ -151,13 +164,9 @@ class ArrayHealth {
   double swap_signature_us(int a, int b) const;
 
  private:
-  using PairVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxPairs, 1>;
-  using ChannelVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
-  using PairByChannel = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxPairs, 8>;
-  using ChannelMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
-  using PairBySpace = Eigen::Matrix<double, Eigen::Dynamic, 3, 0, kMaxPairs, 3>;
+  using PairVector = ChannelDelayFit::PairVector;
+  using PairBySpace = ChannelDelayFit::PairBySpace;
   using SpaceByPair = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxPairs>;
-  using SpaceByChannel = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 8>;
   struct ProblemState {
     bool present = false;
     bool announced = false;
@@ -218,23 +227,15 @@ class ArrayHealth {
   int fit_count_ = 0;
   int fit_next_ = 0;
   double fit_residual_us_ = 0.0;
-  // Delay fit (rank-3 arrays): information form, forgetting, about the estimate it linearises at.
+  // Plane-wave fits (rank-3 arrays): the swap check's misfits and the delay fit.
   bool fit_possible_ = false;
-  PairBySpace geometry_{};               // G: row (i,j) = (p_j - p_i), tau = G u / c + D d
-  SpaceByPair geometry_inverse_{};       // G^+
-  PairByChannel out_of_range_{};         // E = (I - G G^+) D
-  SpaceByChannel slowness_of_delays_{};  // F = G^+ D
-  PairByChannel difference_{};           // D: row (i,j) = e_i - e_j
-  ChannelMatrix information_{};
-  ChannelVector information_vector_{};
-  double fit_frames_ = 0.0;      // forgetting-weighted count
-  double fit_square_sum_ = 0.0;  // forgetting-weighted sum of the misfits' squares (s^2)
+  PairBySpace geometry_{};          // G: row (i,j) = (p_j - p_i), tau = G u / c
+  SpaceByPair geometry_inverse_{};  // G^+
   double forgetting_ = 1.0;
-  ChannelVector delay_estimate_s_{};
-  std::vector<double> previous_offset_us_{};  // per channel, the last fit's
-  PairByChannel frame_jacobian_{};
+  std::optional<ChannelDelayFit> delay_fit_{};
+  std::vector<std::uint8_t> previous_skewed_{};  // per channel, the last judgement's
+  int delay_sectors_ = 0;                        // the fit's sectors seen, last judgement
   PairVector frame_tdoas_{};
-  PairVector frame_misfit_{};
   // Swap check: per transposition (a < b, lexicographic), the source pair and sign of each pair
   // after relabelling, the misfit it leaves over the sphere, and the forgetting-weighted sums of
   // squared misfits (index 0: as wired, 1 + t: transposition t).

@@ -133,10 +133,12 @@ std::string NodePipeline::setup_problem(const ArrayGeometry& geometry, const Doa
   return node_detail::setup_problem(geometry, params, sample_rate_hz, speed_of_sound_mps);
 }
 
-// A pair hears the array-health checks' source at the peak the node needs to publish.
-ArrayHealthSettings array_health_settings(const DoaParams& params) {
+// A pair hears the array-health checks' source at the peak the node needs to publish; a skew
+// under half a sample is not one a channel can have (a converter's or a buffer's is whole).
+ArrayHealthSettings array_health_settings(const DoaParams& params, double sample_rate_hz) {
   ArrayHealthSettings settings;
   settings.coherent_peak = std::clamp(params.min_gcc_peak, 0.05, 0.95);
+  settings.min_skew_us = 0.5e6 / sample_rate_hz;
   return settings;
 }
 
@@ -159,7 +161,7 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
       band(band_runs(params.bands_hz, sample_rate_hz, fft.fft_size())),
       health(static_cast<int>(geometry.mic_count()), sample_rate_hz, health_settings(params)),
       array_health(geometry, speed_of_sound_mps, static_cast<double>(hop) / sample_rate_hz,
-                   array_health_settings(params)) {
+                   array_health_settings(params, sample_rate_hz_in)) {
   if (!geometry.channel_delay_s.empty() || !geometry.channel_gain_db.empty()) {
     std::vector<double> delay_samples;
     for (double delay_s : geometry.channel_delay_s)

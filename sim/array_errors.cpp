@@ -63,6 +63,9 @@ std::vector<ArrayErrors> draw_array_errors(const ArrayErrorSpec& spec,
       errors.channel_gain_db.push_back(spec.gain_spread_db * random.normal());
       errors.channel_delay_s.push_back(spec.channel_delay_std_s * random.normal());
     }
+    for (const MicRef& ref : spec.channel_delays)
+      if (ref.array_id == site.arrays[a].geometry.id)
+        errors.channel_delay_s[static_cast<std::size_t>(ref.mic)] += ref.delay_s;
     for (const MicRef& ref : spec.dead_mics)
       if (ref.array_id == site.arrays[a].geometry.id) errors.dead_mics.push_back(ref.mic);
     for (const MicRef& ref : spec.flipped_mics)

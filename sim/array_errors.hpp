@@ -16,11 +16,13 @@
 
 namespace dronetrack::sim {
 
-// One mic of one array (array_errors.dead_mics, flipped_mics), or two (swapped_channels).
+// One mic of one array (array_errors.dead_mics, flipped_mics, channel_delays), or two
+// (swapped_channels).
 struct MicRef {
   std::string array_id;
   int mic = 0;
-  int other_mic = -1;  // swapped_channels: the mic whose channel `mic`'s is swapped with
+  int other_mic = -1;    // swapped_channels: the mic whose channel `mic`'s is swapped with
+  double delay_s = 0.0;  // channel_delays: how late channel `mic` records
 };
 
 // The keys, each a 1-sigma spread (0: none), and the faults set by name.
@@ -36,6 +38,7 @@ struct ArrayErrorSpec {
   std::vector<MicRef> dead_mics{};         // record their sensor noise only (no sound reaches them)
   std::vector<MicRef> flipped_mics{};      // record everything inverted (polarity flipped)
   std::vector<MicRef> swapped_channels{};  // two mics wired to each other's channel
+  std::vector<MicRef> channel_delays{};    // one channel's fixed delay, on top of the drawn one
 };
 
 // One array's draws.

@@ -284,9 +284,16 @@ void parse_noise_level(ObjectReader& parent, const std::string& key, NoiseLevel&
 
 // A list of {"array": id, "mic": index} (or, for pairs, {"array": id, "mics": [a, b]}, two
 // different mics): the array must be the site's, the mics its mics.
+// What a list of array_errors names: one mic ({"array", "mic"}), two ({"array", "mics": [a,
+// b]}) or one channel and its delay ({"array", "channel", "delay_s"}).
+enum class MicRefKind { mic, pair, channel_delay };
+
 void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::SiteConfig& site,
-                    std::vector<MicRef>& out, bool pairs = false) {
-  const std::string mic_key = pairs ? "mics" : "mic";
+                    std::vector<MicRef>& out, MicRefKind kind = MicRefKind::mic) {
+  const bool pairs = kind == MicRefKind::pair;
+  const std::string mic_key = pairs                               ? "mics"
+                              : kind == MicRefKind::channel_delay ? "channel"
+                                                                  : "mic";
   parent.for_each(key, false, [&](const nlohmann::json& element, const std::string& path) {
     ObjectReader reader(element, path, parent.diagnostics());
     const std::string id = reader.required_string("array").value_or("");
@@ -294,6 +301,7 @@ void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::
     if (!id.empty() && array < 0) {
       reader.diagnostics().error(reader.path_of("array"), "no array '" + id + "' in the site");
       reader.accept(mic_key);
+      if (kind == MicRefKind::channel_delay) reader.accept("delay_s");
       return;
     }
     const int mics =
@@ -302,9 +310,10 @@ void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::
             : static_cast<int>(site.arrays[static_cast<std::size_t>(array)].geometry.mic_count());
     if (!reader.has(mic_key)) {
       reader.diagnostics().error(reader.path_of(mic_key), "required " + mic_key + " is missing");
+      if (kind == MicRefKind::channel_delay) reader.accept("delay_s");
       return;
     }
-    MicRef ref{id, 0, -1};
+    MicRef ref{id, 0, -1, 0.0};
     if (pairs) {
       const std::optional<std::vector<double>> both = reader.numbers(mic_key, 2, true);
       if (!both) return;
@@ -321,6 +330,12 @@ void parse_mic_refs(ObjectReader& parent, const std::string& key, const config::
       ref.other_mic = static_cast<int>(b);
     } else {
       const std::optional<int> mic = reader.optional_integer(mic_key, 0, mics - 1);
+      if (kind == MicRefKind::channel_delay) {
+        // A channel's delay as a converter or buffer gives it: up to 10 ms either way.
+        const std::optional<double> delay_s = reader.required_number("delay_s", -0.01, 0.01);
+        if (!delay_s) return;
+        ref.delay_s = *delay_s;
+      }
       if (!mic) return;
       ref.mic = *mic;
     }
@@ -590,7 +605,10 @@ Scenario parse_scenario(const json& document, const std::filesystem::path& base_
       spec.clock_offset_std_s = errors.number("clock_offset_std_s", 0.0, 0.0, 1.0);
       parse_mic_refs(errors, "dead_mics", scenario.site, spec.dead_mics);
       parse_mic_refs(errors, "flipped_mics", scenario.site, spec.flipped_mics);
-      parse_mic_refs(errors, "swapped_channels", scenario.site, spec.swapped_channels, true);
+      parse_mic_refs(errors, "swapped_channels", scenario.site, spec.swapped_channels,
+                     MicRefKind::pair);
+      parse_mic_refs(errors, "channel_delays", scenario.site, spec.channel_delays,
+                     MicRefKind::channel_delay);
     }
     scenario.array_errors = draw_array_errors(scenario.array_error_spec, scenario.site);
     apply_geometry_errors(scenario.array_errors, scenario.site);

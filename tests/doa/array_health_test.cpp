@@ -39,6 +39,7 @@ struct Scene {
   std::vector<double> pair_peak = std::vector<double>(6, 0.6);
   std::vector<double> pair_lag_error_s = std::vector<double>(6, 0.0);
   double noise_s = 2e-6;
+  double speed_mps = kSpeed;  // the air's; the node assumes kSpeed
   unsigned seed = 1;
   std::array<int, 2> swapped{-1, -1};  // two mics recorded on each other's channel
   // The source's direction at a time: by default circling the array.
@@ -67,7 +68,7 @@ struct Scene {
         for (int j = i + 1; j < 4; ++j, ++p) {
           const auto pair = static_cast<std::size_t>(p);
           const double tdoa_s =
-              (geometry.mics_m[heard_by(j)] - geometry.mics_m[heard_by(i)]).dot(u) / kSpeed +
+              (geometry.mics_m[heard_by(j)] - geometry.mics_m[heard_by(i)]).dot(u) / speed_mps +
               channel_delay_s[static_cast<std::size_t>(i)] -
               channel_delay_s[static_cast<std::size_t>(j)];
           // A band-pass correlation: main lobe and a side lobe of the other sign a third as large.
@@ -164,26 +165,85 @@ TEST(ArrayHealth, QuietChannelIsDeadAndLoudOneImbalanced) {
   EXPECT_NEAR(health.channel_health()[3].level_offset_db, -30.0, 1e-9);
 }
 
-// The delay fit names a skewed channel and measures its skew; closure cannot (a pure delay
-// cancels in every closure sum). The default threshold (150 us) is set by the bundled scenes'
-// near-field and echo misfits; on far-field delays the fit resolves one sample.
-void expect_skew_found(double skew_s, double threshold_us) {
+// A tetrahedron with no symmetry (mics at different radii and heights): every swap of two of its
+// channels leaves a plane-wave misfit.
+ArrayGeometry irregular_tetrahedron() {
+  ArrayGeometry geometry = tetrahedron();
+  geometry.mics_m = {{0.0, 0.0, 0.6}, {0.55, 0.0, -0.1}, {-0.2, 0.45, -0.2}, {-0.3, -0.35, -0.15}};
+  return geometry;
+}
+
+// The source staying near one direction (a few degrees either way).
+Scene source_staying_near(double azimuth_deg, double elevation_deg) {
   Scene scene;
-  scene.channel_delay_s[2] = skew_s;
-  ArrayHealthSettings settings;
-  settings.skew_us = threshold_us;
-  ArrayHealth health = make_health(scene, settings);
+  scene.geometry = irregular_tetrahedron();
+  scene.direction = [=](double time_s) {
+    return direction_deg(azimuth_deg + 5.0 * std::sin(0.3 * time_s),
+                         elevation_deg + 3.0 * std::sin(0.2 * time_s));
+  };
+  return scene;
+}
+
+// The delay fit names a skewed channel and measures its skew; closure cannot (a pure delay
+// cancels in every closure sum). At the default settings it resolves one sample at 48 kHz, on
+// a bottom mic and on the top one, of the regular and the irregular array.
+void expect_skew_found(double skew_s, int channel, const ArrayGeometry& geometry) {
+  Scene scene;
+  scene.geometry = geometry;
+  scene.channel_delay_s[static_cast<std::size_t>(channel)] = skew_s;
+  ArrayHealth health = make_health(scene);
   const auto events = raised(scene.run(health, 40.0));
-  EXPECT_EQ(events, only(2, ArrayProblem::skew)) << "skew " << skew_s;
-  EXPECT_NEAR(health.channel_health()[2].delay_offset_us, 1e6 * skew_s, 3.0);
-  for (int c : {0, 1, 3}) EXPECT_LT(std::fabs(health.channel_health()[c].delay_offset_us), 3.0);
+  EXPECT_EQ(events, only(channel, ArrayProblem::skew)) << "skew " << skew_s << " on " << channel;
+  const ArrayChannelHealth& skewed = health.channel_health()[static_cast<std::size_t>(channel)];
+  EXPECT_NEAR(skewed.delay_offset_us, 1e6 * skew_s, 3.0);
+  // The recovered delay within its reported std (3 sigma), which is a fraction of a sample.
+  EXPECT_LT(std::fabs(skewed.delay_offset_us - 1e6 * skew_s), 3.0 * skewed.delay_std_us + 0.5);
+  EXPECT_LT(skewed.delay_std_us, 5.0);
+  for (int c = 0; c < 4; ++c) {
+    if (c == channel) continue;
+    EXPECT_LT(std::fabs(health.channel_health()[static_cast<std::size_t>(c)].delay_offset_us), 3.0);
+  }
   EXPECT_LT(health.closure_residual_us(), 3.0);
   EXPECT_GT(health.fit_residual_us(), 3.0);
 }
 
 TEST(ArrayHealth, SkewedChannelNamedByTheDelayFit) {
-  expect_skew_found(0.2e-3, ArrayHealthSettings{}.skew_us);
-  expect_skew_found(1.0 / 48000.0, 10.0);  // one sample at 48 kHz
+  expect_skew_found(0.2e-3, 2, tetrahedron());
+  for (int channel : {0, 2}) {
+    expect_skew_found(1.0 / 48000.0, channel, tetrahedron());  // one sample at 48 kHz
+    expect_skew_found(1.0 / 48000.0, channel, irregular_tetrahedron());
+  }
+}
+
+// Air 2 % faster than the node assumes (12 K warmer) scales every slowness, which a top-mic
+// delay mimics from any one elevation: the fit's scale takes it, no channel is skewed.
+TEST(ArrayHealth, SpeedOfSoundOffIsNotASkew) {
+  for (const ArrayGeometry& geometry : {tetrahedron(), irregular_tetrahedron()}) {
+    Scene scene;
+    scene.geometry = geometry;
+    scene.speed_mps = 1.02 * kSpeed;
+    ArrayHealth health = make_health(scene);
+    EXPECT_TRUE(scene.run(health, 60.0).empty());
+    EXPECT_NEAR(health.slowness_scale_error(), 1.0 / 1.02 - 1.0, 0.002);
+    for (const ArrayChannelHealth& channel : health.channel_health())
+      EXPECT_LT(std::fabs(channel.delay_offset_us), 3.0);
+  }
+}
+
+// A source that stays near one direction leaves a channel's delay indistinguishable from a turn
+// of the direction and from the slowness's scale: unexcited, so not judged, even at 0.2 ms.
+TEST(ArrayHealth, SkewFromTooFewDirectionsIsNotJudged) {
+  for (int channel : {0, 2}) {
+    Scene scene = source_staying_near(100.0, 30.0);
+    scene.geometry = tetrahedron();
+    scene.channel_delay_s[static_cast<std::size_t>(channel)] = 0.2e-3;
+    ArrayHealth health = make_health(scene);
+    EXPECT_TRUE(scene.run(health, 60.0).empty()) << channel;
+    EXPECT_GT(health.delay_sectors_seen(), 0);
+    EXPECT_LT(health.delay_sectors_seen(), ArrayHealthSettings{}.min_skew_sectors);
+    for (const ArrayChannelHealth& health_of : health.channel_health())
+      EXPECT_FALSE(std::isfinite(health_of.delay_std_us));
+  }
 }
 
 TEST(ArrayHealth, ChannelWhosePairsDisagreeFailsClosure) {
@@ -216,14 +276,6 @@ TEST(ArrayHealth, RejectsBadSettingsByName) {
   }
 }
 
-// A tetrahedron with no symmetry (mics at different radii and heights): every swap of two of its
-// channels leaves a plane-wave misfit.
-ArrayGeometry irregular_tetrahedron() {
-  ArrayGeometry geometry = tetrahedron();
-  geometry.mics_m = {{0.0, 0.0, 0.6}, {0.55, 0.0, -0.1}, {-0.2, 0.45, -0.2}, {-0.3, -0.35, -0.15}};
-  return geometry;
-}
-
 // Two channels wired to each other's inputs keep every closure sum (a relabelling), so only the
 // plane-wave fit can name them: every swap of the irregular array, the source circling.
 TEST(ArrayHealth, SwappedChannelsNamedTogether) {
@@ -251,16 +303,6 @@ TEST(ArrayHealth, SwappedChannelsNamedTogether) {
 // The same with the source staying in one region of the sky, for several regions: a swap's
 // misfit changes with the direction, but is well over the evidence bar at these. (Near this
 // array's zenith swapping 1 and 3 leaves almost none, and the check says nothing there.)
-Scene source_staying_near(double azimuth_deg, double elevation_deg) {
-  Scene scene;
-  scene.geometry = irregular_tetrahedron();
-  scene.direction = [=](double time_s) {
-    return direction_deg(azimuth_deg + 5.0 * std::sin(0.3 * time_s),
-                         elevation_deg + 3.0 * std::sin(0.2 * time_s));
-  };
-  return scene;
-}
-
 TEST(ArrayHealth, SwappedChannelsNamedFromSeveralDirections) {
   Scene near_zenith = source_staying_near(45.0, 80.0);
   near_zenith.swapped = {1, 3};
@@ -333,7 +375,7 @@ std::vector<ArrayHealthEvent> run_node(const AudioFault& fault, NodePipeline** k
   for (int s = 0; s < 30; ++s) {
     testing::Recording recording = testing::silent_recording(4, static_cast<std::size_t>(segment));
     const testing::BandNoise source(segment, kRate, 500.0, 3000.0, 100U + static_cast<unsigned>(s));
-    const Eigen::Vector3d u = direction_deg(37.0 * s, 10.0 + 3.0 * (s % 9));
+    const Eigen::Vector3d u = direction_deg(37.0 * s, 10.0 + 6.0 * (s % 9));
     std::vector<double> delays = testing::plane_wave_delays(geometry, u, kSpeed);
     if (fault.skewed >= 0) delays[static_cast<std::size_t>(fault.skewed)] += 0.2e-3;
     for (int mic = 0; mic < 4; ++mic) {

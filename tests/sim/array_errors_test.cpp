@@ -55,6 +55,43 @@ TEST(ArrayErrors, ChannelsRecordLateAndLoudAsDrawn) {
   }
 }
 
+// array_errors.channel_delays: one channel records exactly that late (one sample at 48 kHz),
+// the others as they were; a bad entry is one error naming its path.
+TEST(ArrayErrors, ChannelDelayAsSet) {
+  const Scenario ideal = parse_scenario(errors_scene(), ".");
+  const std::string id = ideal.site.arrays.at(0).geometry.id;
+  json document = errors_scene();
+  document["array_errors"] = {
+      {"channel_delays", {{{"array", id}, {"channel", 2}, {"delay_s", 1.0 / 48000.0}}}}};
+  const Scenario built = parse_scenario(document, ".");
+  const RenderedArray a = render_array(ideal, 0);
+  const RenderedArray b = render_array(built, 0);
+  for (std::size_t mic = 0; mic < 4; ++mic) {
+    const double expected_s = mic == 2 ? 1.0 / 48000.0 : 0.0;
+    EXPECT_EQ(built.array_errors.at(0).channel_delay_s.at(mic), expected_s);
+    const double lag = test::correlation_peak_lag(test::channel(b, mic, 4800, 43200),
+                                                  test::channel(a, mic, 4800, 43200),
+                                                  expected_s * 48000.0, 3.0, 300.0, 8000.0);
+    EXPECT_NEAR(lag / 48000.0, expected_s, 2e-7) << "mic " << mic;
+  }
+  const std::vector<std::pair<json, std::string>> bad = {
+      {{{"array", id}, {"channel", 4}, {"delay_s", 1e-4}},
+       "array_errors.channel_delays[0].channel"},
+      {{{"array", id}, {"channel", 1}}, "array_errors.channel_delays[0].delay_s"},
+      {{{"array", id}, {"channel", 1}, {"delay_s", 0.5}}, "array_errors.channel_delays[0].delay_s"},
+      {{{"array", "nowhere"}, {"channel", 1}, {"delay_s", 1e-4}},
+       "array_errors.channel_delays[0].array"}};
+  for (const auto& [entry, path] : bad) {
+    document["array_errors"] = {{"channel_delays", {entry}}};
+    try {
+      parse_scenario(document, ".");
+      ADD_FAILURE() << entry.dump();
+    } catch (const config::ConfigError& error) {
+      EXPECT_NE(std::string(error.what()).find(path), std::string::npos) << error.what();
+    }
+  }
+}
+
 TEST(ArrayErrors, MicsAndYawMoveAsDrawnAndTheDrawsFollowTheSeed) {
   json document = errors_scene();
   document["array_errors"] = {{"seed", 9}, {"mic_position_std_m", 0.003}, {"yaw_std_deg", 2.0}};
