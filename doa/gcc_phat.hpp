@@ -255,8 +255,10 @@ class GccPhat {
   // Lag grid summed directly over the kept bins (direct_grids) or by the inverse FFT.
   int lag_rows_ = 0;    // lags 0..max half span
   int lag_stride_ = 0;  // lag_rows_ rounded up to whole blocks
-  // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
-  std::vector<double> lag_table_;
+  // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m
+  // (single precision, as the sums over them).
+  std::vector<float> lag_table_;
+  std::vector<float> phasor_floats_;  // direct_grids(): the phasors demoted
   std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1

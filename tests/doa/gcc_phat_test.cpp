@@ -160,9 +160,9 @@ TEST(GccPhat, NoisyDelayStaysWithinItsPredictedSpread) {
 }
 
 // The lag grid is the continuous correlation at the grid lags, however it is computed: by the
-// inverse FFT (every bin kept; single precision, so to ~1e-7 of a peak's 1) or by direct sums
-// over the kept bins (few kept, as after a loud source's bins are dropped; double). A refined
-// peak asked for again is the same peak.
+// inverse FFT or by direct sums over the kept bins (few kept, as after a loud source's bins are
+// dropped; with eight or more float lanes the whole band too), both in single precision, so to
+// ~1e-7 of a peak's 1. A refined peak asked for again is the same peak.
 TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   const int length = 2 * 8192;
   const testing::BandNoise first(length, kRate, 1500.0, 3500.0, 11);
@@ -190,7 +190,7 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
     }
   };
   const std::vector<std::uint8_t> whitened_mask(gcc.bin_keep().begin(), gcc.bin_keep().end());
-  gcc.correlate();  // every bin: inverse FFT
+  gcc.correlate();  // every bin: inverse FFT or direct sums, per the target
   check_grid("all bins kept", 1e-6);
   for (int p = 0; p < gcc.pair_count(); ++p) {
     GccPeak again;
@@ -203,7 +203,7 @@ TEST(GccPhat, LagGridMatchesContinuousCorrelationWithAllOrFewBinsKept) {
   for (std::size_t k = 0; k < keep.size(); ++k) keep[k] = k % 7 == 0 ? 1 : 0;
   gcc.correlate(false);
   EXPECT_LT(gcc.kept_bin_count(), gcc.band_bin_count() / 5);
-  check_grid("few bins kept", 1e-12);
+  check_grid("few bins kept", 1e-6);
   // Back to the whitening's cross-power: the same grid and peaks as the first time.
   gcc.cross_power(gcc.units(), whitened_mask);
   gcc.correlate();
@@ -289,7 +289,7 @@ TEST(GccPhat, EverySimdTargetAgrees) {
   };
   for (const Outcome& other : outcomes) {
     compare(other, reference.all_kept, other.all_kept, "all bins kept", 1e-6);
-    compare(other, reference.few_kept, other.few_kept, "every 5th bin kept", 1e-12);
+    compare(other, reference.few_kept, other.few_kept, "every 5th bin kept", 1e-6);
   }
 }
 
