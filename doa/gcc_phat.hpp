@@ -9,8 +9,9 @@
 // then maximises the continuous band-limited correlation R(tau) = sum_k Re(W_k e^{j w_k tau})
 // directly (Newton steps on the band bins): no interpolation bias at all. Parabolic
 // interpolation on the grid is kept for comparison (tests/doa/gcc_phat_test.cpp measures both).
-// Only the lags within the physical limit are used: when few bins are kept (a louder source's
-// bins dropped) they are summed directly over those bins, which is then cheaper than the FFT.
+// Only the lags within the physical limit are used: they are summed directly over the kept
+// bins (single precision, as the FFT) when that is cheaper than the FFT: with few bins kept (a
+// louder source's bins dropped) always, over the whole band when the vectors are wide enough.
 //
 // Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
 // of X_i X_j* peaks there.
