@@ -104,8 +104,8 @@ void GccPhat::direct_grids(double normalisation) {
     kept_indices_[static_cast<std::size_t>(kept)] = index;
     kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
   }
-  simd::direct_grids({phasors_.data(), static_cast<std::size_t>(band_bins_), grids_.data(),
-                      static_cast<std::size_t>(grid_stride_), half_spans_.data(),
+  simd::direct_grids({phasors_.data(), static_cast<std::size_t>(band_bins_), phasor_floats_.data(),
+                      grids_.data(), static_cast<std::size_t>(grid_stride_), half_spans_.data(),
                       static_cast<int>(pairs_.size()), lag_table_.data(),
                       static_cast<std::size_t>(lag_stride_), kept_indices_.data(), kept_bins_,
                       normalisation});

@@ -135,18 +135,23 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   // FFT makes. When few bins are kept (the re-correlations after a loud source's bins are
   // dropped: typically 10-30 % of the band) the lags are cheaper summed directly over the kept
   // bins: per bin one row of cos and one of sin over lags 0..max_half_span, each product used
-  // for +m and -m. Same sums as the inverse FFT, up to rounding. Per frame correlate() takes
-  // the cheaper of the two from the count of kept bins (kDirectProductsPerFftPoint, measured).
+  // for +m and -m. Same sums as the inverse FFT, up to rounding (both single precision). Per
+  // frame correlate() takes the cheaper of the two from the count of kept bins and the target's
+  // lanes (kDirectProductsPerFftPoint*, measured): with 8 or more float lanes the whole band at
+  // the defaults is summed directly too.
   lag_rows_ = max_half_span + 1;
   lag_stride_ = (lag_rows_ + simd::kLagStrideMultiple - 1) / simd::kLagStrideMultiple *
                 simd::kLagStrideMultiple;  // whole blocks, zeros after
-  max_direct_products_ =
-      (simd_double_lanes() >= kWideLanes ? kWideProductsPerFftPoint : kDirectProductsPerFftPoint) *
-      correlation_size_ * std::log2(static_cast<double>(correlation_size_));
+  const int float_lanes = 2 * simd_double_lanes();
+  max_direct_products_ = (float_lanes >= 16  ? kDirectProductsPerFftPoint16
+                          : float_lanes >= 8 ? kDirectProductsPerFftPoint8
+                                             : kDirectProductsPerFftPoint4) *
+                         correlation_size_ * std::log2(static_cast<double>(correlation_size_));
   // No table when too few kept bins to correlate at all would already cost more than the FFT.
   if (max_direct_products_ / lag_rows_ >= std::max(1.0, kMinKeptShare * band_bins_)) {
     const std::size_t row = 2 * static_cast<std::size_t>(lag_stride_);
-    lag_table_.assign(static_cast<std::size_t>(band_bins_) * row, 0.0);
+    lag_table_.assign(static_cast<std::size_t>(band_bins_) * row, 0.0F);
+    phasor_floats_.assign(2 * static_cast<std::size_t>(band_bins_) * pairs_.size(), 0.0F);
     // Angles 2 pi k m / N are multiples of 2 pi / N: reduced exactly in integers and looked up.
     std::vector<std::complex<double>> circle(static_cast<std::size_t>(correlation_size_));
     for (int n = 0; n < correlation_size_; ++n)
@@ -158,8 +163,9 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
         for (int m = 0; m < lag_rows_; ++m) {
           const std::complex<double> turn = circle[static_cast<std::size_t>(
               static_cast<std::int64_t>(k) * m % correlation_size_)];
-          lag_table_[index + static_cast<std::size_t>(m)] = turn.real();
-          lag_table_[index + static_cast<std::size_t>(lag_stride_ + m)] = turn.imag();
+          lag_table_[index + static_cast<std::size_t>(m)] = static_cast<float>(turn.real());
+          lag_table_[index + static_cast<std::size_t>(lag_stride_ + m)] =
+              static_cast<float>(turn.imag());
         }
       }
     }

@@ -9,8 +9,9 @@
 // then maximises the continuous band-limited correlation R(tau) = sum_k Re(W_k e^{j w_k tau})
 // directly (Newton steps on the band bins): no interpolation bias at all. Parabolic
 // interpolation on the grid is kept for comparison (tests/doa/gcc_phat_test.cpp measures both).
-// Only the lags within the physical limit are used: when few bins are kept (a louder source's
-// bins dropped) they are summed directly over those bins, which is then cheaper than the FFT.
+// Only the lags within the physical limit are used: they are summed directly over the kept
+// bins (single precision, as the FFT) when that is cheaper than the FFT: with few bins kept (a
+// louder source's bins dropped) always, over the whole band when the vectors are wide enough.
 //
 // Sign convention: tau_ij = t_i - t_j (arrival time at mic i minus at mic j); the correlation
 // of X_i X_j* peaks there.
@@ -255,8 +256,10 @@ class GccPhat {
   // Lag grid summed directly over the kept bins (direct_grids) or by the inverse FFT.
   int lag_rows_ = 0;    // lags 0..max half span
   int lag_stride_ = 0;  // lag_rows_ rounded up to whole blocks
-  // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m.
-  std::vector<double> lag_table_;
+  // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m
+  // (single precision, as the sums over them).
+  std::vector<float> lag_table_;
+  std::vector<float> phasor_floats_;  // direct_grids(): the phasors demoted
   std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1

@@ -17,15 +17,17 @@ constexpr double kMaxPeakRatio = 100.0;
 constexpr double kMinKeptShare = 0.02;
 // Smallest bin weight: a weighted phasor can be scaled back to plain PHAT (1 / w) exactly.
 constexpr double kMinWeight = 1e-3;
-// The lag grid is summed directly over the kept bins when kept bins x lags is below this times
-// N log2 N of the inverse FFT (N = correlation size); measured with doa_bench's
-// BM_PipelineStage (direct and FFT cost the same at about this ratio on x86-64 with FFTW 3.3
-// and two or four lanes). With AVX-512's eight lanes direct sums beat the FFT even over the
-// whole band (342 bins x 31 lags x 6 pairs in ~6.5 us against ~9 us for six single-precision
-// c2r transforms of 2048 points): kWideProductsPerFftPoint there.
-constexpr double kDirectProductsPerFftPoint = 0.25;
-constexpr double kWideProductsPerFftPoint = 1.0;
-constexpr int kWideLanes = 8;
+// The lag grid is summed directly over the kept bins (single precision) when kept bins x lags
+// is below this times N log2 N of the inverse FFT (N = correlation size). Direct sums cost in
+// proportion to the products over the target's float lanes; the c2r's cost is FFTW's own.
+// Measured with doa_bench's BM_PipelineStage/2 (the whole band, 342 bins x 31 lags x 6 pairs =
+// 0.47 products per FFT point at the defaults; x86-64, FFTW 3.3, a loaded machine): direct
+// 11.7 us with 4 float lanes (SSE4; NEON has 4 too), 7.6 us with 8 (AVX2), 4.7 us with 16
+// (AVX-512), against 13.5-13.7 us for six single-precision c2r of 2048 points: the crossovers
+// are ~0.55, ~0.85 and ~1.35 products per FFT point. The factors below sit a little under.
+constexpr double kDirectProductsPerFftPoint4 = 0.5;   // 4 float lanes or fewer
+constexpr double kDirectProductsPerFftPoint8 = 0.8;   // 8 (AVX2)
+constexpr double kDirectProductsPerFftPoint16 = 1.3;  // 16 (AVX-512)
 // The band-limited refinement stops when the lag is known to this (1 ns: TDOA noise is
 // microseconds, the grid step tens of microseconds).
 constexpr double kNewtonResidual_s = 1e-9;

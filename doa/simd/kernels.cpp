@@ -152,25 +152,47 @@ constexpr int kGridGroup = 3;
 constexpr int kGridGroup = 6;
 #endif
 
+// Single precision, as the inverse FFT it replaces: the grid only locates peaks (refinement
+// works on the double phasors) and feeds SRP's look-ups; float rounding (~1e-7 of a peak's 1)
+// is far below the noise, and twice the lanes halve the cost. At most sixteen lanes: the
+// table's rows are whole multiples of 32 lags.
+using Floats = hn::CappedTag<float, 16>;
+using FloatVec = hn::Vec<Floats>;
+
+// The pairs' phasors over the whole band in single precision (contiguous: one demotion per
+// vector, no gather), so the sums below broadcast each from memory.
+void DemotePhasors(const GridJob& job) {
+  const Full d;
+  const hn::Rebind<float, Full> half;
+  const std::size_t lanes = hn::Lanes(d);
+  const std::size_t count = 2 * job.pair_stride * static_cast<std::size_t>(job.pairs);
+  const auto* from = reinterpret_cast<const double*>(job.phasors);
+  std::size_t n = 0;
+  for (; n + lanes <= count; n += lanes)
+    hn::StoreU(hn::DemoteTo(half, hn::LoadU(d, from + n)), half, job.phasor_floats + n);
+  for (; n < count; ++n) job.phasor_floats[n] = static_cast<float>(from[n]);
+}
+
 // kGridGroup pairs at once, two vectors of lags per block: every table row is loaded once for
-// all the group's pairs. At most eight lanes: the table's rows are whole multiples of 16 lags.
+// all the group's pairs.
 void DirectGrids(const GridJob& job) {
   note_dispatch(HWY_TARGET);
-  const Capped d;
+  DemotePhasors(job);
+  const Floats d;
   const int lanes = static_cast<int>(hn::Lanes(d));
   const int block = 2 * lanes;
   for (int group = 0; group < job.pairs; group += kGridGroup) {
     // A short last group repeats its last pair (its sums are not stored).
-    std::array<const std::complex<double>*, kGridGroup> rows{};
+    std::array<const float*, kGridGroup> rows{};
     int max_half = 0;
     for (int q = 0; q < kGridGroup; ++q) {
       const int p = std::min(group + q, job.pairs - 1);
       rows[static_cast<std::size_t>(q)] =
-          job.phasors + static_cast<std::size_t>(p) * job.pair_stride;
+          job.phasor_floats + 2 * static_cast<std::size_t>(p) * job.pair_stride;
       max_half = std::max(max_half, job.half_spans[p]);
     }
     for (int first = 0; first <= max_half; first += block) {
-      CappedVec cosine_low[kGridGroup], cosine_high[kGridGroup], sine_low[kGridGroup],
+      FloatVec cosine_low[kGridGroup], cosine_high[kGridGroup], sine_low[kGridGroup],
           sine_high[kGridGroup];
       for (int q = 0; q < kGridGroup; ++q) {
         cosine_low[q] = hn::Zero(d);
@@ -180,16 +202,16 @@ void DirectGrids(const GridJob& job) {
       }
       for (int n = 0; n < job.kept; ++n) {
         const auto index = static_cast<std::size_t>(job.kept_indices[n]);
-        const double* cosines = job.lag_table + index * 2 * job.lag_stride + first;
-        const double* sines = cosines + job.lag_stride;
-        const CappedVec c_low = hn::LoadU(d, cosines);
-        const CappedVec c_high = hn::LoadU(d, cosines + lanes);
-        const CappedVec s_low = hn::LoadU(d, sines);
-        const CappedVec s_high = hn::LoadU(d, sines + lanes);
+        const float* cosines = job.lag_table + index * 2 * job.lag_stride + first;
+        const float* sines = cosines + job.lag_stride;
+        const FloatVec c_low = hn::LoadU(d, cosines);
+        const FloatVec c_high = hn::LoadU(d, cosines + lanes);
+        const FloatVec s_low = hn::LoadU(d, sines);
+        const FloatVec s_high = hn::LoadU(d, sines + lanes);
         for (int q = 0; q < kGridGroup; ++q) {
-          const std::complex<double> w = rows[static_cast<std::size_t>(q)][index];
-          const CappedVec re = hn::Set(d, w.real());
-          const CappedVec im = hn::Set(d, w.imag());
+          const float* w = rows[static_cast<std::size_t>(q)] + 2 * index;
+          const FloatVec re = hn::Set(d, w[0]);
+          const FloatVec im = hn::Set(d, w[1]);
           cosine_low[q] = hn::MulAdd(re, c_low, cosine_low[q]);
           cosine_high[q] = hn::MulAdd(re, c_high, cosine_high[q]);
           sine_low[q] = hn::MulAdd(im, s_low, sine_low[q]);
@@ -197,8 +219,8 @@ void DirectGrids(const GridJob& job) {
         }
       }
       for (int q = 0; q < kGridGroup && group + q < job.pairs; ++q) {
-        HWY_ALIGN double cosine[16] = {};
-        HWY_ALIGN double sine[16] = {};
+        HWY_ALIGN float cosine[32] = {};
+        HWY_ALIGN float sine[32] = {};
         hn::Store(cosine_low[q], d, cosine);
         hn::Store(cosine_high[q], d, cosine + lanes);
         hn::Store(sine_low[q], d, sine);

@@ -86,22 +86,23 @@ struct ScaleRows {
 };
 double scale_and_sum(const ScaleRows& rows);
 
-// Every pair's lag grid summed directly over the kept bins:
+// Every pair's lag grid summed directly over the kept bins, in single precision:
 // R(+-m) = norm sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)), lags 0..half_span.
 struct GridJob {
   const std::complex<double>* phasors;  // pair p's band at phasors + p * pair_stride
   std::size_t pair_stride;
-  double* grids;  // pair p's 2 half + 1 values at grids + p * grid_stride
+  float* phasor_floats;  // 2 * pair_stride * pairs: the phasors demoted (scratch)
+  double* grids;         // pair p's 2 half + 1 values at grids + p * grid_stride
   std::size_t grid_stride;
   const int* half_spans;
   int pairs;
-  const double* lag_table;  // per band bin: lag_stride cosines, then lag_stride sines
-  std::size_t lag_stride;   // a multiple of kLagStrideMultiple
+  const float* lag_table;  // per band bin: lag_stride cosines, then lag_stride sines
+  std::size_t lag_stride;  // a multiple of kLagStrideMultiple
   const int* kept_indices;
   int kept;
   double normalisation;
 };
-inline constexpr int kLagStrideMultiple = 16;
+inline constexpr int kLagStrideMultiple = 32;
 void direct_grids(const GridJob& job);
 
 // R(tau) = sum Re(W_k e^{j w_k tau}) and its first four derivatives at one lag
