@@ -108,10 +108,12 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // DoaParams on the scene without the ground reflection (nothing for the echo removal to do);
 // 4: default DoaParams without the acoustic features (their cost is /0 minus /4).
 // 5: three bands (0.5-1.5, 1.5-3.5, 3.5-6 kHz) with per-band detection (issue 15: a node per
-// band); 6: the same bands as one union (per_band_detection false).
+// band); 6: the same bands as one union (per_band_detection false); 7: default DoaParams without
+// the static look (its cost is /0 minus /7).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
   if (state.range(0) == 4) params.acoustic.enabled = false;
+  if (state.range(0) == 7) params.static_look.enabled = false;
   if (state.range(0) == 5 || state.range(0) == 6) {
     params.bands_hz = {{500.0, 1500.0}, {1500.0, 3500.0}, {3500.0, 6000.0}};
     params.per_band_detection = state.range(0) == 5;
@@ -158,6 +160,7 @@ BENCHMARK(BM_NodePipeline)
     ->Arg(4)
     ->Arg(5)
     ->Arg(6)
+    ->Arg(7)
     ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.
@@ -406,6 +409,13 @@ int main(int argc, char** argv) {
           "  pipeline / kernel:           %8.2f   (without the acoustic features: they add "
           "%.1f us/frame)\n",
           no_features->second / kernel->second, (pipeline->second - no_features->second) * 1e6);
+    const auto no_static_look = reporter.seconds.find("BM_NodePipeline/7");
+    if (no_static_look != reporter.seconds.end())
+      std::printf(
+          "  pipeline / kernel:           %8.2f   (without the static look: it adds %.1f "
+          "us/frame)\n",
+          no_static_look->second / kernel->second,
+          (pipeline->second - no_static_look->second) * 1e6);
   }
   const std::string target = simd_target_name();
   std::printf("SIMD target %s (%d doubles per vector): %llu kernel calls on it, %llu on all\n",

@@ -34,6 +34,19 @@ void parse_acoustic_settings(ObjectReader& section, doa::AcousticSettings& setti
   comb.min_harmonics = section.integer("min_harmonics", comb.min_harmonics, 2, 100);
 }
 
+// "doa.static_look": one more look on the frames' averaged phasors (doa/static_source_look.hpp).
+void parse_static_look_settings(ObjectReader& section, doa::StaticLookSettings& settings) {
+  settings.enabled = section.boolean("enabled", settings.enabled);
+  settings.averaging_time_s =
+      section.number("averaging_time_s", settings.averaging_time_s, 0.01, 10.0);
+  settings.max_drift_deg = section.number("max_drift_deg", settings.max_drift_deg, 0.05, 10.0);
+  settings.hold_s = section.number("hold_s", settings.hold_s, 0.1, 10.0);
+  settings.own_look_memory_s =
+      section.number("own_look_memory_s", settings.own_look_memory_s, 0.0, 10.0);
+  settings.min_elevation_deg =
+      section.number("min_elevation_deg", settings.min_elevation_deg, -90.0, 90.0);
+}
+
 }  // namespace
 
 // Keys, units and defaults: docs/doa.md ("Configuration").
@@ -126,6 +139,10 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.number("static_null_tolerance_us", params.static_null_tolerance_us, 0.1, 1000.0);
   params.static_null_max_sources =
       section.integer("static_null_max_sources", params.static_null_max_sources, 0, 4);
+  if (section.has("static_look")) {
+    ObjectReader static_look = section.object("static_look");
+    parse_static_look_settings(static_look, params.static_look);
+  }
   if (section.has("acoustic")) {
     ObjectReader acoustic = section.object("acoustic");
     parse_acoustic_settings(acoustic, params.acoustic);

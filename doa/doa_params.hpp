@@ -31,6 +31,28 @@ struct AcousticSettings {
   HarmonicCombSettings comb;
 };
 
+// One more look a frame on the pair phasors averaged over frames, for static sources the
+// frame's own looks miss under louder ones (doa/static_source_look.hpp), the "doa.static_look"
+// config section. On: no bundled scene loses by it (docs/doa.md "Static look, on / off").
+struct StaticLookSettings {
+  bool enabled = true;
+  // Time constant of the phasors' average: 0.14 s is a = 0.7 per 50 ms hop, the measured
+  // prototype's (docs/classification.md): long enough for a static source to gain on a car
+  // drifting ~6 deg/s, short enough that a mover's smear leaves its look unheld.
+  double averaging_time_s = 0.14;
+  double max_drift_deg = 1.0;  // a look's direction this close to one hold_s..2 hold_s earlier
+  double hold_s = 1.0;         // how long a direction must stay put to be static
+  // A direction the frame's own looks found a source near (srp_min_separation_deg) within this
+  // long is theirs and the static look adds nothing there: a drone flying radially holds its
+  // direction as well as a hovering one, and still leads the average for about its time
+  // constant after the own looks last found it. 0: this frame's sources only (the prototype:
+  // perimeter D2 0.84 -> 1.27 m); 0.2 s keeps 0.84 m; 0.3 s halves the hovering drone's gain.
+  double own_look_memory_s = 0.2;
+  // Lowest elevation reported (a generator and its ground image merge near 0 deg; the static
+  // null's domain is up to static_null_max_elevation_deg = 3).
+  double min_elevation_deg = 5.0;
+};
+
 enum class TdoaTracker { per_frame, bayesian_grid, multi_peak, robust_regression };
 
 // How the GCC peak is refined below the lag grid: maximising the continuous band-limited
@@ -104,6 +126,7 @@ struct DoaParams {
   double static_null_tolerance_us = 20.0;      // per pair: "the same TDOA" from frame to frame
   int static_null_max_sources = 2;             // nulled at once
 
+  StaticLookSettings static_look;  // issue 14: docs/doa.md stage 7a
   AcousticSettings acoustic;  // features of each source's spectrum for the classifier (issue 14)
 };
 

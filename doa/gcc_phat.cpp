@@ -221,6 +221,16 @@ void GccPhat::cross_power(const UnitsView& units, std::span<const std::uint8_t> 
   pair_phasors(units, true, weighted);
 }
 
+void GccPhat::cross_power_from(std::span<const std::complex<double>> pair_phasors,
+                               std::span<const std::uint8_t> keep) {
+  cross_power(units(), keep, false);
+  for (std::size_t k = 0; k < phasors_.size(); ++k) {
+    if (phasors_[k] == std::complex<double>{}) continue;  // dropped or silent in this frame
+    const double length = std::abs(pair_phasors[k]);
+    phasors_[k] = length > 0.0 ? pair_phasors[k] / length : std::complex<double>{};
+  }
+}
+
 void GccPhat::process(const MultichannelFft& spectra) {
   whiten(spectra);
   correlate();

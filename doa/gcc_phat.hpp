@@ -146,6 +146,12 @@ class GccPhat {
   // sources: each measured without the others' bins) or on corrected units by calling it again.
   void cross_power(const UnitsView& units, std::span<const std::uint8_t> keep,
                    bool weighted = false);
+  // cross_power() of whiten()'s units under `keep`, unweighted, with every live bin's phasor
+  // then replaced by the given one normalised to unit length (0 stays 0): pair p's band bins at
+  // p * band bins. For a look on phasors averaged over frames (StaticSourceLook); the
+  // magnitudes stay the frame's.
+  void cross_power_from(std::span<const std::complex<double>> pair_phasors,
+                        std::span<const std::uint8_t> keep);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }

@@ -44,13 +44,16 @@ double NodePipeline::Impl::begin_frame(const FrameView& frame) {
   diagnostics.level_dbfs = 10.0 * std::log10(std::max(frame.recent_mean_square, 1e-20));
   candidate_count = 0;
   for (Candidate& candidate : candidates) candidate.echo_removed = false;
-  return (static_cast<double>(frame.first_sample) + 0.5 * (frame.length - 1)) / sample_rate_hz;
+  frame_time_s =
+      (static_cast<double>(frame.first_sample) + 0.5 * (frame.length - 1)) / sample_rate_hz;
+  return frame_time_s;
 }
 
 // Spectra, PHAT units and cross-power, the SNR weights, the static sources' bins dropped.
 void NodePipeline::Impl::whiten(const FrameView& frame, double time_s) {
   fft.process(frame);
   gcc.whiten(fft);
+  if (static_look) static_look->accumulate(gcc);
   if (snr_weight) snr_weight->update(fft, gcc.bin_weight());
   if (static_null) static_null->mask(time_s, gcc);
 }

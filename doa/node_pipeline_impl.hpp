@@ -26,6 +26,7 @@
 #include "doa/source_tracks.hpp"
 #include "doa/spectral_frame.hpp"
 #include "doa/srp_phat.hpp"
+#include "doa/static_source_look.hpp"
 #include "doa/static_source_null.hpp"
 #include "doa/tdoa_tracker.hpp"
 
@@ -76,6 +77,9 @@ struct NodePipeline::Impl {
   bool sources_to_publish(double time_s, bool detecting);
   void find_candidates();
   void find_further_sources();
+  // One more look on the frames' averaged phasors (static_look); adds at most one candidate
+  // (none when max_sources are found).
+  void find_static_source();
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -136,10 +140,12 @@ struct NodePipeline::Impl {
   SourceBinMask bin_mask{gcc};
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
-  std::unique_ptr<StaticSourceNull> static_null;       // static ground sources' bins dropped
-  std::unique_ptr<BinSnrWeight> snr_weight;            // noise-only bins faded
-  std::unique_ptr<AcousticFeatureExtractor> acoustic;  // each source's spectral features
-  bool acoustic_due = false;                           // this frame is measured
+  std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
+  std::unique_ptr<StaticSourceLook> static_look;  // static sources under louder ones
+  std::array<Eigen::Vector3d, kMaxSources> found_directions{};  // the own looks', for it
+  std::unique_ptr<BinSnrWeight> snr_weight;                     // noise-only bins faded
+  std::unique_ptr<AcousticFeatureExtractor> acoustic;           // each source's spectral features
+  bool acoustic_due = false;                                    // this frame is measured
   std::array<Eigen::Vector3d, kMaxSources> acoustic_directions{};
   std::array<int, kMaxSources> acoustic_slots{};
   std::array<std::uint32_t, kMaxSources> acoustic_generations{};
@@ -167,6 +173,7 @@ struct NodePipeline::Impl {
   bool null_observed = false;
   double null_time_s = 0.0;
   bool null_frame_clean = false;
+  double frame_time_s = 0.0;  // this frame's centre, s (begin_frame())
   NodeDiagnostics diagnostics;
   PoseStamp fixed_pose = fixed_stamp(geometry);
   PoseTrack pose_track;            // empty: a fixed array

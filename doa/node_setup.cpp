@@ -206,6 +206,10 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
   if (params.max_sources > 1 && solver.rank() >= 2) {
     srp = std::make_unique<SrpPhat>(solver, gcc, params.srp_grid_deg);
   }
+  // Its elevation floor needs up from down: a 3-D array.
+  if (params.static_look.enabled && srp && solver.rank() >= 3)
+    static_look = std::make_unique<StaticSourceLook>(gcc, tracker_settings.hop_s,
+                                                     params.max_sources, params.static_look);
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
   // horizontal one hears the same comb at every mic: no differential phase to remove.
   if (params.ground_echo && solver.rank() >= 3) {

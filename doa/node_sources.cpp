@@ -167,6 +167,7 @@ void NodePipeline::Impl::find_candidates() {
   }
   keep_frame_mask();
   if (srp) find_further_sources();
+  if (static_look) find_static_source();
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
@@ -212,6 +213,63 @@ void NodePipeline::Impl::find_further_sources() {
     }
   }
   if (candidate_count >= 2) remeasure(0, gcc.units());
+}
+
+// After the frame's own looks: one SRP look on the frames' averaged phasors, every found
+// source's bins dropped, its peak measured on the frame's own phasors. It adds a source only
+// where the own looks found none within own_look_memory_s (a direction a found source explains
+// adds nothing: their source track bridges their gaps) and only when the direction is static
+// (StaticSourceLook::held: a moving source's smeared average puts its peak elsewhere from look
+// to look).
+void NodePipeline::Impl::find_static_source() {
+  for (int s = 0; s < candidate_count; ++s)
+    found_directions[static_cast<std::size_t>(s)] =
+        candidates[static_cast<std::size_t>(s)].solution.direction_site;
+  static_look->note_found(
+      frame_time_s, std::span<const Eigen::Vector3d>(found_directions.data(),
+                                                     static_cast<std::size_t>(candidate_count)));
+  if (candidate_count >= params.max_sources) return;
+  static_look->load_average(gcc, frame_mask);
+  for (int s = 0; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  gcc.correlate(false);
+  srp->begin_frame(gcc);
+  const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
+                                                   std::max(1, gcc.kept_bin_count()));
+  SrpPeak peak;
+  const bool found = srp->strongest(peak, floor);
+  Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+  const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+  if (found) {
+    srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
+    candidate.solution = solver.solve(candidate_tdoas);
+  }
+  // Only a direction no source the own looks found lately explains is remembered: a source they
+  // follow (static, or a drone flying radially) must not make a static history of its own.
+  const bool added =
+      found && candidate.solution.accepted &&
+      !static_look->explained(frame_time_s, candidate.solution.direction_site, separation_cosine) &&
+      static_look->held(frame_time_s, candidate.solution.direction_site);
+  if (added) {
+    candidate.coherence = mean_coherence(candidate_tdoas);
+    candidate.time_offset_s = 0.0;
+    const int index = candidate_count++;
+    // Measured again on the frame's own phasors, the other sources' bins dropped: the frame's
+    // measurement may have moved it onto a found source.
+    bool kept = remeasure(index, gcc.units());
+    for (int s = 0; kept && s < index; ++s)
+      kept =
+          candidate.solution.direction_site.dot(
+              candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
+    if (kept) {
+      ++diagnostics.static_look_sources;
+      return;
+    }
+    --candidate_count;
+  }
+  // The later stages read the frame's phasors.
+  gcc.cross_power(gcc.units(), frame_mask);
 }
 
 void NodePipeline::Impl::keep_frame_mask() {

@@ -221,6 +221,33 @@ TEST(SiteConfig, PerBandDetectionKey) {
   expect_problem(site, "doa.per_band_detection: expected true or false, got a string");
 }
 
+TEST(SiteConfig, StaticLookSection) {
+  json site = two_array_site();
+  site["doa"] = {{"static_look",
+                  {{"enabled", false},
+                   {"averaging_time_s", 0.3},
+                   {"max_drift_deg", 0.5},
+                   {"hold_s", 2.0},
+                   {"min_elevation_deg", 8.0},
+                   {"own_look_memory_s", 0.0}}}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_FALSE(parsed.doa.static_look.enabled);
+  EXPECT_DOUBLE_EQ(parsed.doa.static_look.averaging_time_s, 0.3);
+  EXPECT_DOUBLE_EQ(parsed.doa.static_look.max_drift_deg, 0.5);
+  EXPECT_DOUBLE_EQ(parsed.doa.static_look.hold_s, 2.0);
+  EXPECT_DOUBLE_EQ(parsed.doa.static_look.min_elevation_deg, 8.0);
+  EXPECT_DOUBLE_EQ(parsed.doa.static_look.own_look_memory_s, 0.0);
+  EXPECT_TRUE(parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings())
+                  .doa.static_look.enabled);  // on unless turned off
+  site["doa"]["static_look"]["averaging_time_s"] = 0.0;
+  expect_problem(site, "doa.static_look.averaging_time_s: must be in [0.01, 10], got 0");
+  site["doa"]["static_look"]["averaging_time_s"] = 0.3;
+  site["doa"]["static_look"]["enabled"] = "on";
+  expect_problem(site, "doa.static_look.enabled: expected true or false, got a string");
+}
+
 TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 1.4}};

@@ -1,0 +1,68 @@
+#include "doa/static_source_look.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace dronetrack::doa {
+
+namespace {
+double radians(double degrees) { return degrees * std::numbers::pi / 180.0; }
+}  // namespace
+
+StaticSourceLook::StaticSourceLook(const GccPhat& gcc, double hop_s, int max_sources,
+                                   const StaticLookSettings& settings)
+    : settings_(settings),
+      keep_share_(std::exp(-hop_s / settings.averaging_time_s)),
+      drift_cosine_(std::cos(radians(settings.max_drift_deg))),
+      min_elevation_sine_(std::sin(radians(settings.min_elevation_deg))),
+      average_(static_cast<std::size_t>(gcc.pair_count()) * gcc.phasors(0).size()),
+      // One look a frame over 2 hold_s, and one more: the oldest wanted is still there.
+      looks_(static_cast<std::size_t>(std::ceil(2.0 * settings.hold_s / hop_s)) + 2),
+      found_((static_cast<std::size_t>(std::ceil(settings.own_look_memory_s / hop_s)) + 2) *
+             static_cast<std::size_t>(max_sources)) {}
+
+void StaticSourceLook::accumulate(const GccPhat& gcc) {
+  const std::size_t bins = gcc.phasors(0).size();
+  const double fresh = 1.0 - keep_share_;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const std::span<const std::complex<double>> frame = gcc.phasors(p);
+    std::complex<double>* average = average_.data() + static_cast<std::size_t>(p) * bins;
+    for (std::size_t k = 0; k < bins; ++k) average[k] = keep_share_ * average[k] + fresh * frame[k];
+  }
+}
+
+void StaticSourceLook::load_average(GccPhat& gcc, std::span<const std::uint8_t> keep) const {
+  gcc.cross_power_from(average_, keep);
+}
+
+void StaticSourceLook::note_found(double time_s, std::span<const Eigen::Vector3d> directions_site) {
+  for (const Eigen::Vector3d& direction : directions_site) {
+    found_[next_found_] = {time_s, direction};
+    next_found_ = (next_found_ + 1) % found_.size();
+  }
+}
+
+bool StaticSourceLook::explained(double time_s, const Eigen::Vector3d& direction_site,
+                                 double separation_cosine) const {
+  for (const Look& look : found_)
+    if (time_s - look.time_s <= settings_.own_look_memory_s + 1e-6 &&
+        look.direction.dot(direction_site) >= separation_cosine)
+      return true;
+  return false;
+}
+
+bool StaticSourceLook::held(double time_s, const Eigen::Vector3d& direction_site) {
+  bool static_direction = false;
+  for (const Look& look : looks_) {
+    const double age_s = time_s - look.time_s;
+    // A microsecond's slack at both ends: frame times are sums of sample counts over the rate.
+    if (age_s >= settings_.hold_s - 1e-6 && age_s <= 2.0 * settings_.hold_s + 1e-6 &&
+        look.direction.dot(direction_site) >= drift_cosine_)
+      static_direction = true;
+  }
+  looks_[next_look_] = {time_s, direction_site};
+  next_look_ = (next_look_ + 1) % looks_.size();
+  return static_direction && direction_site.z() >= min_elevation_sine_;
+}
+
+}  // namespace dronetrack::doa
