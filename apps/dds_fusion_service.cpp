@@ -77,7 +77,10 @@ std::int64_t IntakeCounters::doa_ignored() const {
 
 // Sits between the FusionDriver and the outputs: adds the time base back and writes Track and
 // Alert samples. Track ids that disappear between ticks are disposed, so late joiners never see
-// a track that has ended.
+// a track that has ended, and then unregistered: track ids are never reused, and a registered
+// instance stays in this writer (its transient-local history keeps the last sample of each) and
+// in every reader until it is unregistered, so each ended track would otherwise be kept for the
+// life of the process (issue 18, the soak).
 class DdsFusionService::Outputs : public FusionObserver {
  public:
   Outputs(const std::int64_t& base_ns, TrackIdReservation& track_ids,
@@ -120,6 +123,7 @@ class DdsFusionService::Outputs : public FusionObserver {
       dronetrack_Track key{};
       key.id = id;
       dds_dispose(track_writer_.handle(), &key);
+      dds_unregister_instance(track_writer_.handle(), &key);
     }
     std::swap(previous_ids_, current_ids_);
     for (auto* observer : observers_) observer->on_tracks(time_s + shift_s, tracks_);
@@ -130,6 +134,11 @@ class DdsFusionService::Outputs : public FusionObserver {
     event_.track_id = track_ids_.wire_id(event_.track_id);
     dds::to_idl(event_, alert_sample_);
     if (alert_writer_.try_write(alert_sample_) >= 0) ++counters_.alerts_published;
+    // An alert is an event, not a state: its (zone, track) instance is unregistered at once so
+    // it lives only as long as its samples (delivered reliably all the same; readers take them
+    // as usual). Kept registered, every track that ever alerted would stay in this writer and in
+    // every Alert reader.
+    dds_unregister_instance(alert_writer_.handle(), &alert_sample_);
     log::info("alert: track ", event_.track_id, event_.entered ? " entered " : " left ",
               event_.zone, " at t=", event_.time_s);
     for (auto* observer : observers_) observer->on_zone_event(event_);

@@ -375,6 +375,7 @@
         n.status ? fmt(s.level_dbfs) : '–',
         n.status ? `${s.clipped_samples}` : '–',
         n.status ? `${s.overruns}` : '–',
+        n.status ? `${s.dropouts}` : '–',
         doa ? `${fmt(doa.azimuth_deg, 0)}°/${fmt(doa.elevation_deg, 0)}°` : '–',
       ];
       // Audio health: channels (0-based mic index) with a problem on their last judgement, their
@@ -396,7 +397,8 @@
           if (n.stale_reason) td.title = `stale: ${n.stale_reason.replace('_', ' ')}` +
             (Number.isFinite(n.status_age_s) ? `, last status ${fmt(n.status_age_s)} s ago` : '');
         }
-        if ((i === 3 && s.clipped_samples > 0) || (i === 4 && s.overruns > 0)) td.className = 'warn';
+        if ((i === 3 && s.clipped_samples > 0) || (i === 4 && s.overruns > 0) ||
+            (i === 5 && s.dropouts > 0)) td.className = 'warn';
         tr.appendChild(td);
       });
       rows.appendChild(tr);

@@ -13,6 +13,10 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <set>
+#include <utility>
+
+#include <nlohmann/json.hpp>
 
 #include "apps/dds_fusion_service.hpp"
 #include "apps/metrics.hpp"
@@ -260,6 +264,131 @@ TEST(DdsFusionIntake, MalformedSamplesAreCountedAndIgnoredAndTrackingGoesOn) {
                 exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"ground\"}") +
                 exposed.value("dronetrack_tracks{status=\"confirmed\",class=\"aircraft\"}"),
             confirmed);
+}
+
+// Track ids are never reused, so an ended track's Track instance, and every Alert instance
+// (zone, track id), must be unregistered by the fusion, or every subscriber keeps it (disposed,
+// empty) for the life of the process, and the fusion's transient-local Track writer keeps its
+// last sample (issue 18, the soak). A drone inside a zone is tracked for 4 s and then falls
+// silent while a second drone goes on: once the first track is deleted and a subscriber has
+// taken what arrived, the subscriber keeps neither that track nor its alerts, only the live
+// track.
+TEST(DdsFusionIntake, SubscribersDropEndedTracksAndTheirAlerts) {
+  dds::testing::use_loopback();
+  std::vector<std::string> warnings;
+  config::LoadOptions load_options;
+  load_options.check_recordings = false;
+  nlohmann::json site_json = nlohmann::json::parse(kSite);
+  site_json["zones"] = nlohmann::json::parse(
+      R"([{"name": "yard", "polygon_m": [[-25, -25], [25, -25], [25, 25], [-25, 25]]}])");
+  site_json["alerts"] = nlohmann::json::parse(
+      R"({"classes": ["drone", "ground", "aircraft", "unknown"], "min_confirmed_s": 0})");
+  const config::SiteConfig site =
+      config::parse_site_config(site_json.dump(), ".", warnings, load_options);
+  const Eigen::Vector3d ending_m(10.0, 20.0, 30.0);    // inside the yard, silent after 4 s
+  const Eigen::Vector3d staying_m(-45.0, 10.0, 40.0);  // outside it, heard throughout
+
+  dds::Participant participant(123);
+  LastTracks last;
+  DdsFusionService service(site, participant, {&last});
+  dds::Topic<dronetrack_Doa> doa_topic(participant);
+  dds::Topic<dronetrack_Track> track_topic(participant);
+  dds::Topic<dronetrack_Alert> alert_topic(participant);
+  dds::Qos doa_qos, track_qos, alert_qos;
+  dds::doa_writer_qos(doa_qos);
+  dds::track_reader_qos(track_qos);
+  dds::alert_reader_qos(alert_qos);
+  dds::Writer<dronetrack_Doa> doa_writer(participant, doa_topic, doa_qos);
+  dds::Reader<dronetrack_Track> track_reader(participant, track_topic, track_qos);
+  dds::Reader<dronetrack_Alert> alert_reader(participant, alert_topic, alert_qos);
+  ASSERT_TRUE(doa_writer.wait_for_readers(1, 5s));
+
+  std::set<int> track_ids;
+  std::set<std::pair<std::string, int>> alert_keys;
+  auto take_outputs = [&] {
+    for (bool more = true; more;) {
+      dds::Samples<dronetrack_Track> samples = track_reader.take();
+      for (std::size_t i = 0; i < samples.size(); ++i) track_ids.insert(samples.data(i).id);
+      more = samples.size() == dds::Samples<dronetrack_Track>::kMaxSamples;
+    }
+    for (bool more = true; more;) {
+      dds::Samples<dronetrack_Alert> samples = alert_reader.take();
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        alert_keys.emplace(samples.data(i).zone, samples.data(i).track_id);
+      }
+      more = samples.size() == dds::Samples<dronetrack_Alert>::kMaxSamples;
+    }
+  };
+  std::int64_t sent_doas = 0;
+  doa::DoaMeasurement measurement;
+  dronetrack_Doa sample{};
+  for (int frame = 0; frame < 200; ++frame) {  // 10 s at 20 DOAs per second per array
+    const double time_s = 0.05 * frame;
+    for (std::size_t array = 0; array < 3; ++array) {
+      for (const Eigen::Vector3d* drone_m : {&ending_m, &staying_m}) {
+        if (drone_m == &ending_m && time_s >= 4.0) continue;
+        measurement = {};
+        measurement.array_id = site.arrays[array].geometry.id;
+        measurement.time_s = time_s;
+        measurement.direction =
+            (*drone_m - site.arrays[array].geometry.centre_site_m()).normalized();
+        measurement.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-4;
+        measurement.quality = 0.9;
+        measurement.snr_db = 20.0;
+        measurement.source_index = drone_m == &ending_m ? 0 : 1;
+        dds::to_idl(measurement, 0, sample);
+        doa_writer.write(sample);
+        ++sent_doas;
+      }
+    }
+    if (frame % 8 == 0) {
+      service.poll(1ms);
+      take_outputs();
+    }
+  }
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (service.counters().doa_received < sent_doas &&
+         std::chrono::steady_clock::now() < deadline) {
+    service.poll(50ms);
+  }
+  take_outputs();
+
+  // The picture the check relies on: one live track, on the drone still heard.
+  ASSERT_EQ(service.counters().doa_received, sent_doas);
+  ASSERT_EQ(last.tracks_.size(), 1u);
+  EXPECT_LT((last.tracks_[0].position_m - staying_m).norm(), 3.0);
+  const int live_id = last.tracks_[0].id;
+  ASSERT_EQ(track_ids.count(live_id), 1u);
+  ASSERT_GE(track_ids.size(), 2u) << "the silent drone's track was never published";
+  ASSERT_FALSE(alert_keys.empty()) << "the track in the yard raised no alert";
+
+  // Whether a reader still keeps an instance: reading it by handle fails with
+  // PRECONDITION_NOT_MET once the reader has dropped it.
+  const auto reader_keeps = [](const auto& reader, const auto& key) {
+    const dds_instance_handle_t handle = dds_lookup_instance(reader.handle(), &key);
+    if (handle == DDS_HANDLE_NIL) return false;
+    void* buffers[1] = {nullptr};
+    dds_sample_info_t info{};
+    const dds_return_t read = dds_read_instance(reader.handle(), buffers, &info, 1, 1, handle);
+    if (read > 0) dds_return_loan(reader.handle(), buffers, read);
+    return read >= 0;
+  };
+  dronetrack_Track track_key{};
+  track_key.id = live_id;
+  EXPECT_TRUE(reader_keeps(track_reader, track_key)) << "the live track must be there";
+  for (int id : track_ids) {
+    if (id == live_id) continue;
+    track_key.id = id;
+    EXPECT_FALSE(reader_keeps(track_reader, track_key)) << "ended track " << id << " is kept";
+  }
+  for (const auto& [zone, id] : alert_keys) {
+    dronetrack_Alert alert_key{};
+    dds::copy_bounded(alert_key.zone, zone);
+    alert_key.track_id = id;
+    EXPECT_FALSE(reader_keeps(alert_reader, alert_key))
+        << "alert instance (" << zone << ", " << id << ") is kept";
+  }
+  service.finish();
 }
 
 // A secure site's fusion reads each array's partition and refuses a sample whose array id is
