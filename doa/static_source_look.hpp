@@ -47,8 +47,6 @@ class StaticSourceLook {
   // Records this look's direction (site frame, unit) at time_s; true when it is static (within
   // max_drift_deg of a look hold_s..2 hold_s earlier) and high enough.
   bool held(double time_s, const Eigen::Vector3d& direction_site);
-  // The earliest a source can be held after the first frame (2 hold_s of looks are kept).
-  double hold_s() const { return settings_.hold_s; }
 
  private:
   struct Look {
