@@ -59,7 +59,7 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.gate_probability =
       section.number("gate_probability", params.gate_probability, 0.5, 0.999999);
   const std::string likelihood =
-      section.choice("likelihood", "gaussian", {"gaussian", "student_t", "outlier_mixture"});
+      section.choice("likelihood", "outlier_mixture", {"gaussian", "student_t", "outlier_mixture"});
   params.likelihood = likelihood == "gaussian"    ? fusion::DoaLikelihoodKind::gaussian
                       : likelihood == "student_t" ? fusion::DoaLikelihoodKind::student_t
                                                   : fusion::DoaLikelihoodKind::outlier_mixture;

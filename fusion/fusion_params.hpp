@@ -95,10 +95,9 @@ struct FusionParams {
   double output_rate_hz = 10.0;     // track reports per second
   double reorder_window_s = 0.3;    // DOAs are fed oldest first after this delay
   double gate_probability = 0.999;  // gate on the DOA innovation (chi-square, or Student-t's)
-  // outlier_mixture is the robust choice (docs/fusion.md "Impulsive DOA errors"); not the default
-  // yet: on seven draws of the mixed site it covers the N2-only D2 less (mean 40 % against 54 %),
-  // through that track's overconfident range along N2's ray, not through discounted DOAs.
-  DoaLikelihoodKind likelihood = DoaLikelihoodKind::gaussian;
+  // outlier_mixture: a reflection, a gust or one frame of another source costs a track little
+  // (docs/fusion.md "Impulsive DOA errors"; the default since session 12, issue 17).
+  DoaLikelihoodKind likelihood = DoaLikelihoodKind::outlier_mixture;
   double student_t_dof = 10.0;  // likelihood = student_t (10: tested, docs/fusion.md)
   // likelihood = outlier_mixture: prior probability that a gated DOA is not the track's but
   // uniform over the gate (docs/fusion.md "Impulsive DOA errors").

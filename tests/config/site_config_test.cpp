@@ -428,8 +428,11 @@ TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
   EXPECT_EQ(parsed.fusion.student_t_dof, 6.0);
   const SiteConfig defaults =
       parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings());
-  EXPECT_EQ(defaults.fusion.likelihood, fusion::DoaLikelihoodKind::gaussian);
+  EXPECT_EQ(defaults.fusion.likelihood, fusion::DoaLikelihoodKind::outlier_mixture);
   EXPECT_EQ(defaults.fusion.outlier_probability, 0.1);
+  site["fusion"] = {{"likelihood", "gaussian"}};
+  EXPECT_EQ(parse_site_config(site.dump(), "/data", warnings, no_recordings()).fusion.likelihood,
+            fusion::DoaLikelihoodKind::gaussian);
   site["fusion"] = {{"likelihood", "outlier_mixture"}, {"outlier_probability", 0.3}};
   const SiteConfig chosen = parse_site_config(site.dump(), "/data", warnings, no_recordings());
   EXPECT_EQ(chosen.fusion.likelihood, fusion::DoaLikelihoodKind::outlier_mixture);
