@@ -3,7 +3,7 @@
 // (TrackFilter::update), and the tracker gates and assigns by the same law. Acoustic DOAs have
 // heavy tails: a reflection, a gust, a second source captured for one frame. Three choices
 // (`fusion.likelihood`, docs/fusion.md "Impulsive DOA errors"):
-//   outlier_mixture  (1 - e) N(nu; 0, S) + e / V: a DOA is the track's with probability
+//   outlier_mixture  (default) (1 - e) N(nu; 0, S) + e / V: a DOA is the track's with probability
 //                    1 - e, otherwise uniform over the gate's ellipse d^2 <= gamma (area V). The
 //                    gate is the Gaussian part's chi-square quantile at gate_probability, so gate
 //                    and likelihood agree: beyond it a DOA can only be the uniform part, whose
@@ -17,7 +17,7 @@
 //                    (d^2 / p follows F(p, dof)), twice its negative log-likelihood as the cost,
 //                    and the Gaussian update with R divided by w = (dof + p) / (dof + d^2),
 //                    iterated to its fixed point (bisection), w capped at 1.
-//   gaussian         (default) chi-square gate, cost d^2 + ln det S, the plain Kalman update.
+//   gaussian         chi-square gate, cost d^2 + ln det S, the plain Kalman update.
 // p is the measurement's dimension: 2 for a direction, 1 for a two-mic array's cone angle (issue
 // 15), so a cone is gated and costed with its own degrees of freedom.
 // Plain arithmetic on the innovation: no filter internals, nothing allocated.
