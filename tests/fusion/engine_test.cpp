@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <random>
@@ -327,6 +328,54 @@ TEST(FusionEngine, QuietDroneHeardIntermittentlyByTwoArraysIsConfirmed) {
   }
   EXPECT_GT(quiet_tracked, 0.9 * quiet_ticks);
   EXPECT_EQ(drone_of_track.size(), 2u);
+}
+
+// Issue 14's hovering D2 (the mixed site's geometry): all four arrays hear it for 4 s, then N2
+// alone for 10 s (the others masked), then N2 and N3. N2's bearings carry nothing along N2's ray,
+// so through the one-array span the track must not claim a range it cannot have (the truth within
+// its stated 99.9 % extent at every tick: honest along the ray), must not be lost nor re-born, and
+// once N3 hears it again its range must be re-fixed under the same id.
+TEST(FusionEngine, HoveringDroneHeardByOneArrayKeepsAnHonestRangeAndItsId) {
+  const auto arrays = square_site(100.0);
+  const Eigen::Vector3d hover(30, -40, 30);
+  const Trajectory drone = [hover](double) { return hover; };
+  const Audibility heard = [](int array, int, double t, std::mt19937_64&) {
+    if (t < 4.0) return true;
+    if (t < 14.0) return array == 1;  // N2 alone
+    return array == 1 || array == 2;  // N2 and N3
+  };
+  const RunResult result = run(FusionParams{}, arrays, {drone}, 20.0, {0.3, true}, 5, heard);
+  const Eigen::Vector3d along = (hover - arrays[1].centre_site_m()).normalized();
+  const double gate = 16.27;  // chi-square, 3 dof, 0.999
+  std::set<int> ids;
+  double worst_d2 = 0.0;
+  double widest_along_m = 0.0;
+  double final_error_m = -1.0;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    const double t = result.times[i];
+    if (t < 2.0) continue;
+    ASSERT_EQ(result.reports[i].size(), 1u) << "t=" << t;
+    const TrackReport& track = result.reports[i][0];
+    ASSERT_NE(track.status, TrackStatus::tentative) << "t=" << t;
+    ids.insert(track.id);
+    const Eigen::Vector3d error = track.position_m - hover;
+    const Eigen::Matrix3d covariance = track.covariance.topLeftCorner<3, 3>();
+    const double d2 = error.dot(covariance.ldlt().solve(error));
+    worst_d2 = std::max(worst_d2, d2);
+    EXPECT_LE(d2, gate) << "overconfident at t=" << t << ": error " << error.transpose();
+    if (t >= 4.0 && t < 14.0)
+      widest_along_m = std::max(widest_along_m, std::sqrt(along.dot(covariance * along)));
+    if (t >= 18.0) {
+      EXPECT_LT(error.norm(), 2.0) << "range not re-fixed at t=" << t;
+    }
+    final_error_m = error.norm();
+  }
+  EXPECT_EQ(ids.size(), 1u);
+  EXPECT_EQ(result.counters.tracks_started, 1);
+  std::printf(
+      "hover, N2 alone 4-14 s: worst d2 %.2f (gate %.2f), widest std along N2's ray %.1f m,"
+      " final error %.2f m\n",
+      worst_d2, gate, widest_along_m, final_error_m);
 }
 
 // Two arrays: the pair that starts a track agrees with itself by construction. When the second
