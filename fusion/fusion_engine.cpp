@@ -334,8 +334,8 @@ struct FusionEngine::Impl {
   // that still hears it: one static array's bearings give no range, so a hovering drone only that
   // array hears keeps a spread along its ray that grows for as long as no second array hears it
   // (its range unknown, its direction held). Deleting it then re-births it under a new id when a
-  // second array returns. Lost: spread across that ray beyond the bound, nor heard within
-  // kContributionMemoryS, or three stds along it beyond its range (the UKF's sigma points, at 3
+  // second array returns. Lost: not heard within kContributionMemoryS, its spread across that ray
+  // beyond the bound, or three stds along it beyond its range (the UKF's sigma points, at three
   // stds, would then lie behind the array).
   bool lost(const Track& track, double now_s) const;
   // Echo test (issue 14): every array's rays to a source and to its ground mirror lie in the
