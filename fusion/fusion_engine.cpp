@@ -334,7 +334,8 @@ struct FusionEngine::Impl {
   // that still hears it: one static array's bearings give no range, so a hovering drone only that
   // array hears keeps a spread along its ray that grows for as long as no second array hears it
   // (its range unknown, its direction held). Deleting it then re-births it under a new id when a
-  // second array returns. Lost: not heard within kContributionMemoryS, its spread across that ray
+  // second array returns. Lost: no two arrays ever fixed its range (confirm_hits updates each),
+  // that array no longer hearing it (M of N), its spread across that ray
   // beyond the bound, or three stds along it beyond its range (the UKF's sigma points, at three
   // stds, would then lie behind the array).
   bool lost(const Track& track, double now_s) const;
@@ -1066,8 +1067,21 @@ int FusionEngine::Impl::last_array(const Track& track) const {
 }
 
 bool FusionEngine::Impl::lost(const Track& track, double now_s) const {
+  // Only a range that two arrays did fix (each updated it confirm_hits times) is held open: a
+  // track a pair started and no second array kept agreeing with (an outlier's) has none to hold.
+  int fixing_arrays = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    if (track.updates_by_array[a] >= params.confirm_hits) ++fixing_arrays;
+  if (fixing_arrays < 2) return true;
+  // "Still hears it": that array updated it in confirm_hits of its last confirm_window frames (a
+  // track that outliers of one array now and then keep alive does not qualify).
   const int last = last_array(track);
-  if (last < 0 || now_s - track.heard_by_array_s[last] > kContributionMemoryS) return true;
+  const std::uint32_t window_mask =
+      params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
+  if (last < 0 || now_s - track.heard_by_array_s[last] > kContributionMemoryS ||
+      std::popcount(track.hits_by_array[static_cast<std::size_t>(last)] & window_mask) <
+          params.confirm_hits)
+    return true;
   const Eigen::Vector3d to_track =
       position_of(track.filter->mean()) - last_centre_m[static_cast<std::size_t>(last)];
   const double range_m = to_track.norm();
