@@ -335,9 +335,8 @@ struct FusionEngine::Impl {
   // array hears keeps a spread along its ray that grows for as long as no second array hears it
   // (its range unknown, its direction held). Deleting it then re-births it under a new id when a
   // second array returns. Lost: no two arrays ever fixed its range (confirm_hits updates each),
-  // that array no longer hearing it (M of N), its spread across that ray
-  // beyond the bound, or three stds along it beyond its range (the UKF's sigma points, at three
-  // stds, would then lie behind the array).
+  // that array no longer hearing it (M of N), its spread across that ray beyond the bound, or
+  // three stds along it beyond its range (the UKF's sigma points would then lie behind the array).
   bool lost(const Track& track, double now_s) const;
   // Echo test (issue 14): every array's rays to a source and to its ground mirror lie in the
   // vertical plane through both, so DOAs that mix the two (an echo the node could not remove)
