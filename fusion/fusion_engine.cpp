@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <Eigen/Eigenvalues>
+
 #include "common/log.hpp"
 #include "fusion/assignment.hpp"
 #include "fusion/doa_likelihood.hpp"
@@ -225,7 +227,25 @@ struct FusionEngine::Impl {
   // first array and that ray are triangulated, and the default filter starts at the fix (same
   // id). False when they do not cross in front of both.
   bool hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
-                                  const DoaMeasurementModel& model, double time_s);
+                                  const DoaMeasurementModel& model, double time_s) {
+    return refix_by_triangulation(track, track.origin_array, track.origin_noise, m, model, time_s);
+  }
+  // The same for any track whose position spread lies along the ray of the one array that kept
+  // hearing it (spared by lost()): its bearing from that array and the second array's ray.
+  bool refix_by_triangulation(Track& track, int origin_array,
+                              const MeasurementCovariance& origin_noise,
+                              const doa::DoaMeasurement& m, const DoaMeasurementModel& model,
+                              double time_s);
+  int last_array(const Track& track) const;  // the array that updated it last, -1 if none
+  // The array whose ray a track's position spread lies along when that spread exceeds
+  // max_position_std_m (a track only that array kept hearing, spared by lost()); -1 otherwise.
+  int open_range_array(const Track& track) const {
+    const double max_variance = params.max_position_std_m * params.max_position_std_m;
+    const Eigen::Vector3d variance =
+        track.filter->covariance().diagonal().segment<3>(StateBlock::position);
+    if (variance.maxCoeff() <= max_variance) return -1;
+    return last_array(track);
+  }
   // The prior of a track started at a triangulated fix.
   void state_from_fix(const Triangulation& fix, const Eigen::Vector3d& centre_m,
                       double speed_of_sound_mps, StateVector& mean,
@@ -310,6 +330,14 @@ struct FusionEngine::Impl {
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
   int recent_arrays(const Track& track) const;  // arrays that updated it within the last second
+  // A position spread beyond max_position_std_m is a lost track, except along the ray of an array
+  // that still hears it: one static array's bearings give no range, so a hovering drone only that
+  // array hears keeps a spread along its ray that grows for as long as no second array hears it
+  // (its range unknown, its direction held). Deleting it then re-births it under a new id when a
+  // second array returns. Lost: no two arrays ever fixed its range (confirm_hits updates each),
+  // that array no longer hearing it (M of N), its spread across that ray beyond the bound, or
+  // three stds along it beyond its range (the UKF's sigma points would then lie behind the array).
+  bool lost(const Track& track, double now_s) const;
   // Echo test (issue 14): every array's rays to a source and to its ground mirror lie in the
   // vertical plane through both, so DOAs that mix the two (an echo the node could not remove)
   // meet on the vertical line through the source, below it. A track there, under a confirmed
@@ -630,8 +658,11 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     const int j = track_to_doa[t];
     if (j < 0) continue;
     const doa::DoaMeasurement& m = queue[begin + j];
-    if (track.one_array && array != track.origin_array &&
-        hand_over_by_triangulation(track, m, model, time_s)) {
+    const int single = track.one_array ? track.origin_array : open_range_array(track);
+    if (single >= 0 && array != single &&
+        refix_by_triangulation(track, single,
+                               track.one_array ? track.origin_noise : floor_of(m, 1.0), m, model,
+                               time_s)) {
       doa_taken[j] = 1;
       track.hits_by_array[array] |= 1u;
       track.last_update_s = time_s;
@@ -954,15 +985,16 @@ bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index
   return true;
 }
 
-bool FusionEngine::Impl::hand_over_by_triangulation(Track& track, const doa::DoaMeasurement& m,
-                                                    const DoaMeasurementModel& model,
-                                                    double time_s) {
+bool FusionEngine::Impl::refix_by_triangulation(Track& track, int origin_array,
+                                                const MeasurementCovariance& origin_noise,
+                                                const doa::DoaMeasurement& m,
+                                                const DoaMeasurementModel& model, double time_s) {
   if (model.kind != MeasurementKind::azel) return false;  // a cone or a mirror pair: no one ray
-  const Eigen::Vector3d origin = last_centre_m[static_cast<std::size_t>(track.origin_array)];
+  const Eigen::Vector3d origin = last_centre_m[static_cast<std::size_t>(origin_array)];
   const Eigen::Vector3d along = position_of(track.filter->mean()) - origin;
   if (!(along.norm() > 1.0)) return false;
   // The mixture's mean lies on the bearing (its hypotheses spread along it, not across).
-  const std::array<Ray, 2> pair{Ray{origin, along.normalized(), track.origin_noise},
+  const std::array<Ray, 2> pair{Ray{origin, along.normalized(), origin_noise},
                                 Ray{model.centre_m, m.direction, noise_of(m)}};
   const auto fix = triangulate(pair, params.triangulation);
   if (!fix || !fix->in_front || below_ground(*fix)) return false;
@@ -1021,6 +1053,46 @@ bool FusionEngine::Impl::beneath_another_track(const Track& track) const {
     if (offset.dot(spread.ldlt().solve(offset)) <= chi_square_quantile(0.999, 2)) return true;
   }
   return false;
+}
+
+int FusionEngine::Impl::last_array(const Track& track) const {
+  int last = -1;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    if (track.heard_by_array_s[a] == kNeverS) continue;
+    if (last < 0 || track.heard_by_array_s[a] > track.heard_by_array_s[last])
+      last = static_cast<int>(a);
+  }
+  return last;
+}
+
+bool FusionEngine::Impl::lost(const Track& track, double now_s) const {
+  // Only a range that two arrays did fix (each updated it confirm_hits times) is held open: a
+  // track a pair started and no second array kept agreeing with (an outlier's) has none to hold.
+  int fixing_arrays = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    if (track.updates_by_array[a] >= params.confirm_hits) ++fixing_arrays;
+  if (fixing_arrays < 2) return true;
+  // "Still hears it": that array updated it in confirm_hits of its last confirm_window frames (a
+  // track that outliers of one array now and then keep alive does not qualify).
+  const int last = last_array(track);
+  const std::uint32_t window_mask =
+      params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
+  if (last < 0 || now_s - track.heard_by_array_s[last] > kContributionMemoryS ||
+      std::popcount(track.hits_by_array[static_cast<std::size_t>(last)] & window_mask) <
+          params.confirm_hits)
+    return true;
+  const Eigen::Vector3d to_track =
+      position_of(track.filter->mean()) - last_centre_m[static_cast<std::size_t>(last)];
+  const double range_m = to_track.norm();
+  if (!(range_m > 1.0)) return true;
+  const Eigen::Vector3d along = to_track / range_m;
+  const Eigen::Matrix3d spread = track.filter->covariance().topLeftCorner<3, 3>();
+  const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - along * along.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(across * spread * across,
+                                                              Eigen::EigenvaluesOnly);
+  const double max_variance = params.max_position_std_m * params.max_position_std_m;
+  return !(solver.eigenvalues().maxCoeff() <= max_variance) ||
+         !(9.0 * along.dot(spread * along) < range_m * range_m);
 }
 
 int FusionEngine::Impl::recent_arrays(const Track& track) const {
@@ -1122,10 +1194,11 @@ void FusionEngine::Impl::delete_expired(double now_s) {
     if (unconfirmed_expired) ++counters.ghosts_rejected;
     const Eigen::Vector3d variance =
         track.filter->covariance().diagonal().segment<3>(StateBlock::position);
+    if (!variance.allFinite()) return true;
     // A one-array track's spread along its bearing is what it knows, not a lost track; it ends
     // by timeout.
-    if (!track.one_array && !(variance.maxCoeff() <= max_variance)) return true;
-    if (!variance.allFinite()) return true;
+    if (!track.one_array && !(variance.maxCoeff() <= max_variance) && lost(track, now_s))
+      return true;
     const double unheard = now_s - track.last_update_s;
     return unheard > (track.confirmed ? params.coast_timeout_s : params.tentative_timeout_s);
   };

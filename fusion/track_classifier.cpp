@@ -123,7 +123,10 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
     evidence.confidence = heard_enough ? std::clamp(1.0 - share, 0.5, 1.0) : 0.5;
     return;
   }
-  if (low) {
+  // Its altitude estimate at ground level but too uncertain to say ground (a new track fixed by
+  // far arrays: a passing car's first ticks at 1.3 +- 2.7 m on the mixed site): a comb there is
+  // no more a drone's than at a known ground level. Unknown until the altitude is known.
+  if (low || evidence.altitude_m <= s.ground_max_altitude_m) {
     evidence.track_class = TrackClass::unknown;
     evidence.confidence = 0.5;
     return;

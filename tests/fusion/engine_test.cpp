@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <random>
@@ -327,6 +328,80 @@ TEST(FusionEngine, QuietDroneHeardIntermittentlyByTwoArraysIsConfirmed) {
   }
   EXPECT_GT(quiet_tracked, 0.9 * quiet_ticks);
   EXPECT_EQ(drone_of_track.size(), 2u);
+}
+
+// Issue 14's hovering D2 (the mixed site's geometry): all four arrays hear it for 4 s, then N2
+// alone until `alone_until_s` (the others masked), then N2 and N3 for 6 s. N2's bearings carry
+// nothing along N2's ray, so through the one-array span the track must not claim a range it cannot
+// have (the truth within its stated 99.9 % extent at every tick: honest along the ray), must not
+// be lost nor re-born, and once N3 hears it again its range must be re-fixed under the same id.
+struct HoverOutcome {
+  std::set<int> ids;
+  int tracks_started = 0;
+  double worst_d2 = 0.0;
+  double widest_along_m = 0.0;   // std of the position along N2's ray, one-array span
+  double worst_refixed_m = 0.0;  // largest error from 4 s after N3's return
+  double final_error_m = -1.0;
+};
+HoverOutcome hover_heard_by_one_array(double alone_until_s) {
+  const auto arrays = square_site(100.0);
+  const Eigen::Vector3d hover(30, -40, 30);
+  const Trajectory drone = [hover](double) { return hover; };
+  const Audibility heard = [alone_until_s](int array, int, double t, std::mt19937_64&) {
+    if (t < 4.0) return true;
+    if (t < alone_until_s) return array == 1;  // N2 alone
+    return array == 1 || array == 2;           // N2 and N3
+  };
+  const RunResult result =
+      run(FusionParams{}, arrays, {drone}, alone_until_s + 6.0, {0.3, true}, 5, heard);
+  const Eigen::Vector3d along = (hover - arrays[1].centre_site_m()).normalized();
+  HoverOutcome outcome;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    const double t = result.times[i];
+    if (t < 2.0) continue;
+    EXPECT_EQ(result.reports[i].size(), 1u) << "t=" << t;
+    if (result.reports[i].size() != 1u) continue;
+    const TrackReport& track = result.reports[i][0];
+    EXPECT_NE(track.status, TrackStatus::tentative) << "t=" << t;
+    outcome.ids.insert(track.id);
+    const Eigen::Vector3d error = track.position_m - hover;
+    const Eigen::Matrix3d covariance = track.covariance.topLeftCorner<3, 3>();
+    const double d2 = error.dot(covariance.ldlt().solve(error));
+    EXPECT_LE(d2, 16.27) << "overconfident at t=" << t << ": error " << error.transpose();
+    outcome.worst_d2 = std::max(outcome.worst_d2, d2);
+    if (t >= 4.0 && t < alone_until_s)
+      outcome.widest_along_m =
+          std::max(outcome.widest_along_m, std::sqrt(along.dot(covariance * along)));
+    if (t >= alone_until_s + 4.0)
+      outcome.worst_refixed_m = std::max(outcome.worst_refixed_m, error.norm());
+    outcome.final_error_m = error.norm();
+  }
+  outcome.tracks_started = static_cast<int>(result.counters.tracks_started);
+  std::printf(
+      "hover, N2 alone 4-%.0f s: worst d2 %.2f (gate 16.27), widest std along N2's ray"
+      " %.1f m, worst error from 4 s after N3's return %.2f m, final %.2f m\n",
+      alone_until_s, outcome.worst_d2, outcome.widest_along_m, outcome.worst_refixed_m,
+      outcome.final_error_m);
+  return outcome;
+}
+
+TEST(FusionEngine, HoveringDroneHeardByOneArrayKeepsAnHonestRangeAndItsId) {
+  const HoverOutcome outcome = hover_heard_by_one_array(14.0);
+  EXPECT_EQ(outcome.ids.size(), 1u);
+  EXPECT_EQ(outcome.tracks_started, 1);
+  EXPECT_LT(outcome.worst_refixed_m, 2.0);
+}
+
+// 30 s of one array: the spread along N2's ray passes max_position_std_m (50 m) and the mean runs
+// outward along it (the range rate is unobservable from one static array). The track is not lost
+// while N2 hears it and its spread across N2's ray stays small; N3's first DOA re-fixes it by
+// triangulation (its bearing from N2 and N3's ray), same id. Before: deleted at 30.7 s, a new id.
+TEST(FusionEngine, HoveringDroneHeardByOneArrayFor30sIsReFixedUnderItsId) {
+  const HoverOutcome outcome = hover_heard_by_one_array(34.0);
+  EXPECT_GT(outcome.widest_along_m, 50.0);  // the case the rule is for
+  EXPECT_EQ(outcome.ids.size(), 1u);
+  EXPECT_EQ(outcome.tracks_started, 1);
+  EXPECT_LT(outcome.worst_refixed_m, 2.0);
 }
 
 // Two arrays: the pair that starts a track agrees with itself by construction. When the second

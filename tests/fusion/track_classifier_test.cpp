@@ -173,6 +173,27 @@ TEST(TrackClassifier, CombAtGroundLevelIsUnknownNotDroneNorGround) {
   EXPECT_EQ(unknown.share, 1.0);
 }
 
+// A track whose altitude estimate is at ground level but whose altitude std is too wide to call
+// it ground (a car fixed by far arrays, its engine's harmonics in the rotor range) is not a drone
+// on its comb: unknown, until the altitude is known (then ground). A drone at 30 m with the same
+// wide altitude std is still a drone.
+TEST(TrackClassifier, CombAtUncertainGroundLevelIsNotADrone) {
+  const double wide_std_m = 2.7;  // > ground_max_altitude_std_m: not known to be low either
+  ASSERT_GT(wide_std_m, ClassifierSettings{}.ground_max_altitude_std_m);
+  const Scenario car_with_comb = [](double t) {
+    return Sample{{-100 + 15 * t, 130, 1.3}, {15, 0, 0}, comb_at(120.0)};
+  };
+  EXPECT_LT(run(car_with_comb, 10.0, TrackClass::drone, wide_std_m).first_s, 0.0);
+  const ClassRun unknown = run(car_with_comb, 10.0, TrackClass::unknown, wide_std_m);
+  EXPECT_EQ(unknown.first_s, 0.0);
+  EXPECT_EQ(unknown.share, 1.0);
+  const Scenario hovering = [](double) { return Sample{{30, -40, 30}, {0, 0, 0}, comb_at(205.0)}; };
+  const ClassRun drone = run(hovering, 10.0, TrackClass::drone, wide_std_m);
+  EXPECT_GE(drone.first_s, 0.0);
+  EXPECT_LE(drone.first_s, 1.0);
+  EXPECT_EQ(drone.share, 1.0);
+}
+
 TEST(TrackClassifier, NamesRoundTrip) {
   for (TrackClass c :
        {TrackClass::unknown, TrackClass::drone, TrackClass::ground, TrackClass::aircraft})
