@@ -202,6 +202,73 @@ TEST(FusionDriver, RejectedDoasAreNotForwarded) {
   EXPECT_EQ(counter.count, 1);
 }
 
+TEST(FusionDriver, WithNoTrackObserverDoasAreCheckedAndNoTrackerRuns) {
+  // A DOA-only replay: the observers take DOAs, none wants tracks.
+  class DoaOnly : public RecordingObserver {
+   public:
+    bool wants_tracks() const override { return false; }
+    void on_doa(const doa::DoaMeasurement&) override { ++doas; }
+    int doas = 0;
+  } doa_only;
+  RecordingObserver tracks;
+  FusionDriver checking(two_array_site(), {&doa_only});
+  FusionDriver tracking(two_array_site(), {&doa_only, &tracks});
+  EXPECT_FALSE(checking.tracking());
+  EXPECT_TRUE(tracking.tracking());
+  // Every verdict add() gives without tracker state, then one frame of each array for 2 s: a
+  // source both see, so the tracking driver starts a track.
+  std::vector<doa::DoaMeasurement> stream;
+  doa::DoaMeasurement bad;
+  bad.array_id = "A9";  // unknown array
+  bad.array_index = 9;
+  bad.time_s = 0.0;
+  bad.direction = Eigen::Vector3d(0, 0, 1);
+  bad.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+  stream.push_back(bad);
+  bad.array_id = "A1";
+  bad.array_index = 0;
+  bad.direction = Eigen::Vector3d(std::nan(""), 0, 1);  // non-finite
+  stream.push_back(bad);
+  bad.direction = Eigen::Vector3d(0, 0, 2);  // not a unit vector
+  stream.push_back(bad);
+  const Eigen::Vector3d source_m(10.0, 20.0, 18.0);
+  const std::string ids[] = {"A1", "A2"};
+  for (int frame = 0; frame < 40; ++frame) {
+    for (int array = 0; array < 2; ++array) {
+      doa::DoaMeasurement doa;
+      doa.array_id = ids[array];
+      doa.array_index = array;
+      doa.time_s = 0.05 * frame;
+      doa.direction = (source_m - Eigen::Vector3d(20.0 * array, 0.0, 1.5)).normalized();
+      doa.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+      stream.push_back(doa);
+    }
+  }
+  for (const doa::DoaMeasurement& doa : stream) {
+    EXPECT_EQ(checking.on_doa(doa), tracking.on_doa(doa)) << doa.array_id << " " << doa.time_s;
+    checking.advance_to(doa.time_s);
+    tracking.advance_to(doa.time_s);
+  }
+  checking.finish();
+  tracking.finish();
+  EXPECT_EQ(doa_only.doas, 2 * 80);  // the 80 valid DOAs, from each driver
+  EXPECT_DOUBLE_EQ(doa_only.latest_time_s, 1.95);
+  const fusion::FusionCounters& checked = checking.engine().counters();
+  const fusion::FusionCounters& tracked = tracking.engine().counters();
+  EXPECT_EQ(checked.accepted, 80);
+  EXPECT_EQ(checked.rejected_unknown_array, tracked.rejected_unknown_array);
+  EXPECT_EQ(checked.rejected_non_finite, tracked.rejected_non_finite);
+  EXPECT_EQ(checked.rejected_bad_direction, tracked.rejected_bad_direction);
+  EXPECT_EQ(
+      checked.rejected_unknown_array + checked.rejected_non_finite + checked.rejected_bad_direction,
+      3);
+  EXPECT_EQ(checking.ticks_emitted(), 0);
+  EXPECT_EQ(checked.tracks_started, 0);
+  EXPECT_GT(tracking.ticks_emitted(), 0);
+  EXPECT_FALSE(tracks.ticks.empty());
+  EXPECT_GE(tracked.tracks_started, 1);
+}
+
 TEST(DoaFileReplay, DoaLinesReadBackAsTheMeasurementsWritten) {
   // Two DOAs written out of time order, one with correlated azimuth and elevation errors.
   std::vector<doa::DoaMeasurement> written(2);
