@@ -59,7 +59,7 @@ class RecordingSource : public AudioSource {
   bool truncated_ = false;
   bool ended_ = false;
   std::vector<float> file_block_;    // block_frames x file channels, as read
-  std::vector<float> mapped_block_;  // block_frames x mics, as delivered
+  std::vector<float> mapped_block_;  // block_frames x mics, as delivered (empty: file_block_ is)
   SourceCounters counters_;
 };
 
