@@ -43,6 +43,70 @@ TEST(JsonLines, DoaLineCarriesTheSpecFields) {
   EXPECT_DOUBLE_EQ(line.at("quality").get<double>(), 0.75);
 }
 
+// Every block of a DOA line, characters as written since the format was first defined (the
+// printf formats of docs/contract.md): values with ties at the printed digit, a negative that
+// rounds to zero, a large one.
+TEST(JsonLines, DoaLineCharactersAreTheContractsFormats) {
+  doa::DoaMeasurement doa;
+  doa.array_id = "north-1";
+  doa.time_s = 123456.0000005;
+  doa.direction = Eigen::Vector3d(0.6, -0.8, -1e-12);
+  doa.quality = 0.00005;
+  doa.snr_db = -3.125;
+  doa.source_index = 2;
+  doa.azel_covariance_rad2 << 4e-6, -1.2e-6, -1.2e-6, 9e-6;
+  doa.ambiguity = doa::DoaAmbiguity::cone;
+  doa.ambiguity_axis = Eigen::Vector3d(0.0, 0.6, 0.8);
+  doa.cone_angle_rad = 1.25;
+  doa.cone_angle_variance_rad2 = 0.0004;
+  doa.cone_peak_count = 2;
+  doa.cone_peak_angle_rad = {1.25, 0.5, 0.0, 0.0};
+  doa.cone_peak_weight = {0.875, 0.125, 0.0, 0.0};
+  doa.pose = {Eigen::Vector3d(10.00005, -20.0, 1e7),
+              Eigen::Quaterniond(doa::attitude_to_site(35.0, 5.0, -3.0)), true};
+  doa.acoustic.valid = true;
+  doa.acoustic.fundamental_hz = 165.125;
+  doa.acoustic.comb_strength = 0.5;
+  doa.acoustic.harmonic_count = 12;
+  doa.acoustic.broadband_share = 0.25;
+  doa.acoustic.comb_persistence = 1.0;
+  doa.acoustic.fundamental_spread = 0.015625;
+  doa.acoustic.level_modulation_db = -0.0625;
+  doa.acoustic.history_s = 2.5;
+  char buffer[2048];
+  const int length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(length, 0);
+  // The fields every line has, then the ambiguity's.
+  const std::string head =
+      R"({"t":123456.000001,"array":"north-1",)"
+      R"("direction":[0.600000000,-0.800000000,-0.000000000],"azimuth_deg":-53.13010,)"
+      R"("elevation_deg":-0.00000,"quality":0.0001,"snr_db":-3.12,"source":2,)";
+  EXPECT_EQ(
+      std::string(buffer, static_cast<std::size_t>(length)),
+      head +
+          R"("ambiguity":"cone","azel_std_deg":[0.114592,0.171887],"azel_correlation":-0.200000,)"
+          R"("pose":{"centre_m":[10.0000,-20.0000,10000000.0000],)"
+          R"("attitude_deg":[35.0000,5.0000,-3.0000]},)"
+          R"("cone":{"axis":[0.000000000,0.600000000,0.800000000],"angle_deg":71.61972,)"
+          R"("angle_std_deg":1.145916,"peaks_deg":[71.61972,28.64789],)"
+          R"("peak_weights":[0.87500,0.12500]},"acoustic":{"fundamental_hz":165.12,)"
+          R"("comb_strength":0.5000,"harmonics":12,"broadband_share":0.2500,)"
+          R"("comb_persistence":1.0000,"fundamental_spread":0.01562,"level_modulation_db":-0.062,)"
+          R"("history_s":2.50}})");
+  doa.ambiguity = doa::DoaAmbiguity::mirror_up_down;
+  doa.pose.moving = false;
+  doa.acoustic.valid = false;
+  const int mirror_length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(mirror_length, 0);
+  EXPECT_EQ(
+      std::string(buffer, static_cast<std::size_t>(mirror_length)),
+      head +
+          R"("ambiguity":"mirror_up_down","azel_std_deg":[0.114592,0.171887],)"
+          R"("azel_correlation":-0.200000,"mirror_normal":[0.000000000,0.600000000,0.800000000]})");
+  // A line that does not fit says so (the writers refuse it) rather than come back cut.
+  EXPECT_GE(format_doa_line(doa, buffer, 64), 64);
+}
+
 // What a moving two-mic array measured survives the DOA line: written, then read back as
 // `replay --doa-in` reads it.
 TEST(JsonLines, ConeAndPoseBlocksRoundTripThroughTheReader) {
