@@ -512,25 +512,15 @@ DoaVerdict check_measurement(const doa::DoaMeasurement& measurement,
 }
 
 DoaVerdict count_verdict(FusionCounters& counters, DoaVerdict verdict) {
-  switch (verdict) {
-    case DoaVerdict::non_finite:
-      ++counters.rejected_non_finite;
-      break;
-    case DoaVerdict::unknown_array:
-      ++counters.rejected_unknown_array;
-      break;
-    case DoaVerdict::too_late:
-      ++counters.rejected_too_late;
-      break;
-    case DoaVerdict::duplicate:
-      ++counters.rejected_duplicate;
-      break;
-    case DoaVerdict::bad_direction:
-      ++counters.rejected_bad_direction;
-      break;
-    case DoaVerdict::accepted:
-      break;
-  }
+  // In the enum's order; accepted is counted where the DOA is taken.
+  static_assert(static_cast<int>(DoaVerdict::bad_direction) == 5);
+  std::int64_t* const rejected[] = {nullptr,
+                                    &counters.rejected_non_finite,
+                                    &counters.rejected_unknown_array,
+                                    &counters.rejected_too_late,
+                                    &counters.rejected_duplicate,
+                                    &counters.rejected_bad_direction};
+  if (std::int64_t* counter = rejected[static_cast<std::size_t>(verdict)]) ++*counter;
   return verdict;
 }
 }  // namespace
