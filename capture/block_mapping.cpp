@@ -66,21 +66,26 @@ void measure_levels(const float* samples, std::size_t count, SourceCounters& cou
                        : kLevelFloorDbfs;
 }
 
-void map_channels_and_count(const float* in, std::size_t frames, std::size_t in_channels,
-                            const std::vector<int>& channel_map, float* out,
-                            SourceCounters& counters) {
+void map_channels(const float* in, std::size_t frames, std::size_t in_channels,
+                  const std::vector<int>& channel_map, float* out) {
   const std::size_t mics = channel_map.size();
   if (is_identity_map(channel_map, in_channels)) {
     std::copy(in, in + frames * in_channels, out);
-  } else {
-    for (std::size_t frame = 0; frame < frames; ++frame) {
-      const float* in_frame = in + frame * in_channels;
-      float* out_frame = out + frame * mics;
-      for (std::size_t mic = 0; mic < mics; ++mic)
-        out_frame[mic] = in_frame[static_cast<std::size_t>(channel_map[mic])];
-    }
+    return;
   }
-  measure_levels(out, frames * mics, counters);
+  for (std::size_t frame = 0; frame < frames; ++frame) {
+    const float* in_frame = in + frame * in_channels;
+    float* out_frame = out + frame * mics;
+    for (std::size_t mic = 0; mic < mics; ++mic)
+      out_frame[mic] = in_frame[static_cast<std::size_t>(channel_map[mic])];
+  }
+}
+
+void map_channels_and_count(const float* in, std::size_t frames, std::size_t in_channels,
+                            const std::vector<int>& channel_map, float* out,
+                            SourceCounters& counters) {
+  map_channels(in, frames, in_channels, channel_map, out);
+  measure_levels(out, frames * channel_map.size(), counters);
 }
 
 }  // namespace dronetrack::capture

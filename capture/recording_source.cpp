@@ -128,13 +128,13 @@ bool RecordingSource::next(doa::AudioBlockView& block) {
 
   const auto frames = static_cast<std::size_t>(got);
   const float* delivered = file_block_.data();
-  if (mapped_block_.empty()) {
-    measure_levels(delivered, frames * static_cast<std::size_t>(file_channels_), counters_);
-  } else {
-    map_channels_and_count(file_block_.data(), frames, static_cast<std::size_t>(file_channels_),
-                           channel_map_, mapped_block_.data(), counters_);
+  if (!mapped_block_.empty()) {
+    map_channels(file_block_.data(), frames, static_cast<std::size_t>(file_channels_), channel_map_,
+                 mapped_block_.data());
     delivered = mapped_block_.data();
   }
+  last_block_ = delivered;
+  last_block_samples_ = frames * channel_map_.size();
 
   block.first_sample = position_;
   block.channels = channels();
@@ -142,6 +142,14 @@ bool RecordingSource::next(doa::AudioBlockView& block) {
   block.interleaved = delivered;
   position_ += got;
   return true;
+}
+
+const SourceCounters& RecordingSource::counters() const {
+  if (last_block_samples_ > 0) {
+    measure_levels(last_block_, last_block_samples_, counters_);
+    last_block_samples_ = 0;
+  }
+  return counters_;
 }
 
 }  // namespace dronetrack::capture
