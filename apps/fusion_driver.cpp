@@ -13,11 +13,14 @@ FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObs
     : engine_(site.fusion, site.geometries(), site.speed_of_sound_mps),
       zones_(site.zones, site.alerts),
       observers_(std::move(observers)),
+      tracking_(
+          std::any_of(observers_.begin(), observers_.end(),
+                      [](const FusionObserver* observer) { return observer->wants_tracks(); })),
       output_period_s_(1.0 / site.fusion.output_rate_hz),
       reorder_window_s_(site.fusion.reorder_window_s) {}
 
 fusion::DoaVerdict FusionDriver::on_doa(const doa::DoaMeasurement& doa) {
-  const fusion::DoaVerdict verdict = engine_.add(doa);
+  const fusion::DoaVerdict verdict = tracking_ ? engine_.add(doa) : engine_.admit(doa);
   if (verdict == fusion::DoaVerdict::accepted) {
     for (auto* observer : observers_) observer->on_doa(doa);
   }
@@ -31,6 +34,10 @@ void FusionDriver::on_node_status(const doa::NodeStatus& status) {
 void FusionDriver::advance_to(double now_s) {
   if (!std::isfinite(now_s) || now_s <= latest_time_s_) return;
   latest_time_s_ = now_s;
+  if (!tracking_) {
+    for (auto* observer : observers_) observer->on_time(now_s);
+    return;
+  }
   if (first_tick_index_ < 0) {
     first_tick_index_ = std::max<std::int64_t>(
         0, static_cast<std::int64_t>(std::floor((now_s - reorder_window_s_) / output_period_s_)));
@@ -44,6 +51,7 @@ void FusionDriver::advance_to(double now_s) {
 }
 
 void FusionDriver::finish() {
+  if (!tracking_) return;
   if (first_tick_index_ < 0) first_tick_index_ = 0;  // nothing arrived: the one tick at 0
   while (next_tick_s_ <= latest_time_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(latest_time_s_ + reorder_window_s_);

@@ -25,6 +25,9 @@ class FusionDriver {
   void finish();
 
   const fusion::FusionEngine& engine() const { return engine_; }
+  // False when no observer wants tracks: DOAs are then only checked (FusionEngine::admit), no
+  // tracker runs and no tick is emitted.
+  bool tracking() const { return tracking_; }
   std::int64_t ticks_emitted() const { return ticks_emitted_; }
 
  private:
@@ -33,6 +36,7 @@ class FusionDriver {
   fusion::FusionEngine engine_;
   fusion::ZoneMonitor zones_;
   std::vector<FusionObserver*> observers_;
+  bool tracking_;
   double output_period_s_;
   double reorder_window_s_;
   double next_tick_s_ = 0.0;

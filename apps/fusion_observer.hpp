@@ -14,6 +14,9 @@ namespace dronetrack::apps {
 class FusionObserver {
  public:
   virtual ~FusionObserver() = default;
+  // False for an observer that takes only DOAs and node status: when no observer of a run wants
+  // tracks, FusionDriver checks the DOAs without running the tracker (a DOA-only replay).
+  virtual bool wants_tracks() const { return true; }
   virtual void on_doa(const doa::DoaMeasurement& /*doa*/) {}
   virtual void on_node_status(const doa::NodeStatus& /*status*/) {}
   // All live tracks at one output tick.

@@ -24,6 +24,7 @@ class DoaLinesWriter : public FusionObserver {
                           OutputFile::Mode mode = OutputFile::Mode::replace)
       : out_(path, mode) {}
   OutputFile& output() { return out_; }
+  bool wants_tracks() const override { return false; }
   void on_doa(const doa::DoaMeasurement& doa) override;
 
  private:
@@ -52,6 +53,7 @@ class TdoaLinesWriter : public FusionObserver {
  public:
   explicit TdoaLinesWriter(const std::filesystem::path& path) : out_(path) {}
   OutputFile& output() { return out_; }
+  bool wants_tracks() const override { return false; }
   void on_doa(const doa::DoaMeasurement& doa) override;
 
  private:

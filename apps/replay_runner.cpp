@@ -121,6 +121,8 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   if (options.max_duration_s > 0.0) total_s = std::min(total_s, options.max_duration_s);
 
   FusionDriver driver(site, observers);
+  if (!driver.tracking())
+    log::info("replay: no output takes tracks: the DOAs are checked, the tracker does not run");
   ReplaySummary summary;
   const unsigned threads =
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());

@@ -12,9 +12,19 @@ namespace dronetrack::capture {
 
 constexpr double kLevelFloorDbfs = -120.0;  // reported for silence
 
+// True when channel_map takes every one of in_channels in order: a block is delivered as read.
+bool is_identity_map(const std::vector<int>& channel_map, std::size_t in_channels);
+
+// Sets counters.peak_level_dbfs/rms_level_dbfs to the levels of `count` samples (of the finite
+// ones; the floor when there are none).
+void measure_levels(const float* samples, std::size_t count, SourceCounters& counters);
+
 // in: frames x in_channels interleaved; out: frames x channel_map.size() interleaved, where
 // out mic i = in channel channel_map[i] (all indices must be < in_channels).
-// Sets counters.peak_level_dbfs/rms_level_dbfs to this block's levels (of its finite samples).
+void map_channels(const float* in, std::size_t frames, std::size_t in_channels,
+                  const std::vector<int>& channel_map, float* out);
+
+// map_channels, then measure_levels of the mapped block into counters (a live device's block).
 void map_channels_and_count(const float* in, std::size_t frames, std::size_t in_channels,
                             const std::vector<int>& channel_map, float* out,
                             SourceCounters& counters);

@@ -101,7 +101,9 @@ RecordingSource::RecordingSource(const std::filesystem::path& file, std::vector<
     throw;
   }
   file_block_.assign(block_frames_ * static_cast<std::size_t>(file_channels_), 0.0F);
-  mapped_block_.assign(block_frames_ * channel_map_.size(), 0.0F);
+  // Every channel in order (the usual case): the block read is the block delivered, no copy.
+  if (!is_identity_map(channel_map_, static_cast<std::size_t>(file_channels_)))
+    mapped_block_.assign(block_frames_ * channel_map_.size(), 0.0F);
 }
 
 RecordingSource::~RecordingSource() {
@@ -125,15 +127,29 @@ bool RecordingSource::next(doa::AudioBlockView& block) {
   }
 
   const auto frames = static_cast<std::size_t>(got);
-  map_channels_and_count(file_block_.data(), frames, static_cast<std::size_t>(file_channels_),
-                         channel_map_, mapped_block_.data(), counters_);
+  const float* delivered = file_block_.data();
+  if (!mapped_block_.empty()) {
+    map_channels(file_block_.data(), frames, static_cast<std::size_t>(file_channels_), channel_map_,
+                 mapped_block_.data());
+    delivered = mapped_block_.data();
+  }
+  last_block_ = delivered;
+  last_block_samples_ = frames * channel_map_.size();
 
   block.first_sample = position_;
   block.channels = channels();
   block.frames = frames;
-  block.interleaved = mapped_block_.data();
+  block.interleaved = delivered;
   position_ += got;
   return true;
+}
+
+const SourceCounters& RecordingSource::counters() const {
+  if (last_block_samples_ > 0) {
+    measure_levels(last_block_, last_block_samples_, counters_);
+    last_block_samples_ = 0;
+  }
+  return counters_;
 }
 
 }  // namespace dronetrack::capture

@@ -486,30 +486,10 @@ FusionEngine::~FusionEngine() = default;
 FusionEngine::FusionEngine(FusionEngine&&) noexcept = default;
 FusionEngine& FusionEngine::operator=(FusionEngine&&) noexcept = default;
 
-DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
-  Impl& s = *impl_;
-  auto reject = [&s](DoaVerdict verdict) {
-    switch (verdict) {
-      case DoaVerdict::non_finite:
-        ++s.counters.rejected_non_finite;
-        break;
-      case DoaVerdict::unknown_array:
-        ++s.counters.rejected_unknown_array;
-        break;
-      case DoaVerdict::too_late:
-        ++s.counters.rejected_too_late;
-        break;
-      case DoaVerdict::duplicate:
-        ++s.counters.rejected_duplicate;
-        break;
-      case DoaVerdict::bad_direction:
-        ++s.counters.rejected_bad_direction;
-        break;
-      case DoaVerdict::accepted:
-        break;
-    }
-    return verdict;
-  };
+namespace {
+// The checks of a DOA that need no tracker state; `index` gets its array's index in `arrays`.
+DoaVerdict check_measurement(const doa::DoaMeasurement& measurement,
+                             const std::vector<doa::ArrayGeometry>& arrays, int& index) {
   const bool cone = measurement.ambiguity == doa::DoaAmbiguity::cone;
   if (!std::isfinite(measurement.time_s) || !measurement.direction.allFinite() ||
       (!cone && !measurement.azel_covariance_rad2.allFinite()) ||
@@ -518,45 +498,75 @@ DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
        !measurement.ambiguity_axis.allFinite()) ||
       (cone && !(std::isfinite(measurement.cone_angle_rad) &&
                  std::isfinite(measurement.cone_angle_variance_rad2)))) {
-    return reject(DoaVerdict::non_finite);
+    return DoaVerdict::non_finite;
   }
   // The index is trusted only when it agrees with the id (or the id is absent).
-  int index = measurement.array_index;
-  const auto count = static_cast<int>(s.arrays.size());
-  const bool index_ok =
-      index >= 0 && index < count &&
-      (measurement.array_id.empty() || s.arrays[index].id == measurement.array_id);
+  index = measurement.array_index;
+  const auto count = static_cast<int>(arrays.size());
+  const bool index_ok = index >= 0 && index < count &&
+                        (measurement.array_id.empty() || arrays[index].id == measurement.array_id);
   if (!index_ok) {
     index = -1;
     for (int i = 0; i < count; ++i) {
-      if (!measurement.array_id.empty() && s.arrays[i].id == measurement.array_id) index = i;
+      if (!measurement.array_id.empty() && arrays[i].id == measurement.array_id) index = i;
     }
-    if (index < 0) return reject(DoaVerdict::unknown_array);
+    if (index < 0) return DoaVerdict::unknown_array;
   }
   if (std::abs(measurement.direction.norm() - 1.0) > kUnitTolerance) {
-    return reject(DoaVerdict::bad_direction);
+    return DoaVerdict::bad_direction;
   }
   if (measurement.ambiguity != doa::DoaAmbiguity::none &&
       std::abs(measurement.ambiguity_axis.norm() - 1.0) > kUnitTolerance) {
-    return reject(DoaVerdict::bad_direction);
+    return DoaVerdict::bad_direction;
   }
   if (cone) {
     // The cone is the measurement (its display direction is not): an angle in [0, pi] with a
     // positive variance.
     if (!(measurement.cone_angle_rad >= 0.0 && measurement.cone_angle_rad <= std::numbers::pi) ||
         !(measurement.cone_angle_variance_rad2 > 0.0)) {
-      return reject(DoaVerdict::bad_direction);
+      return DoaVerdict::bad_direction;
     }
   } else {
     const MeasurementCovariance& r = measurement.azel_covariance_rad2;
     if (!(r(0, 0) > 0.0) || !(r.determinant() > 0.0) ||
         std::abs(r(0, 1) - r(1, 0)) > 1e-12 * r.norm()) {
-      return reject(DoaVerdict::bad_direction);
+      return DoaVerdict::bad_direction;
     }
   }
   if (measurement.source_index < 0 || measurement.source_index >= 64) {
-    return reject(DoaVerdict::bad_direction);
+    return DoaVerdict::bad_direction;
   }
+  return DoaVerdict::accepted;
+}
+
+DoaVerdict count_verdict(FusionCounters& counters, DoaVerdict verdict) {
+  // In the enum's order; accepted is counted where the DOA is taken.
+  static_assert(static_cast<int>(DoaVerdict::bad_direction) == 5);
+  std::int64_t* const rejected[] = {nullptr,
+                                    &counters.rejected_non_finite,
+                                    &counters.rejected_unknown_array,
+                                    &counters.rejected_too_late,
+                                    &counters.rejected_duplicate,
+                                    &counters.rejected_bad_direction};
+  if (std::int64_t* counter = rejected[static_cast<std::size_t>(verdict)]) ++*counter;
+  return verdict;
+}
+}  // namespace
+
+DoaVerdict FusionEngine::admit(const doa::DoaMeasurement& measurement) {
+  int index = -1;
+  const DoaVerdict verdict = check_measurement(measurement, impl_->arrays, index);
+  if (verdict == DoaVerdict::accepted) ++impl_->counters.accepted;
+  return count_verdict(impl_->counters, verdict);
+}
+
+DoaVerdict FusionEngine::add(const doa::DoaMeasurement& measurement) {
+  Impl& s = *impl_;
+  auto reject = [&s](DoaVerdict verdict) { return count_verdict(s.counters, verdict); };
+  int index = -1;
+  if (const DoaVerdict verdict = check_measurement(measurement, s.arrays, index);
+      verdict != DoaVerdict::accepted)
+    return reject(verdict);
   if (measurement.time_s < s.fed_time_s) return reject(DoaVerdict::too_late);
   const std::uint64_t source_bit = std::uint64_t{1} << measurement.source_index;
   if (measurement.time_s == s.last_fed_time_by_array[index] &&

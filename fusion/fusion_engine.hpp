@@ -50,6 +50,11 @@ class FusionEngine {
 
   // Validates and queues a DOA (any order within the reorder window). Never throws.
   DoaVerdict add(const doa::DoaMeasurement& measurement);
+  // The checks of add() that need no tracker state (finite, known array, unit direction,
+  // positive definite covariance), counted the same way, without queueing the DOA: for a run
+  // whose outputs need no tracks (a DOA-only replay), so the tracker is not run for nothing.
+  // Never throws.
+  DoaVerdict admit(const doa::DoaMeasurement& measurement);
   // Feeds every queued DOA older than time_s - reorder_window_s to the tracker, oldest first.
   void advance_to(double time_s);
   // Live tracks predicted to time_s (which should not precede the last advance_to).

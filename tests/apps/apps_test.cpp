@@ -43,6 +43,70 @@ TEST(JsonLines, DoaLineCarriesTheSpecFields) {
   EXPECT_DOUBLE_EQ(line.at("quality").get<double>(), 0.75);
 }
 
+// Every block of a DOA line, characters as written since the format was first defined (the
+// printf formats of docs/contract.md): values with ties at the printed digit, a negative that
+// rounds to zero, a large one.
+TEST(JsonLines, DoaLineCharactersAreTheContractsFormats) {
+  doa::DoaMeasurement doa;
+  doa.array_id = "north-1";
+  doa.time_s = 123456.0000005;
+  doa.direction = Eigen::Vector3d(0.6, -0.8, -1e-12);
+  doa.quality = 0.00005;
+  doa.snr_db = -3.125;
+  doa.source_index = 2;
+  doa.azel_covariance_rad2 << 4e-6, -1.2e-6, -1.2e-6, 9e-6;
+  doa.ambiguity = doa::DoaAmbiguity::cone;
+  doa.ambiguity_axis = Eigen::Vector3d(0.0, 0.6, 0.8);
+  doa.cone_angle_rad = 1.25;
+  doa.cone_angle_variance_rad2 = 0.0004;
+  doa.cone_peak_count = 2;
+  doa.cone_peak_angle_rad = {1.25, 0.5, 0.0, 0.0};
+  doa.cone_peak_weight = {0.875, 0.125, 0.0, 0.0};
+  doa.pose = {Eigen::Vector3d(10.00005, -20.0, 1e7),
+              Eigen::Quaterniond(doa::attitude_to_site(35.0, 5.0, -3.0)), true};
+  doa.acoustic.valid = true;
+  doa.acoustic.fundamental_hz = 165.125;
+  doa.acoustic.comb_strength = 0.5;
+  doa.acoustic.harmonic_count = 12;
+  doa.acoustic.broadband_share = 0.25;
+  doa.acoustic.comb_persistence = 1.0;
+  doa.acoustic.fundamental_spread = 0.015625;
+  doa.acoustic.level_modulation_db = -0.0625;
+  doa.acoustic.history_s = 2.5;
+  char buffer[2048];
+  const int length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(length, 0);
+  // The fields every line has, then the ambiguity's.
+  const std::string head =
+      R"({"t":123456.000001,"array":"north-1",)"
+      R"("direction":[0.600000000,-0.800000000,-0.000000000],"azimuth_deg":-53.13010,)"
+      R"("elevation_deg":-0.00000,"quality":0.0001,"snr_db":-3.12,"source":2,)";
+  EXPECT_EQ(
+      std::string(buffer, static_cast<std::size_t>(length)),
+      head +
+          R"("ambiguity":"cone","azel_std_deg":[0.114592,0.171887],"azel_correlation":-0.200000,)"
+          R"("pose":{"centre_m":[10.0000,-20.0000,10000000.0000],)"
+          R"("attitude_deg":[35.0000,5.0000,-3.0000]},)"
+          R"("cone":{"axis":[0.000000000,0.600000000,0.800000000],"angle_deg":71.61972,)"
+          R"("angle_std_deg":1.145916,"peaks_deg":[71.61972,28.64789],)"
+          R"("peak_weights":[0.87500,0.12500]},"acoustic":{"fundamental_hz":165.12,)"
+          R"("comb_strength":0.5000,"harmonics":12,"broadband_share":0.2500,)"
+          R"("comb_persistence":1.0000,"fundamental_spread":0.01562,"level_modulation_db":-0.062,)"
+          R"("history_s":2.50}})");
+  doa.ambiguity = doa::DoaAmbiguity::mirror_up_down;
+  doa.pose.moving = false;
+  doa.acoustic.valid = false;
+  const int mirror_length = format_doa_line(doa, buffer, sizeof buffer);
+  ASSERT_GT(mirror_length, 0);
+  EXPECT_EQ(
+      std::string(buffer, static_cast<std::size_t>(mirror_length)),
+      head +
+          R"("ambiguity":"mirror_up_down","azel_std_deg":[0.114592,0.171887],)"
+          R"("azel_correlation":-0.200000,"mirror_normal":[0.000000000,0.600000000,0.800000000]})");
+  // A line that does not fit says so (the writers refuse it) rather than come back cut.
+  EXPECT_GE(format_doa_line(doa, buffer, 64), 64);
+}
+
 // What a moving two-mic array measured survives the DOA line: written, then read back as
 // `replay --doa-in` reads it.
 TEST(JsonLines, ConeAndPoseBlocksRoundTripThroughTheReader) {
@@ -200,6 +264,73 @@ TEST(FusionDriver, RejectedDoasAreNotForwarded) {
   doa.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
   EXPECT_EQ(driver.on_doa(doa), fusion::DoaVerdict::accepted);
   EXPECT_EQ(counter.count, 1);
+}
+
+TEST(FusionDriver, WithNoTrackObserverDoasAreCheckedAndNoTrackerRuns) {
+  // A DOA-only replay: the observers take DOAs, none wants tracks.
+  class DoaOnly : public RecordingObserver {
+   public:
+    bool wants_tracks() const override { return false; }
+    void on_doa(const doa::DoaMeasurement&) override { ++doas; }
+    int doas = 0;
+  } doa_only;
+  RecordingObserver tracks;
+  FusionDriver checking(two_array_site(), {&doa_only});
+  FusionDriver tracking(two_array_site(), {&doa_only, &tracks});
+  EXPECT_FALSE(checking.tracking());
+  EXPECT_TRUE(tracking.tracking());
+  // Every verdict add() gives without tracker state, then one frame of each array for 2 s: a
+  // source both see, so the tracking driver starts a track.
+  std::vector<doa::DoaMeasurement> stream;
+  doa::DoaMeasurement bad;
+  bad.array_id = "A9";  // unknown array
+  bad.array_index = 9;
+  bad.time_s = 0.0;
+  bad.direction = Eigen::Vector3d(0, 0, 1);
+  bad.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+  stream.push_back(bad);
+  bad.array_id = "A1";
+  bad.array_index = 0;
+  bad.direction = Eigen::Vector3d(std::nan(""), 0, 1);  // non-finite
+  stream.push_back(bad);
+  bad.direction = Eigen::Vector3d(0, 0, 2);  // not a unit vector
+  stream.push_back(bad);
+  const Eigen::Vector3d source_m(10.0, 20.0, 18.0);
+  const std::string ids[] = {"A1", "A2"};
+  for (int frame = 0; frame < 40; ++frame) {
+    for (int array = 0; array < 2; ++array) {
+      doa::DoaMeasurement doa;
+      doa.array_id = ids[array];
+      doa.array_index = array;
+      doa.time_s = 0.05 * frame;
+      doa.direction = (source_m - Eigen::Vector3d(20.0 * array, 0.0, 1.5)).normalized();
+      doa.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+      stream.push_back(doa);
+    }
+  }
+  for (const doa::DoaMeasurement& doa : stream) {
+    EXPECT_EQ(checking.on_doa(doa), tracking.on_doa(doa)) << doa.array_id << " " << doa.time_s;
+    checking.advance_to(doa.time_s);
+    tracking.advance_to(doa.time_s);
+  }
+  checking.finish();
+  tracking.finish();
+  EXPECT_EQ(doa_only.doas, 2 * 80);  // the 80 valid DOAs, from each driver
+  EXPECT_DOUBLE_EQ(doa_only.latest_time_s, 1.95);
+  const fusion::FusionCounters& checked = checking.engine().counters();
+  const fusion::FusionCounters& tracked = tracking.engine().counters();
+  EXPECT_EQ(checked.accepted, 80);
+  EXPECT_EQ(checked.rejected_unknown_array, tracked.rejected_unknown_array);
+  EXPECT_EQ(checked.rejected_non_finite, tracked.rejected_non_finite);
+  EXPECT_EQ(checked.rejected_bad_direction, tracked.rejected_bad_direction);
+  EXPECT_EQ(
+      checked.rejected_unknown_array + checked.rejected_non_finite + checked.rejected_bad_direction,
+      3);
+  EXPECT_EQ(checking.ticks_emitted(), 0);
+  EXPECT_EQ(checked.tracks_started, 0);
+  EXPECT_GT(tracking.ticks_emitted(), 0);
+  EXPECT_FALSE(tracks.ticks.empty());
+  EXPECT_GE(tracked.tracks_started, 1);
 }
 
 TEST(DoaFileReplay, DoaLinesReadBackAsTheMeasurementsWritten) {

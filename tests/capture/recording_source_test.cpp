@@ -2,6 +2,10 @@
 // multichannel signal, must come back sample for sample (within the format's quantisation).
 #include "capture/recording_source.hpp"
 
+#include "capture/block_mapping.hpp"
+
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -256,6 +260,42 @@ TEST_F(RecordingSourceTest, LevelsAreMeasuredAndOverRangeSamplesKept) {
   const double rms = std::sqrt((99 * 0.25 + 1.5 * 1.5) / 100.0);
   EXPECT_NEAR(source.counters().rms_level_dbfs, 20.0 * std::log10(rms), 1e-6);
   EXPECT_FALSE(source.next(block));
+}
+
+TEST(MeasureLevels, FiniteSamplesOnlyAtEveryPositionOfTheBlock) {
+  // 8 lanes and a tail: the non-finite samples and the peak in lanes and in the tail; an
+  // over-range 3.0 in a lane, -2.5 (the largest magnitude of the tail) last.
+  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  for (const std::size_t count : {std::size_t{3}, std::size_t{8}, std::size_t{21}}) {
+    std::array<float, 21> buffer{};
+    buffer.fill(0.25F);
+    buffer[1] = kNan;
+    buffer[count - 2] = -kInf;
+    buffer[count - 1] = -2.5F;
+    if (count > 8) buffer[5] = 3.0F;
+    const std::vector<float> samples(buffer.begin(), buffer.begin() + static_cast<long>(count));
+    double peak = 0.0;
+    double sum_squares = 0.0;
+    std::size_t finite = 0;
+    for (const float sample : samples) {
+      if (!std::isfinite(sample)) continue;
+      peak = std::max(peak, static_cast<double>(std::fabs(sample)));
+      sum_squares += static_cast<double>(sample) * sample;
+      ++finite;
+    }
+    SourceCounters counters;
+    measure_levels(samples.data(), samples.size(), counters);
+    EXPECT_NEAR(counters.peak_level_dbfs, 20.0 * std::log10(peak), 1e-9) << count;
+    EXPECT_NEAR(counters.rms_level_dbfs,
+                20.0 * std::log10(std::sqrt(sum_squares / static_cast<double>(finite))), 1e-9)
+        << count;
+  }
+  SourceCounters counters;
+  const std::vector<float> none(9, kNan);
+  measure_levels(none.data(), none.size(), counters);
+  EXPECT_EQ(counters.peak_level_dbfs, kLevelFloorDbfs);
+  EXPECT_EQ(counters.rms_level_dbfs, kLevelFloorDbfs);
 }
 
 TEST_F(RecordingSourceTest, SilenceReportsTheLevelFloor) {
