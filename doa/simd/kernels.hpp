@@ -193,4 +193,45 @@ struct FourChannelRows {
 };
 int deinterleave_four(const FourChannelRows& rows);
 
+// ---- per-frame statistics (stats_kernels.cpp) ----
+
+// One frame's update of the per-bin SNR (Wiener) weights of BinSnrWeight: smoothed power,
+// minimum-tracked noise and weight max(snr / (1 + snr), floor) with
+// snr = max(smoothed / (bias noise) - 1, 0), bin by bin (no reduction: the same values as the
+// scalar expressions on every target).
+struct SnrRows {
+  const double* power;
+  double* smoothed;
+  double* noise;
+  double* weights;
+  std::size_t count;
+  double smoothing;  // share of the old smoothed power
+  double rise;       // noise may grow by this factor
+  double tiny;       // least noise power
+  double bias;       // mean noise over the tracked minimum
+  double floor;      // least weight
+};
+void snr_weights(const SnrRows& rows);
+
+// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by rank
+// counting; values finite.
+double middle_value(const double* values, int count);
+
+// Per channel of `frames` interleaved frames of `channels` (1..8) floats: the sum, the sum of
+// squares and the largest magnitude, in single precision. A NaN sample makes its channel's
+// squares NaN (and its peak NaN or not: the caller tests the squares first).
+struct InterleavedRows {
+  const float* interleaved;
+  std::size_t frames;
+  int channels;
+  float* sums;
+  float* squares;
+  float* peaks;
+};
+inline constexpr int kMaxInterleavedChannels = 8;
+void channel_sums(const InterleavedRows& rows);
+
+// sum_i a[i] a[i + lag] over i + lag < n, in single precision.
+float lagged_product(const float* a, int n, int lag);
+
 }  // namespace dronetrack::doa::simd
