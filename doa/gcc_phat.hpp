@@ -146,11 +146,11 @@ class GccPhat {
   // sources: each measured without the others' bins) or on corrected units by calling it again.
   void cross_power(const UnitsView& units, std::span<const std::uint8_t> keep,
                    bool weighted = false);
-  // cross_power() of whiten()'s units under `keep`, unweighted, with every live bin's phasor
-  // then replaced by the given one normalised to unit length (0 stays 0): pair p's band bins at
+  // cross_power() of whiten()'s units under `keep`, unweighted, but every live bin's phasor the
+  // given one normalised to unit length (0 stays 0) instead of u_i u_j*: pair p's band bins at
   // p * band bins. For a look on phasors averaged over frames (StaticSourceLook); the
-  // magnitudes stay the frame's.
-  void cross_power_from(std::span<const std::complex<double>> pair_phasors,
+  // magnitudes and which bins are live stay the frame's.
+  void cross_power_from(std::span<const std::complex<double>> given_phasors,
                         std::span<const std::uint8_t> keep);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
@@ -210,7 +210,9 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
-  void pair_phasors(const UnitsView& units, bool masked, bool weighted);
+  // given: phasors to normalise in place of u_i u_j* (cross_power_from()), else null.
+  void pair_phasors(const UnitsView& units, bool masked, bool weighted,
+                    const std::complex<double>* given = nullptr);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
 

@@ -64,18 +64,27 @@ double PairProducts(const PairRows& rows) {
   V total = hn::Zero(d);
   for (std::size_t n = 0; n < rows.count; n += lanes) {
     const std::size_t count = std::min(lanes, rows.count - n);
-    const V ar = LoadSome(d, rows.a.re + n, count);
-    const V ai = LoadSome(d, rows.a.im + n, count);
-    const V br = LoadSome(d, rows.b.re + n, count);
-    const V bi = LoadSome(d, rows.b.im + n, count);
     const V size =
         hn::Mul(LoadSome(d, rows.level_i + n, count), LoadSome(d, rows.level_j + n, count));
     V live = hn::IfThenElseZero(hn::Gt(size, silent), one);
     if (rows.keep != nullptr) live = hn::Mul(live, LoadKeep(d, rows.keep + n, count));
     const V w = rows.weights != nullptr ? LoadSome(d, rows.weights + n, count) : one;
     const V scale = hn::Mul(live, w);
-    const V re = hn::Mul(hn::MulAdd(ar, br, hn::Mul(ai, bi)), scale);
-    const V im = hn::Mul(hn::MulSub(ai, br, hn::Mul(ar, bi)), scale);
+    V re, im;
+    if (rows.given != nullptr) {
+      // Length 0 keeps InverseSqrt's huge estimate: 0 times it stays 0.
+      LoadSomePairs(d, rows.given + 2 * n, count, re, im);
+      const V unit = hn::Mul(InverseSqrt(d, hn::MulAdd(re, re, hn::Mul(im, im))), scale);
+      re = hn::Mul(re, unit);
+      im = hn::Mul(im, unit);
+    } else {
+      const V ar = LoadSome(d, rows.a.re + n, count);
+      const V ai = LoadSome(d, rows.a.im + n, count);
+      const V br = LoadSome(d, rows.b.re + n, count);
+      const V bi = LoadSome(d, rows.b.im + n, count);
+      re = hn::Mul(hn::MulAdd(ar, br, hn::Mul(ai, bi)), scale);
+      im = hn::Mul(hn::MulSub(ai, br, hn::Mul(ar, bi)), scale);
+    }
     StoreSomePairs(d, re, im, rows.out + 2 * n, count);
     const V sizes = hn::Mul(size, live);
     StoreSome(d, sizes, rows.magnitude + n, count);

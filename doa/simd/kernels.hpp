@@ -35,7 +35,8 @@ void unit_phasors(const UnitRows& rows);
 
 // One pair's phasors W = u_i u_j* (times live x w) and |G| = |X_i| |X_j| (times live); live is
 // 0 below `silent_level` (no phase) and for bins with keep 0 (keep null: all kept); weights null:
-// unweighted. Returns the sum of the magnitudes (times w).
+// unweighted; `given` not null: W is the given phasor (interleaved re, im) normalised to unit
+// length (0 stays 0) instead of u_i u_j*. Returns the sum of the magnitudes (times w).
 struct PairRows {
   SplitRows a;
   SplitRows b;
@@ -45,6 +46,7 @@ struct PairRows {
   const double* weights;
   std::size_t count;
   double silent_level;
+  const double* given;
   double* out;  // (re, im) interleaved
   double* magnitude;
 };
