@@ -288,6 +288,7 @@ void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted,
          kSilentBin,
          given != nullptr ? reinterpret_cast<const double*>(given + p * bins) : nullptr,
          out,
+         phasor_floats(p),
          magnitude});
     magnitude_sums_[p] = magnitude_sum;
   }

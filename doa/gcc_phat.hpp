@@ -267,7 +267,14 @@ class GccPhat {
   // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m
   // (single precision, as the sums over them).
   std::vector<float> lag_table_;
-  std::vector<float> phasor_floats_;  // direct_grids(): the phasors demoted
+  // The phasors in single precision for direct_grids(), made with them (pair_products,
+  // scale_and_sum): each demoted once, not once per correlation (empty without direct sums).
+  std::vector<float> phasor_floats_;
+  float* phasor_floats(std::size_t pair) {
+    return phasor_floats_.empty()
+               ? nullptr
+               : phasor_floats_.data() + 2 * pair * static_cast<std::size_t>(band_bins_);
+  }
   std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1

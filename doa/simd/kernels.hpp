@@ -47,7 +47,8 @@ struct PairRows {
   std::size_t count;
   double silent_level;
   const double* given;
-  double* out;  // (re, im) interleaved
+  double* out;        // (re, im) interleaved
+  float* out_floats;  // null, or `out` again in single precision (for direct_grids)
   double* magnitude;
 };
 double pair_products(const PairRows& rows);
@@ -78,7 +79,8 @@ KeptSums kept_sums(const KeptRows& rows);
 // One pair's band: phasors times `scales` and magnitudes times `keeps` (when `scale`); returns
 // the sum of the magnitudes (times `weights` when given).
 struct ScaleRows {
-  double* phasors;  // (re, im) interleaved
+  double* phasors;       // (re, im) interleaved
+  float* phasor_floats;  // null, or the scaled phasors again in single precision
   double* magnitudes;
   const double* scales;
   const double* keeps;
@@ -90,11 +92,11 @@ double scale_and_sum(const ScaleRows& rows);
 
 // Every pair's lag grid summed directly over the kept bins, in single precision:
 // R(+-m) = norm sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)), lags 0..half_span.
+// The phasors in single precision come from pair_products and scale_and_sum, which make them.
 struct GridJob {
-  const std::complex<double>* phasors;  // pair p's band at phasors + p * pair_stride
+  const float* phasor_floats;  // pair p's band, (re, im) interleaved, at 2 p pair_stride
   std::size_t pair_stride;
-  float* phasor_floats;  // 2 * pair_stride * pairs: the phasors demoted (scratch)
-  double* grids;         // pair p's 2 half + 1 values at grids + p * grid_stride
+  double* grids;  // pair p's 2 half + 1 values at grids + p * grid_stride
   std::size_t grid_stride;
   const int* half_spans;
   int pairs;
