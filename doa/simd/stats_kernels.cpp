@@ -54,30 +54,35 @@ void SnrWeights(const SnrRows& rows) {
 
 // Rank counting: windows hold a dozen points in random order, so every sorting or partitioning
 // step is a branch mispredicted half the time; counts are compares and adds without branches
-// (sums of 0 and 1 in doubles: exact).
+// (sums of 0 and 1 in doubles: exact). A vector of candidates at a time against each value
+// broadcast: no reduction across lanes, no partial vector but the candidates' last. The first
+// candidate in index order that fits is the answer, as a scalar loop over them would find.
 double MiddleValue(const double* values, int count) {
   note_dispatch(HWY_TARGET);
   const Full d;
   const std::size_t lanes = hn::Lanes(d);
   const auto size = static_cast<std::size_t>(count);
-  const int middle = count / 2;
+  const auto middle = static_cast<double>(count / 2);
   const V one = hn::Set(d, 1.0);
-  for (int i = 0; i < count; ++i) {
-    const V value = hn::Set(d, values[i]);
+  HWY_ALIGN double below_counts[kMaxLanes];
+  HWY_ALIGN double equal_counts[kMaxLanes];
+  for (std::size_t i = 0; i < size; i += lanes) {
+    const std::size_t some = std::min(lanes, size - i);
+    const V candidate = LoadSome(d, values + i, some);
     V below = hn::Zero(d);
     V equal = hn::Zero(d);
-    for (std::size_t j = 0; j < size; j += lanes) {
-      const std::size_t some = std::min(lanes, size - j);
-      const auto valid = hn::FirstN(d, some);
-      const V other = LoadSome(d, values + j, some);
-      below = hn::Add(below, hn::IfThenElseZero(hn::And(valid, hn::Lt(other, value)), one));
-      equal = hn::Add(equal, hn::IfThenElseZero(hn::And(valid, hn::Eq(other, value)), one));
+    for (std::size_t j = 0; j < size; ++j) {
+      const V other = hn::Set(d, values[j]);
+      below = hn::Add(below, hn::IfThenElseZero(hn::Lt(other, candidate), one));
+      equal = hn::Add(equal, hn::IfThenElseZero(hn::Eq(other, candidate), one));
     }
-    const auto below_count = static_cast<int>(SumLanes(d, below));
-    const auto equal_count = static_cast<int>(SumLanes(d, equal));
-    if (below_count <= middle && middle < below_count + equal_count) return values[i];
+    hn::Store(below, d, below_counts);
+    hn::Store(equal, d, equal_counts);
+    for (std::size_t l = 0; l < some; ++l)
+      if (below_counts[l] <= middle && middle < below_counts[l] + equal_counts[l])
+        return values[i + l];
   }
-  return values[middle];  // not reached for finite values
+  return values[count / 2];  // not reached for finite values
 }
 
 // The run as one flat array of floats in steps of whole periods (a multiple of both the channel
