@@ -2,8 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <stdexcept>
+
+#include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
@@ -53,42 +54,8 @@ void BinSnrWeight::update(const MultichannelFft& spectra, std::span<double> weig
     noise_ = power_;
     started_ = true;
   }
-  // Two bins per step and no branches: whether a bin's SNR is above 0 is a coin toss in noise
-  // (a branch per bin mispredicted half the time cost more than the arithmetic). The selects
-  // are std::min / std::max exactly (finite values).
-  using Lanes = double __attribute__((vector_size(16)));
-  const Lanes smoothing{kSmoothing, kSmoothing};
-  const Lanes fresh{1.0 - kSmoothing, 1.0 - kSmoothing};
-  const Lanes rise{rise_per_update_, rise_per_update_};
-  const Lanes tiny{kTinyPower, kTinyPower};
-  const Lanes bias{kMinimumBias, kMinimumBias};
-  const Lanes one{1.0, 1.0};
-  const Lanes zero{0.0, 0.0};
-  const Lanes floor{floor_, floor_};
-  std::size_t k = 0;
-  for (; k + 2 <= power_.size(); k += 2) {
-    Lanes smoothed, noise, power;
-    std::memcpy(&smoothed, smoothed_.data() + k, sizeof smoothed);
-    std::memcpy(&noise, noise_.data() + k, sizeof noise);
-    std::memcpy(&power, power_.data() + k, sizeof power);
-    smoothed = smoothing * smoothed + fresh * power;
-    const Lanes risen = noise * rise;
-    const Lanes lower = risen < smoothed ? risen : smoothed;  // std::min(smoothed, risen)
-    noise = lower < tiny ? tiny : lower;                      // std::max(lower, tiny)
-    const Lanes excess = smoothed / (bias * noise) - one;
-    const Lanes snr = excess < zero ? zero : excess;
-    const Lanes gain = snr / (one + snr);
-    const Lanes weight = gain < floor ? floor : gain;
-    std::memcpy(smoothed_.data() + k, &smoothed, sizeof smoothed);
-    std::memcpy(noise_.data() + k, &noise, sizeof noise);
-    std::memcpy(weights.data() + k, &weight, sizeof weight);
-  }
-  for (; k < power_.size(); ++k) {
-    smoothed_[k] = kSmoothing * smoothed_[k] + (1.0 - kSmoothing) * power_[k];
-    noise_[k] = std::max(std::min(smoothed_[k], noise_[k] * rise_per_update_), kTinyPower);
-    const double snr = std::max(smoothed_[k] / (kMinimumBias * noise_[k]) - 1.0, 0.0);
-    weights[k] = std::max(snr / (1.0 + snr), floor_);
-  }
+  simd::snr_weights({power_.data(), smoothed_.data(), noise_.data(), weights.data(), power_.size(),
+                     kSmoothing, rise_per_update_, kTinyPower, kMinimumBias, floor_});
 }
 
 }  // namespace dronetrack::doa

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "doa/simd/kernels.hpp"
+
 namespace dronetrack::doa {
 
 namespace {
@@ -107,79 +109,16 @@ void ChannelHealth::finish() {
 
 namespace {
 
-// The fast pass over the interleaved run as one flat array of floats: per channel a sum, a sum
-// of squares and a peak, in float (a run's worth; the stretch adds them up in double). Steps of
-// kStep floats, a multiple of both the channel count and the vector width, so lane j always
-// holds channel j % kChannels and the compiler keeps the sums in vectors (two at least, so that
-// no addition waits for the previous one). A non-finite sample makes its channel's sum of
-// squares non-finite, so a channel whose sums are finite and whose peak is under the clip level
-// needs no per-sample test; a float square overflows only beyond 1.8e19, which sends that
-// channel to the exact per-sample path too.
-template <int kChannels>
-void sum_run(const float* interleaved, std::size_t frames, float* sums, float* squares,
-             float* peaks) {
-  using Floats = float __attribute__((vector_size(16)));  // GCC/Clang vectors, as spectral_frame
-  constexpr int kLcm = std::lcm(kChannels, 4);
-  constexpr int kStep = kLcm < 16 ? (16 / kLcm) * kLcm : kLcm;  // floats per step
-  constexpr int kVectors = kStep / 4;
-  Floats sum[kVectors] = {};
-  Floats square[kVectors] = {};
-  Floats peak[kVectors] = {};
-  const std::size_t total = frames * kChannels;
-  std::size_t i = 0;
-  for (; i + kStep <= total; i += kStep) {
-    for (int v = 0; v < kVectors; ++v) {
-      Floats value;
-      std::memcpy(&value, interleaved + i + 4 * static_cast<std::size_t>(v), sizeof value);
-      sum[v] += value;
-      square[v] += value * value;
-      const Floats size = value < 0.0F ? -value : value;  // NaN stays NaN: the slow path's
-      peak[v] = peak[v] > size ? peak[v] : size;
-    }
-  }
-  float lanes_sum[kStep], lanes_square[kStep], lanes_peak[kStep];
-  std::memcpy(lanes_sum, sum, sizeof lanes_sum);
-  std::memcpy(lanes_square, square, sizeof lanes_square);
-  std::memcpy(lanes_peak, peak, sizeof lanes_peak);
-  for (int j = 0; i < total; ++i, ++j) {  // whole frames: lane j is still channel j % kChannels
-    const float value = interleaved[i];
-    lanes_sum[j] += value;
-    lanes_square[j] += value * value;
-    lanes_peak[j] = std::isnan(value) ? value : std::max(lanes_peak[j], std::fabs(value));
-  }
-  for (int c = 0; c < kChannels; ++c) {
-    sums[c] = 0.0F;
-    squares[c] = 0.0F;
-    peaks[c] = 0.0F;
-  }
-  for (int j = 0; j < kStep; ++j) {
-    sums[j % kChannels] += lanes_sum[j];
-    squares[j % kChannels] += lanes_square[j];
-    peaks[j % kChannels] = std::max(peaks[j % kChannels], lanes_peak[j]);
-  }
-}
-
+// The fast pass over the interleaved run: per channel a sum, a sum of squares and a peak, in
+// float (a run's worth; the stretch adds them up in double), by the SIMD layer's kernel. A
+// non-finite sample makes its channel's sum of squares non-finite, so a channel whose sums are
+// finite and whose peak is under the clip level needs no per-sample test; a float square
+// overflows only beyond 1.8e19, which sends that channel to the exact per-sample path too.
 void sum_run(int channels, const float* interleaved, std::size_t frames, float* sums,
              float* squares, float* peaks) {
-  switch (channels) {
-    case 1:
-      return sum_run<1>(interleaved, frames, sums, squares, peaks);
-    case 2:
-      return sum_run<2>(interleaved, frames, sums, squares, peaks);
-    case 3:
-      return sum_run<3>(interleaved, frames, sums, squares, peaks);
-    case 4:
-      return sum_run<4>(interleaved, frames, sums, squares, peaks);
-    case 5:
-      return sum_run<5>(interleaved, frames, sums, squares, peaks);
-    case 6:
-      return sum_run<6>(interleaved, frames, sums, squares, peaks);
-    case 7:
-      return sum_run<7>(interleaved, frames, sums, squares, peaks);
-    case 8:
-      return sum_run<8>(interleaved, frames, sums, squares, peaks);
-    default:
-      break;
+  if (channels <= simd::kMaxInterleavedChannels) {
+    simd::channel_sums({interleaved, frames, channels, sums, squares, peaks});
+    return;
   }
   // More channels than a node has mics: channel by channel.
   for (int c = 0; c < channels; ++c) {

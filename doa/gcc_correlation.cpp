@@ -61,10 +61,10 @@ bool GccPhat::prepare(bool weighted) {
   // four partial sums (one would make every bin wait for the previous addition).
   const auto scale_and_sum = [&](bool scale, bool weighted_sum) {
     for (std::size_t p = 0; p < pairs_.size(); ++p)
-      magnitude_sums_[p] =
-          simd::scale_and_sum({reinterpret_cast<double*>(phasors_.data() + p * bins),
-                               magnitudes_.data() + p * bins, bin_scales_.data(), bin_keeps_.data(),
-                               weighted_sum ? weights_.data() : nullptr, scale, bins});
+      magnitude_sums_[p] = simd::scale_and_sum(
+          {reinterpret_cast<double*>(phasors_.data() + p * bins), phasor_floats(p),
+           magnitudes_.data() + p * bins, bin_scales_.data(), bin_keeps_.data(),
+           weighted_sum ? weights_.data() : nullptr, scale, bins});
   };
   // Dropped bins already zero in the phasors (made under this very mask) need no pass of
   // their own.
@@ -104,8 +104,8 @@ void GccPhat::direct_grids(double normalisation) {
     kept_indices_[static_cast<std::size_t>(kept)] = index;
     kept += keep_[static_cast<std::size_t>(index)] != 0 ? 1 : 0;
   }
-  simd::direct_grids({phasors_.data(), static_cast<std::size_t>(band_bins_), phasor_floats_.data(),
-                      grids_.data(), static_cast<std::size_t>(grid_stride_), half_spans_.data(),
+  simd::direct_grids({phasor_floats_.data(), static_cast<std::size_t>(band_bins_), grids_.data(),
+                      static_cast<std::size_t>(grid_stride_), half_spans_.data(),
                       static_cast<int>(pairs_.size()), lag_table_.data(),
                       static_cast<std::size_t>(lag_stride_), kept_indices_.data(), kept_bins_,
                       normalisation});

@@ -221,14 +221,11 @@ void GccPhat::cross_power(const UnitsView& units, std::span<const std::uint8_t> 
   pair_phasors(units, true, weighted);
 }
 
-void GccPhat::cross_power_from(std::span<const std::complex<double>> pair_phasors,
+void GccPhat::cross_power_from(std::span<const std::complex<double>> given_phasors,
                                std::span<const std::uint8_t> keep) {
-  cross_power(units(), keep, false);
-  for (std::size_t k = 0; k < phasors_.size(); ++k) {
-    if (phasors_[k] == std::complex<double>{}) continue;  // dropped or silent in this frame
-    const double length = std::abs(pair_phasors[k]);
-    phasors_[k] = length > 0.0 ? pair_phasors[k] / length : std::complex<double>{};
-  }
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
+  if (keep.data() != keep_.data()) std::copy(keep.begin(), keep.end(), keep_.begin());
+  pair_phasors(units(), true, false, given_phasors.data());
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -258,7 +255,8 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
   pair_phasors(units(), false, false);
 }
 
-void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted) {
+void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted,
+                           const std::complex<double>* given) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins
   // dropped in keep_ zero; `weighted`: the phasors times the bins' weights, as a weighted
   // prepare() would scale them (the same product: live x w is w or 0).
@@ -279,16 +277,19 @@ void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted) {
     const double* level_j = levels_.data() + row_j;
     double* out = reinterpret_cast<double*>(phasors_.data() + p * bins);
     double* magnitude = magnitudes_.data() + p * bins;
-    const double magnitude_sum = simd::pair_products({{a_re, a_im},
-                                                      {b_re, b_im},
-                                                      level_i,
-                                                      level_j,
-                                                      masked ? keep_.data() : nullptr,
-                                                      weights,
-                                                      bins,
-                                                      kSilentBin,
-                                                      out,
-                                                      magnitude});
+    const double magnitude_sum = simd::pair_products(
+        {{a_re, a_im},
+         {b_re, b_im},
+         level_i,
+         level_j,
+         masked ? keep_.data() : nullptr,
+         weights,
+         bins,
+         kSilentBin,
+         given != nullptr ? reinterpret_cast<const double*>(given + p * bins) : nullptr,
+         out,
+         phasor_floats(p),
+         magnitude});
     magnitude_sums_[p] = magnitude_sum;
   }
   weights_applied_ = weighted;

@@ -146,11 +146,11 @@ class GccPhat {
   // sources: each measured without the others' bins) or on corrected units by calling it again.
   void cross_power(const UnitsView& units, std::span<const std::uint8_t> keep,
                    bool weighted = false);
-  // cross_power() of whiten()'s units under `keep`, unweighted, with every live bin's phasor
-  // then replaced by the given one normalised to unit length (0 stays 0): pair p's band bins at
+  // cross_power() of whiten()'s units under `keep`, unweighted, but every live bin's phasor the
+  // given one normalised to unit length (0 stays 0) instead of u_i u_j*: pair p's band bins at
   // p * band bins. For a look on phasors averaged over frames (StaticSourceLook); the
-  // magnitudes stay the frame's.
-  void cross_power_from(std::span<const std::complex<double>> pair_phasors,
+  // magnitudes and which bins are live stay the frame's.
+  void cross_power_from(std::span<const std::complex<double>> given_phasors,
                         std::span<const std::uint8_t> keep);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
@@ -210,7 +210,9 @@ class GccPhat {
   bool refine_parabolic(int pair, int grid_index, GccPeak& out) const;
   void refine_parabolic_grid_only(int pair, int grid_index, GccPeak& out) const;
   void evaluate(int pair, double lag_s, double& value, double& coherence) const;
-  void pair_phasors(const UnitsView& units, bool masked, bool weighted);
+  // given: phasors to normalise in place of u_i u_j* (cross_power_from()), else null.
+  void pair_phasors(const UnitsView& units, bool masked, bool weighted,
+                    const std::complex<double>* given = nullptr);
   void direct_grids(double normalisation);
   void inverse_grid(std::size_t pair, double normalisation, double* grid_values);
 
@@ -265,7 +267,14 @@ class GccPhat {
   // Per band bin: lag_stride_ values of cos, then of sin, of w_k m lag_step for lags m
   // (single precision, as the sums over them).
   std::vector<float> lag_table_;
-  std::vector<float> phasor_floats_;  // direct_grids(): the phasors demoted
+  // The phasors in single precision for direct_grids(), made with them (pair_products,
+  // scale_and_sum): each demoted once, not once per correlation (empty without direct sums).
+  std::vector<float> phasor_floats_;
+  float* phasor_floats(std::size_t pair) {
+    return phasor_floats_.empty()
+               ? nullptr
+               : phasor_floats_.data() + 2 * pair * static_cast<std::size_t>(band_bins_);
+  }
   std::vector<int> kept_indices_;     // band indices of the kept bins (direct_grids())
   std::vector<double> bin_scales_;    // correlate(): per band bin, keep x (w, 1 / w or 1)
   std::vector<double> bin_keeps_;     // correlate(): per band bin, keep as 0 or 1

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "doa/simd/kernels.hpp"
+
 namespace dronetrack::doa {
 
 namespace {
@@ -34,30 +36,6 @@ float fast_db(double x) {
   const float log2_m = -1.7417939f + (2.8212026f + (-1.4699568f + 0.44717955f * m) * m) * m;
   constexpr float kDbPerOctave = 3.0102999566f;  // 10 log10(2)
   return (exponent + log2_m) * kDbPerOctave;
-}
-
-using FloatLanes = float __attribute__((vector_size(16)));  // SSE on x86-64, NEON on arm64
-
-// sum_i a[i] a[i + lag], i + lag < n, four lanes at a time (the reduction order differs from the
-// plain loop's: an autocorrelation normalised to [-1, 1] does not care).
-float lagged_product(const float* a, int n, int lag) {
-  const int count = n - lag;
-  FloatLanes sum0{0, 0, 0, 0};
-  FloatLanes sum1{0, 0, 0, 0};
-  int i = 0;
-  for (; i + 8 <= count; i += 8) {
-    FloatLanes x0, y0, x1, y1;
-    std::memcpy(&x0, a + i, sizeof x0);
-    std::memcpy(&y0, a + i + lag, sizeof y0);
-    std::memcpy(&x1, a + i + 4, sizeof x1);
-    std::memcpy(&y1, a + i + lag + 4, sizeof y1);
-    sum0 += x0 * y0;
-    sum1 += x1 * y1;
-  }
-  sum0 += sum1;
-  float sum = sum0[0] + sum0[1] + sum0[2] + sum0[3];
-  for (; i < count; ++i) sum += a[i] * a[i + lag];
-  return sum;
 }
 
 }  // namespace
@@ -140,7 +118,7 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
   // Normalised; n / (n - L) undoes the shrinking overlap.
   for (int lag = first_lag_; lag <= last_lag_; ++lag) {
     autocorrelation[static_cast<std::size_t>(lag - first_lag_)] =
-        lagged_product(salience_.data(), n, lag) / energy * n / static_cast<double>(n - lag);
+        simd::lagged_product(salience_.data(), n, lag) / energy * n / static_cast<double>(n - lag);
   }
 }
 

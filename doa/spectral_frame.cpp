@@ -26,11 +26,10 @@ constexpr std::uint8_t kFlagClipped = 2;
 
 // Deinterleaves `count` frames into each channel's run (channel c at target + c * stride);
 // returns their sum of squares and sets `odd` on any non-finite or clipped value.
-// kChannels 4: frame by frame, two channels per vector; 0: any count (channel by channel,
-// four partial sums). Several partial sums: one
-// running sum would make every sample wait for the previous addition. A float squared cannot
-// overflow a double, so the sum is finite exactly when every sample is: no per-sample test.
-
+// kChannels 4: the SIMD layer's kernel for whole vectors of frames, the rest (fewer than a
+// vector's frames) below; 0: any count, channel by channel, four partial sums (one running sum
+// would make every sample wait for the previous addition). A float squared cannot overflow a
+// double, so the sum is finite exactly when every sample is: no per-sample test.
 template <int kChannels>
 double deinterleave(const float* source, int channels, int count, double* target,
                     std::ptrdiff_t stride, bool& odd) {
@@ -42,72 +41,23 @@ double deinterleave(const float* source, int channels, int count, double* target
     source += done * 4;
     target += done;
     count -= done;
-    // Channels (0, 1) and (2, 3) in the two lanes of a vector, even and odd frames in separate
-    // running sums and peaks: two frames per step, no chain of dependent additions per frame.
-    using Lanes = double __attribute__((vector_size(16)));
-    Lanes sums_low[2] = {{0.0, 0.0}, {0.0, 0.0}};
-    Lanes sums_high[2] = {{0.0, 0.0}, {0.0, 0.0}};
-    Lanes peaks_low[2] = {{0.0, 0.0}, {0.0, 0.0}};
-    Lanes peaks_high[2] = {{0.0, 0.0}, {0.0, 0.0}};
-    const auto magnitude = [](Lanes v) { return v < 0.0 ? -v : v; };
-    const auto larger = [](Lanes a, Lanes b) { return a > b ? a : b; };
+  }
+  for (int c = 0; c < channels; ++c) {
+    double* run = target + c * stride;
     int n = 0;
-    for (; n + 2 <= count; n += 2) {
-      for (int half = 0; half < 2; ++half) {
-        const float* frame = source + (n + half) * 4;
-        const Lanes low{frame[0], frame[1]};
-        const Lanes high{frame[2], frame[3]};
-        target[n + half] = low[0];
-        target[stride + n + half] = low[1];
-        target[2 * stride + n + half] = high[0];
-        target[3 * stride + n + half] = high[1];
-        sums_low[half] += low * low;
-        sums_high[half] += high * high;
-        peaks_low[half] = larger(peaks_low[half], magnitude(low));
-        peaks_high[half] = larger(peaks_high[half], magnitude(high));
+    for (; n + 4 <= count; n += 4) {
+      for (int lane = 0; lane < 4; ++lane) {
+        const double value = source[(n + lane) * channels + c];
+        run[n + lane] = value;
+        sums[lane] += value * value;
+        peaks[lane] = std::max(peaks[lane], std::fabs(value));
       }
     }
     for (; n < count; ++n) {
-      const float* frame = source + n * 4;
-      const Lanes low{frame[0], frame[1]};
-      const Lanes high{frame[2], frame[3]};
-      target[n] = low[0];
-      target[stride + n] = low[1];
-      target[2 * stride + n] = high[0];
-      target[3 * stride + n] = high[1];
-      sums_low[0] += low * low;
-      sums_high[0] += high * high;
-      peaks_low[0] = larger(peaks_low[0], magnitude(low));
-      peaks_high[0] = larger(peaks_high[0], magnitude(high));
-    }
-    const Lanes sum_low = sums_low[0] + sums_low[1];
-    const Lanes sum_high = sums_high[0] + sums_high[1];
-    const Lanes peak_low = larger(peaks_low[0], peaks_low[1]);
-    const Lanes peak_high = larger(peaks_high[0], peaks_high[1]);
-    for (int lane = 0; lane < 2; ++lane) {
-      sums[lane] += sum_low[lane];
-      sums[2 + lane] += sum_high[lane];
-      peaks[lane] = std::max(peaks[lane], peak_low[lane]);
-      peaks[2 + lane] = std::max(peaks[2 + lane], peak_high[lane]);
-    }
-  } else {
-    for (int c = 0; c < channels; ++c) {
-      double* run = target + c * stride;
-      int n = 0;
-      for (; n + 4 <= count; n += 4) {
-        for (int lane = 0; lane < 4; ++lane) {
-          const double value = source[(n + lane) * channels + c];
-          run[n + lane] = value;
-          sums[lane] += value * value;
-          peaks[lane] = std::max(peaks[lane], std::fabs(value));
-        }
-      }
-      for (; n < count; ++n) {
-        const double value = source[n * channels + c];
-        run[n] = value;
-        sums[0] += value * value;
-        peaks[0] = std::max(peaks[0], std::fabs(value));
-      }
+      const double value = source[n * channels + c];
+      run[n] = value;
+      sums[0] += value * value;
+      peaks[0] = std::max(peaks[0], std::fabs(value));
     }
   }
   const double sum = (sums[0] + sums[1]) + (sums[2] + sums[3]);

@@ -8,40 +8,13 @@
 
 #include <Eigen/Core>
 
+#include "doa/simd/kernels.hpp"
+
 namespace dronetrack::doa {
 
 namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-
-// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by rank
-// counting: windows hold a dozen points, whose order is random, so every sorting or
-// partitioning step is a branch mispredicted half the time; counts compile to compares and
-// adds without branches.
-double middle_value(const double* values, int count) {
-  using Lanes = double __attribute__((vector_size(16)));
-  using Counts = long long __attribute__((vector_size(16)));
-  const int middle = count / 2;
-  for (int i = 0; i < count; ++i) {
-    const Lanes value{values[i], values[i]};
-    Counts below{0, 0};
-    Counts equal{0, 0};
-    int j = 0;
-    for (; j + 2 <= count; j += 2) {
-      const Lanes other{values[j], values[j + 1]};
-      below -= other < value;  // a true compare is -1 in every bit
-      equal -= other == value;
-    }
-    long long below_count = below[0] + below[1];
-    long long equal_count = equal[0] + equal[1];
-    for (; j < count; ++j) {
-      below_count += values[j] < values[i] ? 1 : 0;
-      equal_count += values[j] == values[i] ? 1 : 0;
-    }
-    if (below_count <= middle && middle < below_count + equal_count) return values[i];
-  }
-  return values[middle];  // not reached for finite values
-}
 
 PairTdoa from_peak(const GccPhat& gcc, const GccPeak& peak) {
   return {peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value, peak.coherence};
@@ -285,7 +258,7 @@ void TdoaRegression::gate_residuals(const History& history) {
   for (std::size_t i = 0; i < window_; ++i)
     if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = std::abs(residuals_[i]);
   if (count == 0) return;
-  const double mad = middle_value(sorted_.data(), count);
+  const double mad = simd::middle_value(sorted_.data(), count);
   for (std::size_t i = 0; i < window_; ++i) {
     if (weights_[i] <= 0.0) continue;
     const double scale = std::max(1.4826 * mad, history.points[i].sigma_s);
@@ -316,7 +289,7 @@ PairTdoa TdoaRegression::estimate(int pair, double now_s, const PairTdoa& curren
   int count = 0;
   for (std::size_t i = 0; i < window_; ++i)
     if (weights_[i] > 0.0) sorted_[static_cast<std::size_t>(count++)] = history.points[i].tdoa_s;
-  const double level = middle_value(sorted_.data(), count);
+  const double level = simd::middle_value(sorted_.data(), count);
   for (std::size_t i = 0; i < window_; ++i)
     residuals_[i] = weights_[i] > 0.0 ? history.points[i].tdoa_s - level : 0.0;
   gate_residuals(history);

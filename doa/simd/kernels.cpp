@@ -64,19 +64,30 @@ double PairProducts(const PairRows& rows) {
   V total = hn::Zero(d);
   for (std::size_t n = 0; n < rows.count; n += lanes) {
     const std::size_t count = std::min(lanes, rows.count - n);
-    const V ar = LoadSome(d, rows.a.re + n, count);
-    const V ai = LoadSome(d, rows.a.im + n, count);
-    const V br = LoadSome(d, rows.b.re + n, count);
-    const V bi = LoadSome(d, rows.b.im + n, count);
     const V size =
         hn::Mul(LoadSome(d, rows.level_i + n, count), LoadSome(d, rows.level_j + n, count));
     V live = hn::IfThenElseZero(hn::Gt(size, silent), one);
     if (rows.keep != nullptr) live = hn::Mul(live, LoadKeep(d, rows.keep + n, count));
     const V w = rows.weights != nullptr ? LoadSome(d, rows.weights + n, count) : one;
     const V scale = hn::Mul(live, w);
-    const V re = hn::Mul(hn::MulAdd(ar, br, hn::Mul(ai, bi)), scale);
-    const V im = hn::Mul(hn::MulSub(ai, br, hn::Mul(ar, bi)), scale);
+    V re, im;
+    if (rows.given != nullptr) {
+      // Length 0 keeps InverseSqrt's huge estimate: 0 times it stays 0.
+      LoadSomePairs(d, rows.given + 2 * n, count, re, im);
+      const V unit = hn::Mul(InverseSqrt(d, hn::MulAdd(re, re, hn::Mul(im, im))), scale);
+      re = hn::Mul(re, unit);
+      im = hn::Mul(im, unit);
+    } else {
+      const V ar = LoadSome(d, rows.a.re + n, count);
+      const V ai = LoadSome(d, rows.a.im + n, count);
+      const V br = LoadSome(d, rows.b.re + n, count);
+      const V bi = LoadSome(d, rows.b.im + n, count);
+      re = hn::Mul(hn::MulAdd(ar, br, hn::Mul(ai, bi)), scale);
+      im = hn::Mul(hn::MulSub(ai, br, hn::Mul(ar, bi)), scale);
+    }
     StoreSomePairs(d, re, im, rows.out + 2 * n, count);
+    if (rows.out_floats != nullptr)
+      StoreSomePairsDemoted(d, re, im, rows.out_floats + 2 * n, count);
     const V sizes = hn::Mul(size, live);
     StoreSome(d, sizes, rows.magnitude + n, count);
     total = hn::MulAdd(sizes, w, total);
@@ -133,7 +144,11 @@ double ScaleAndSum(const ScaleRows& rows) {
       const V factor = LoadSome(d, rows.scales + n, count);
       V re, im;
       LoadSomePairs(d, rows.phasors + 2 * n, count, re, im);
-      StoreSomePairs(d, hn::Mul(re, factor), hn::Mul(im, factor), rows.phasors + 2 * n, count);
+      re = hn::Mul(re, factor);
+      im = hn::Mul(im, factor);
+      StoreSomePairs(d, re, im, rows.phasors + 2 * n, count);
+      if (rows.phasor_floats != nullptr)
+        StoreSomePairsDemoted(d, re, im, rows.phasor_floats + 2 * n, count);
       magnitude = hn::Mul(magnitude, LoadSome(d, rows.keeps + n, count));
       StoreSome(d, magnitude, rows.magnitudes + n, count);
     }
@@ -159,25 +174,10 @@ constexpr int kGridGroup = 6;
 using Floats = hn::CappedTag<float, 16>;
 using FloatVec = hn::Vec<Floats>;
 
-// The pairs' phasors over the whole band in single precision (contiguous: one demotion per
-// vector, no gather), so the sums below broadcast each from memory.
-void DemotePhasors(const GridJob& job) {
-  const Full d;
-  const hn::Rebind<float, Full> half;
-  const std::size_t lanes = hn::Lanes(d);
-  const std::size_t count = 2 * job.pair_stride * static_cast<std::size_t>(job.pairs);
-  const auto* from = reinterpret_cast<const double*>(job.phasors);
-  std::size_t n = 0;
-  for (; n + lanes <= count; n += lanes)
-    hn::StoreU(hn::DemoteTo(half, hn::LoadU(d, from + n)), half, job.phasor_floats + n);
-  for (; n < count; ++n) job.phasor_floats[n] = static_cast<float>(from[n]);
-}
-
 // kGridGroup pairs at once, two vectors of lags per block: every table row is loaded once for
 // all the group's pairs.
 void DirectGrids(const GridJob& job) {
   note_dispatch(HWY_TARGET);
-  DemotePhasors(job);
   const Floats d;
   const int lanes = static_cast<int>(hn::Lanes(d));
   const int block = 2 * lanes;

@@ -35,7 +35,8 @@ void unit_phasors(const UnitRows& rows);
 
 // One pair's phasors W = u_i u_j* (times live x w) and |G| = |X_i| |X_j| (times live); live is
 // 0 below `silent_level` (no phase) and for bins with keep 0 (keep null: all kept); weights null:
-// unweighted. Returns the sum of the magnitudes (times w).
+// unweighted; `given` not null: W is the given phasor (interleaved re, im) normalised to unit
+// length (0 stays 0) instead of u_i u_j*. Returns the sum of the magnitudes (times w).
 struct PairRows {
   SplitRows a;
   SplitRows b;
@@ -45,7 +46,9 @@ struct PairRows {
   const double* weights;
   std::size_t count;
   double silent_level;
-  double* out;  // (re, im) interleaved
+  const double* given;
+  double* out;        // (re, im) interleaved
+  float* out_floats;  // null, or `out` again in single precision (for direct_grids)
   double* magnitude;
 };
 double pair_products(const PairRows& rows);
@@ -76,7 +79,8 @@ KeptSums kept_sums(const KeptRows& rows);
 // One pair's band: phasors times `scales` and magnitudes times `keeps` (when `scale`); returns
 // the sum of the magnitudes (times `weights` when given).
 struct ScaleRows {
-  double* phasors;  // (re, im) interleaved
+  double* phasors;       // (re, im) interleaved
+  float* phasor_floats;  // null, or the scaled phasors again in single precision
   double* magnitudes;
   const double* scales;
   const double* keeps;
@@ -88,11 +92,11 @@ double scale_and_sum(const ScaleRows& rows);
 
 // Every pair's lag grid summed directly over the kept bins, in single precision:
 // R(+-m) = norm sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)), lags 0..half_span.
+// The phasors in single precision come from pair_products and scale_and_sum, which make them.
 struct GridJob {
-  const std::complex<double>* phasors;  // pair p's band at phasors + p * pair_stride
+  const float* phasor_floats;  // pair p's band, (re, im) interleaved, at 2 p pair_stride
   std::size_t pair_stride;
-  float* phasor_floats;  // 2 * pair_stride * pairs: the phasors demoted (scratch)
-  double* grids;         // pair p's 2 half + 1 values at grids + p * grid_stride
+  double* grids;  // pair p's 2 half + 1 values at grids + p * grid_stride
   std::size_t grid_stride;
   const int* half_spans;
   int pairs;
@@ -192,5 +196,46 @@ struct FourChannelRows {
   double* peaks;
 };
 int deinterleave_four(const FourChannelRows& rows);
+
+// ---- per-frame statistics (stats_kernels.cpp) ----
+
+// One frame's update of the per-bin SNR (Wiener) weights of BinSnrWeight: smoothed power,
+// minimum-tracked noise and weight max(snr / (1 + snr), floor) with
+// snr = max(smoothed / (bias noise) - 1, 0), bin by bin (no reduction: the same values as the
+// scalar expressions on every target).
+struct SnrRows {
+  const double* power;
+  double* smoothed;
+  double* noise;
+  double* weights;
+  std::size_t count;
+  double smoothing;  // share of the old smoothed power
+  double rise;       // noise may grow by this factor
+  double tiny;       // least noise power
+  double bias;       // mean noise over the tracked minimum
+  double floor;      // least weight
+};
+void snr_weights(const SnrRows& rows);
+
+// The value at index count / 2 of values[0, count) sorted (what nth_element picks), by rank
+// counting; values finite.
+double middle_value(const double* values, int count);
+
+// Per channel of `frames` interleaved frames of `channels` (1..8) floats: the sum, the sum of
+// squares and the largest magnitude, in single precision. A NaN sample makes its channel's
+// squares NaN (and its peak NaN or not: the caller tests the squares first).
+struct InterleavedRows {
+  const float* interleaved;
+  std::size_t frames;
+  int channels;
+  float* sums;
+  float* squares;
+  float* peaks;
+};
+inline constexpr int kMaxInterleavedChannels = 8;
+void channel_sums(const InterleavedRows& rows);
+
+// sum_i a[i] a[i + lag] over i + lag < n, in single precision.
+float lagged_product(const float* a, int n, int lag);
 
 }  // namespace dronetrack::doa::simd

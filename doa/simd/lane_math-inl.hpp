@@ -120,6 +120,19 @@ HWY_INLINE void StoreSomePairs(D d, V re, V im, double* target, std::size_t coun
   std::memcpy(target, row, 2 * count * sizeof(double));
 }
 
+// The first `count` lanes of re and im as interleaved (re, im) pairs in single precision.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void StoreSomePairsDemoted(D d, V re, V im, float* target, std::size_t count) {
+  const hn::Rebind<float, D> floats;
+  if (count == hn::Lanes(d)) {
+    hn::StoreInterleaved2(hn::DemoteTo(floats, re), hn::DemoteTo(floats, im), floats, target);
+    return;
+  }
+  HWY_ALIGN float row[2 * kMaxLanes];
+  hn::StoreInterleaved2(hn::DemoteTo(floats, re), hn::DemoteTo(floats, im), floats, row);
+  std::memcpy(target, row, 2 * count * sizeof(float));
+}
+
 // `count` keep bytes (0 or 1) as doubles, zeros after them.
 template <class D, class V = hn::Vec<D>>
 HWY_INLINE V LoadKeep(D d, const std::uint8_t* keep, std::size_t count) {

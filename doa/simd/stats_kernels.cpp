@@ -1,0 +1,193 @@
+// The per-frame statistics' vector kernels (kernels.hpp, "per-frame statistics"): the bin SNR
+// weights, the robust regression's middle value, the channel health's sums and the harmonic
+// comb's autocorrelation; compiled once per Highway target and dispatched at run time.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "doa/simd/stats_kernels.cpp"
+#include "hwy/foreach_target.h"  // IWYU pragma: keep
+// foreach_target.h re-includes this file per target: the kernels below are compiled each time.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "doa/simd/dispatch.hpp"
+#include "doa/simd/kernels.hpp"
+#include "doa/simd/lane_math-inl.hpp"
+#include "hwy/highway.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace dronetrack::doa::simd::HWY_NAMESPACE {
+namespace {
+
+using Full = hn::ScalableTag<double>;
+using V = hn::Vec<Full>;
+using Floats = hn::ScalableTag<float>;
+using FloatVec = hn::Vec<Floats>;
+
+// Bin by bin, no branches: whether a bin's SNR is above 0 is a coin toss in noise (a branch per
+// bin mispredicted half the time cost more than the arithmetic). Min and Max are std::min and
+// std::max for finite values; padding lanes compute on zeros and are not stored.
+void SnrWeights(const SnrRows& rows) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const std::size_t lanes = hn::Lanes(d);
+  const V smoothing = hn::Set(d, rows.smoothing);
+  const V fresh = hn::Set(d, 1.0 - rows.smoothing);
+  const V rise = hn::Set(d, rows.rise);
+  const V tiny = hn::Set(d, rows.tiny);
+  const V bias = hn::Set(d, rows.bias);
+  const V one = hn::Set(d, 1.0);
+  const V zero = hn::Zero(d);
+  const V floor = hn::Set(d, rows.floor);
+  for (std::size_t k = 0; k < rows.count; k += lanes) {
+    const std::size_t count = std::min(lanes, rows.count - k);
+    const V smoothed = hn::Add(hn::Mul(smoothing, LoadSome(d, rows.smoothed + k, count)),
+                               hn::Mul(fresh, LoadSome(d, rows.power + k, count)));
+    const V risen = hn::Mul(LoadSome(d, rows.noise + k, count), rise);
+    const V noise = hn::Max(hn::Min(risen, smoothed), tiny);
+    const V snr = hn::Max(hn::Sub(hn::Div(smoothed, hn::Mul(bias, noise)), one), zero);
+    const V weight = hn::Max(hn::Div(snr, hn::Add(one, snr)), floor);
+    StoreSome(d, smoothed, rows.smoothed + k, count);
+    StoreSome(d, noise, rows.noise + k, count);
+    StoreSome(d, weight, rows.weights + k, count);
+  }
+}
+
+// Rank counting: windows hold a dozen points in random order, so every sorting or partitioning
+// step is a branch mispredicted half the time; counts are compares and adds without branches
+// (sums of 0 and 1 in doubles: exact). A vector of candidates at a time against each value
+// broadcast: no reduction across lanes, no partial vector but the candidates' last. The first
+// candidate in index order that fits is the answer, as a scalar loop over them would find.
+double MiddleValue(const double* values, int count) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const std::size_t lanes = hn::Lanes(d);
+  const auto size = static_cast<std::size_t>(count);
+  const auto middle = static_cast<double>(count / 2);
+  const V one = hn::Set(d, 1.0);
+  HWY_ALIGN double below_counts[kMaxLanes];
+  HWY_ALIGN double equal_counts[kMaxLanes];
+  for (std::size_t i = 0; i < size; i += lanes) {
+    const std::size_t some = std::min(lanes, size - i);
+    const V candidate = LoadSome(d, values + i, some);
+    V below = hn::Zero(d);
+    V equal = hn::Zero(d);
+    for (std::size_t j = 0; j < size; ++j) {
+      const V other = hn::Set(d, values[j]);
+      below = hn::Add(below, hn::IfThenElseZero(hn::Lt(other, candidate), one));
+      equal = hn::Add(equal, hn::IfThenElseZero(hn::Eq(other, candidate), one));
+    }
+    hn::Store(below, d, below_counts);
+    hn::Store(equal, d, equal_counts);
+    for (std::size_t l = 0; l < some; ++l)
+      if (below_counts[l] <= middle && middle < below_counts[l] + equal_counts[l])
+        return values[i + l];
+  }
+  return values[count / 2];  // not reached for finite values
+}
+
+// The run as one flat array of floats in steps of whole periods (a multiple of both the channel
+// count and the lanes), so lane j of step vector v always holds channel (v lanes + j) % channels
+// and the sums stay in registers; at least four vectors a step, so that no addition waits for
+// the previous one. A non-finite sample makes its channel's sum of squares non-finite, so the
+// caller needs no per-sample test when the sums are finite; the peak keeps the larger by a
+// compare, as the scalar tail does (NaN: the squares tell).
+template <int kChannels>
+void ChannelSumsOf(const InterleavedRows& rows) {
+  const Floats d;
+  constexpr std::size_t kLanes = hn::MaxLanes(Floats());
+  constexpr std::size_t kPeriod = std::lcm(static_cast<std::size_t>(kChannels), kLanes);
+  constexpr std::size_t kPeriodVectors = kPeriod / kLanes;
+  constexpr std::size_t kVectors = kPeriodVectors * ((4 + kPeriodVectors - 1) / kPeriodVectors);
+  constexpr std::size_t kStep = kVectors * kLanes;
+  FloatVec sum[kVectors], square[kVectors], peak[kVectors];
+  for (std::size_t v = 0; v < kVectors; ++v) {
+    sum[v] = hn::Zero(d);
+    square[v] = hn::Zero(d);
+    peak[v] = hn::Zero(d);
+  }
+  const std::size_t total = rows.frames * kChannels;
+  std::size_t i = 0;
+  for (; i + kStep <= total; i += kStep) {
+    for (std::size_t v = 0; v < kVectors; ++v) {
+      const FloatVec value = hn::LoadU(d, rows.interleaved + i + v * kLanes);
+      sum[v] = hn::Add(sum[v], value);
+      square[v] = hn::Add(square[v], hn::Mul(value, value));
+      const FloatVec size = hn::Abs(value);
+      peak[v] = hn::IfThenElse(hn::Gt(peak[v], size), peak[v], size);
+    }
+  }
+  HWY_ALIGN float lane_sum[kStep], lane_square[kStep], lane_peak[kStep];
+  for (std::size_t v = 0; v < kVectors; ++v) {
+    hn::Store(sum[v], d, lane_sum + v * kLanes);
+    hn::Store(square[v], d, lane_square + v * kLanes);
+    hn::Store(peak[v], d, lane_peak + v * kLanes);
+  }
+  for (std::size_t j = 0; i < total; ++i, ++j) {  // whole frames: j % kChannels is the channel
+    const float value = rows.interleaved[i];
+    lane_sum[j] += value;
+    lane_square[j] += value * value;
+    lane_peak[j] = std::isnan(value) ? value : std::max(lane_peak[j], std::fabs(value));
+  }
+  for (int c = 0; c < kChannels; ++c) {
+    rows.sums[c] = 0.0F;
+    rows.squares[c] = 0.0F;
+    rows.peaks[c] = 0.0F;
+  }
+  for (std::size_t j = 0; j < kStep; ++j) {
+    const std::size_t c = j % kChannels;
+    rows.sums[c] += lane_sum[j];
+    rows.squares[c] += lane_square[j];
+    rows.peaks[c] = std::max(rows.peaks[c], lane_peak[j]);
+  }
+}
+
+void ChannelSums(const InterleavedRows& rows) {
+  note_dispatch(HWY_TARGET);
+  using Sums = void (*)(const InterleavedRows&);
+  constexpr Sums kSumsOf[kMaxInterleavedChannels] = {
+      ChannelSumsOf<1>, ChannelSumsOf<2>, ChannelSumsOf<3>, ChannelSumsOf<4>,
+      ChannelSumsOf<5>, ChannelSumsOf<6>, ChannelSumsOf<7>, ChannelSumsOf<8>};
+  kSumsOf[std::clamp(rows.channels, 1, kMaxInterleavedChannels) - 1](rows);
+}
+
+// Two running sums (one would make every product wait for the previous addition); the order
+// differs from a plain loop's, which an autocorrelation normalised to [-1, 1] does not mind.
+float LaggedProduct(const float* a, int n, int lag) {
+  note_dispatch(HWY_TARGET);
+  const Floats d;
+  const auto lanes = static_cast<int>(hn::Lanes(d));
+  const int count = n - lag;
+  FloatVec sum0 = hn::Zero(d);
+  FloatVec sum1 = hn::Zero(d);
+  int i = 0;
+  for (; i + 2 * lanes <= count; i += 2 * lanes) {
+    sum0 = hn::MulAdd(hn::LoadU(d, a + i), hn::LoadU(d, a + i + lag), sum0);
+    sum1 = hn::MulAdd(hn::LoadU(d, a + i + lanes), hn::LoadU(d, a + i + lag + lanes), sum1);
+  }
+  float sum = hn::GetLane(hn::SumOfLanes(d, hn::Add(sum0, sum1)));
+  for (; i < count; ++i) sum += a[i] * a[i + lag];
+  return sum;
+}
+
+}  // namespace
+}  // namespace dronetrack::doa::simd::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace dronetrack::doa::simd {
+
+HWY_EXPORT(SnrWeights);
+HWY_EXPORT(MiddleValue);
+HWY_EXPORT(ChannelSums);
+HWY_EXPORT(LaggedProduct);
+void snr_weights(const SnrRows& rows) { HWY_DYNAMIC_DISPATCH(SnrWeights)(rows); }
+double middle_value(const double* values, int count) {
+  return HWY_DYNAMIC_DISPATCH(MiddleValue)(values, count);
+}
+void channel_sums(const InterleavedRows& rows) { HWY_DYNAMIC_DISPATCH(ChannelSums)(rows); }
+float lagged_product(const float* a, int n, int lag) {
+  return HWY_DYNAMIC_DISPATCH(LaggedProduct)(a, n, lag);
+}
+
+}  // namespace dronetrack::doa::simd
+#endif

@@ -1,0 +1,145 @@
+// The per-frame statistics' SIMD kernels (doa/simd/stats_kernels.cpp) on every target this CPU
+// has, against plain scalar references: row lengths that leave partial vectors, ties, NaN.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "doa/simd/dispatch.hpp"
+#include "doa/simd/kernels.hpp"
+
+namespace dronetrack::doa {
+namespace {
+
+// Runs `check` once per target available here (at least the best one), then restores dispatch.
+template <class Check>
+void on_every_target(Check check) {
+  int targets = 0;
+  for (const char* target : {"AVX3", "AVX2", "SSE4", "NEON", "SCALAR"}) {
+    try {
+      set_simd_target(target);
+    } catch (const std::invalid_argument&) {
+      continue;  // not on this CPU
+    }
+    const std::uint64_t calls_before = simd_dispatch_count(target);
+    check(std::string(target));
+    EXPECT_GT(simd_dispatch_count(target), calls_before) << target << ": kernel not dispatched";
+    ++targets;
+  }
+  set_simd_target("auto");
+  EXPECT_GE(targets, 1);
+}
+
+TEST(SimdKernels, SnrWeightsMatchTheScalarUpdate) {
+  std::mt19937 random(7);
+  std::exponential_distribution<double> power_of(1.0);
+  for (const std::size_t count : {std::size_t{1}, std::size_t{7}, std::size_t{342}}) {
+    std::vector<double> power(count), smoothed(count), noise(count);
+    for (std::size_t k = 0; k < count; ++k) {
+      power[k] = power_of(random);
+      smoothed[k] = power_of(random);
+      noise[k] = k % 3 == 0 ? 0.0 : 0.3 * power_of(random);  // 0: the tiny floor decides
+    }
+    constexpr double kSmoothing = 0.6, kRise = 1.01, kTiny = 1e-30, kBias = 2.0, kFloor = 0.05;
+    std::vector<double> want_smoothed(count), want_noise(count), want_weight(count);
+    for (std::size_t k = 0; k < count; ++k) {
+      want_smoothed[k] = kSmoothing * smoothed[k] + (1.0 - kSmoothing) * power[k];
+      want_noise[k] = std::max(std::min(want_smoothed[k], noise[k] * kRise), kTiny);
+      const double snr = std::max(want_smoothed[k] / (kBias * want_noise[k]) - 1.0, 0.0);
+      want_weight[k] = std::max(snr / (1.0 + snr), kFloor);
+    }
+    on_every_target([&](const std::string& target) {
+      std::vector<double> got_smoothed = smoothed, got_noise = noise, weights(count + 1, -1.0);
+      simd::snr_weights({power.data(), got_smoothed.data(), got_noise.data(), weights.data(), count,
+                         kSmoothing, kRise, kTiny, kBias, kFloor});
+      for (std::size_t k = 0; k < count; ++k) {
+        EXPECT_NEAR(got_smoothed[k], want_smoothed[k], 1e-15 * want_smoothed[k]) << target << k;
+        EXPECT_NEAR(got_noise[k], want_noise[k], 1e-15 * want_noise[k]) << target << k;
+        EXPECT_NEAR(weights[k], want_weight[k], 1e-14) << target << k;
+      }
+      EXPECT_EQ(weights[count], -1.0) << target << ": wrote past the row";
+    });
+  }
+}
+
+TEST(SimdKernels, MiddleValueIsTheSortedMiddle) {
+  std::mt19937 random(11);
+  std::uniform_int_distribution<int> level(0, 5);  // few levels: many ties
+  for (int count = 1; count <= 19; ++count) {
+    std::vector<double> values(static_cast<std::size_t>(count));
+    for (double& value : values) value = 0.5 * level(random) - 1.0;
+    std::vector<double> sorted = values;
+    std::sort(sorted.begin(), sorted.end());
+    const double want = sorted[static_cast<std::size_t>(count / 2)];
+    on_every_target([&](const std::string& target) {
+      EXPECT_EQ(simd::middle_value(values.data(), count), want) << target << " count " << count;
+    });
+  }
+}
+
+TEST(SimdKernels, ChannelSumsPerChannel) {
+  std::mt19937 random(13);
+  std::uniform_real_distribution<float> sample(-1.0F, 1.0F);
+  for (int channels = 1; channels <= simd::kMaxInterleavedChannels; ++channels) {
+    for (const std::size_t frames : {std::size_t{3}, std::size_t{37}, std::size_t{4096}}) {
+      std::vector<float> interleaved(frames * static_cast<std::size_t>(channels));
+      for (float& value : interleaved) value = sample(random);
+      // The last channel's largest sample, negative and late (in the scalar tail or not).
+      interleaved[interleaved.size() - 1] = -1.5F;
+      std::vector<double> want_sum(static_cast<std::size_t>(channels), 0.0);
+      std::vector<double> want_square = want_sum, want_peak = want_sum;
+      for (std::size_t n = 0; n < interleaved.size(); ++n) {
+        const std::size_t c = n % static_cast<std::size_t>(channels);
+        want_sum[c] += interleaved[n];
+        want_square[c] += static_cast<double>(interleaved[n]) * interleaved[n];
+        want_peak[c] = std::max(want_peak[c], std::fabs(static_cast<double>(interleaved[n])));
+      }
+      on_every_target([&](const std::string& target) {
+        std::vector<float> sums(static_cast<std::size_t>(channels), -9.0F);
+        std::vector<float> squares = sums, peaks = sums;
+        simd::channel_sums(
+            {interleaved.data(), frames, channels, sums.data(), squares.data(), peaks.data()});
+        for (std::size_t c = 0; c < sums.size(); ++c) {
+          // Float sums of `frames` values: ~frames x 6e-8 of the sum of magnitudes.
+          const double tolerance = 1e-6 * static_cast<double>(frames);
+          EXPECT_NEAR(sums[c], want_sum[c], tolerance) << target << channels << " ch " << c;
+          EXPECT_NEAR(squares[c], want_square[c], tolerance) << target << channels << " ch " << c;
+          EXPECT_EQ(peaks[c], want_peak[c]) << target << channels << " ch " << c;
+        }
+      });
+    }
+  }
+  // A NaN sample makes its channel's squares NaN, and no other channel's.
+  std::vector<float> interleaved(4 * 100, 0.25F);
+  interleaved[4 * 50 + 2] = std::numeric_limits<float>::quiet_NaN();
+  on_every_target([&](const std::string& target) {
+    float sums[4], squares[4], peaks[4];
+    simd::channel_sums({interleaved.data(), 100, 4, sums, squares, peaks});
+    for (int c = 0; c < 4; ++c) EXPECT_EQ(std::isnan(squares[c]), c == 2) << target << c;
+  });
+}
+
+TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
+  std::mt19937 random(17);
+  std::uniform_real_distribution<float> sample(0.0F, 2.0F);
+  for (const int n : {5, 40, 333}) {
+    std::vector<float> a(static_cast<std::size_t>(n));
+    for (float& value : a) value = sample(random);
+    for (const int lag : {0, 1, 3, n / 2, n - 1}) {
+      double want = 0.0;
+      for (int i = 0; i + lag < n; ++i) want += static_cast<double>(a[i]) * a[i + lag];
+      on_every_target([&](const std::string& target) {
+        EXPECT_NEAR(simd::lagged_product(a.data(), n, lag), want, 1e-6 * n * (1.0 + want))
+            << target << " n " << n << " lag " << lag;
+      });
+    }
+  }
+}
+
+}  // namespace
+}  // namespace dronetrack::doa
