@@ -311,7 +311,8 @@ doa::NodeStatus ArrayNode::status() const {
         {channel.problems, channel.problems_seen, channel.non_finite_samples,
          channel.clipped_samples, channel.rms_dbfs, compared.problems, compared.problems_seen,
          std::clamp(compared.level_offset_db, -doa::kMaxLevelOffset_db, doa::kMaxLevelOffset_db),
-         std::clamp(compared.delay_offset_us, -doa::kMaxHealthDelay_us, doa::kMaxHealthDelay_us)});
+         std::clamp(compared.delay_offset_us, -doa::kMaxHealthDelay_us, doa::kMaxHealthDelay_us),
+         std::min(compared.delay_std_us, doa::kMaxHealthDelay_us)});
   }
   return status;
 }

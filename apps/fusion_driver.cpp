@@ -2,12 +2,41 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+
+#include "common/log.hpp"
 
 namespace dronetrack::apps {
 namespace {
 // Tick times are multiples of the output period; k * 0.1 is not exact in binary.
 constexpr double kTimeEpsilon_s = 1e-9;
+
+std::string format(const char* pattern, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, pattern, value);
+  return text;
+}
+
+// "channel 3", naming the input channel too when a channel_map moved the mic.
+std::string channel_name(int mic, int input_channel) {
+  std::string name = "channel " + std::to_string(mic);
+  if (input_channel != mic) name += " (input channel " + std::to_string(input_channel) + ")";
+  return name;
+}
+
 }  // namespace
+
+std::string mirror_swap_warning(const std::string& array_id, int input_a, int input_b,
+                                const fusion::MirrorSwapEvent& event) {
+  return array_id + " " + channel_name(event.channel_a, input_a) + ": swapped with " +
+         channel_name(event.channel_b, input_b) +
+         " (seen by the fusion): its DOAs are the mirror image, through the plane between the two "
+         "mics, of the tracks the other arrays fix (mean misfit " +
+         format("%.1f", event.swapped_misfit_deg) + " deg mirrored against " +
+         format("%.1f", event.wired_misfit_deg) + " deg as wired, over " +
+         std::to_string(event.sectors) + " direction sectors) at " + format("%.2f", event.time_s) +
+         " s; swap the two inputs or their channel_map entries";
+}
 
 FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObserver*> observers)
     : engine_(site.fusion, site.geometries(), site.speed_of_sound_mps),
@@ -17,7 +46,45 @@ FusionDriver::FusionDriver(const config::SiteConfig& site, std::vector<FusionObs
           std::any_of(observers_.begin(), observers_.end(),
                       [](const FusionObserver* observer) { return observer->wants_tracks(); })),
       output_period_s_(1.0 / site.fusion.output_rate_hz),
-      reorder_window_s_(site.fusion.reorder_window_s) {}
+      reorder_window_s_(site.fusion.reorder_window_s) {
+  for (const auto& array : site.arrays) {
+    array_ids_.push_back(array.geometry.id);
+    channel_maps_.push_back(array.channel_map);
+    swapped_seen_.emplace_back(array.geometry.mics_m.size(), doa::ArrayFlags{0});
+  }
+}
+
+void FusionDriver::report_mirror_swaps() {
+  mirror_events_.clear();
+  engine_.take_mirror_events(mirror_events_);
+  for (const fusion::MirrorSwapEvent& event : mirror_events_) {
+    const auto array = static_cast<std::size_t>(event.array);
+    const std::vector<int>& map = channel_maps_[array];
+    const auto input_of = [&map](int mic) {
+      return static_cast<std::size_t>(mic) < map.size() ? map[static_cast<std::size_t>(mic)] : mic;
+    };
+    log::warn(mirror_swap_warning(array_ids_[array], input_of(event.channel_a),
+                                  input_of(event.channel_b), event));
+    for (const int channel : {event.channel_a, event.channel_b}) {
+      if (static_cast<std::size_t>(channel) < swapped_seen_[array].size())
+        swapped_seen_[array][static_cast<std::size_t>(channel)] |=
+            doa::array_flag(doa::ArrayProblem::swapped);
+    }
+  }
+}
+
+void FusionDriver::mark_fusion_findings(doa::NodeStatus& status) const {
+  const auto found = std::find(array_ids_.begin(), array_ids_.end(), status.array_id);
+  if (found == array_ids_.end()) return;
+  const auto array = static_cast<std::size_t>(found - array_ids_.begin());
+  const fusion::MirrorCheckStatus now = engine_.mirror_status(array);
+  const auto swapped = doa::array_flag(doa::ArrayProblem::swapped);
+  for (std::size_t c = 0; c < status.channels.size() && c < swapped_seen_[array].size(); ++c) {
+    status.channels[c].array_problems_seen |= swapped_seen_[array][c];
+    if (static_cast<int>(c) == now.swapped_a || static_cast<int>(c) == now.swapped_b)
+      status.channels[c].array_problems |= swapped;
+  }
+}
 
 fusion::DoaVerdict FusionDriver::on_doa(const doa::DoaMeasurement& doa) {
   const fusion::DoaVerdict verdict = tracking_ ? engine_.add(doa) : engine_.admit(doa);
@@ -28,7 +95,9 @@ fusion::DoaVerdict FusionDriver::on_doa(const doa::DoaMeasurement& doa) {
 }
 
 void FusionDriver::on_node_status(const doa::NodeStatus& status) {
-  for (auto* observer : observers_) observer->on_node_status(status);
+  doa::NodeStatus marked = status;
+  mark_fusion_findings(marked);
+  for (auto* observer : observers_) observer->on_node_status(marked);
 }
 
 void FusionDriver::advance_to(double now_s) {
@@ -47,6 +116,7 @@ void FusionDriver::advance_to(double now_s) {
   // and the engine is run exactly up to each tick so the report never predicts backwards.
   while (next_tick_s_ <= now_s - reorder_window_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(now_s);
+  report_mirror_swaps();
   for (auto* observer : observers_) observer->on_time(now_s);
 }
 
@@ -56,6 +126,7 @@ void FusionDriver::finish(double end_s) {
   const double last_s = std::isfinite(end_s) ? std::max(latest_time_s_, end_s) : latest_time_s_;
   while (next_tick_s_ <= last_s + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(last_s + reorder_window_s_);
+  report_mirror_swaps();
 }
 
 void FusionDriver::emit_tick(double tick_s) {

@@ -3,14 +3,23 @@
 // stream time, and emits track reports at the output rate plus zone events. Shared by
 // `replay` (in-process) and `fusion` (DDS), so both paths produce the same outputs.
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "apps/fusion_observer.hpp"
 #include "config/site_config.hpp"
+#include "doa/node_status.hpp"
 #include "fusion/fusion_engine.hpp"
 #include "fusion/zone_monitor.hpp"
 
 namespace dronetrack::apps {
+
+// The warning line for a swap the fusion named on a mirror-symmetric array (issue 16,
+// fusion/array_mirror_check.hpp), naming the array and both channels, e.g. "A2 channel 1: swapped
+// with channel 2 (seen by the fusion): ...". `input_a`/`input_b`: the two mics' input channels
+// (named when a channel_map moved them).
+std::string mirror_swap_warning(const std::string& array_id, int input_a, int input_b,
+                                const fusion::MirrorSwapEvent& event);
 
 class FusionDriver {
  public:
@@ -18,7 +27,11 @@ class FusionDriver {
 
   // Returns the engine's verdict; rejected DOAs are counted by the engine and not forwarded.
   fusion::DoaVerdict on_doa(const doa::DoaMeasurement& doa);
+  // Forwarded with the swaps the fusion found on that array (issue 16) set in its channels'
+  // array problems, so /api/nodes and the page show them beside the node's own checks.
   void on_node_status(const doa::NodeStatus& status);
+  // Sets the `swapped` flags the fusion's mirror check holds for status's array.
+  void mark_fusion_findings(doa::NodeStatus& status) const;
   // The stream has reached now_s: every output tick up to now_s - reorder window is emitted.
   void advance_to(double now_s);
   // End of stream: emits the remaining ticks up to the last time seen, or up to end_s when the
@@ -34,6 +47,8 @@ class FusionDriver {
 
  private:
   void emit_tick(double tick_s);
+  // Logs the swaps the engine named since the last call (one warning line each).
+  void report_mirror_swaps();
 
   fusion::FusionEngine engine_;
   fusion::ZoneMonitor zones_;
@@ -49,6 +64,11 @@ class FusionDriver {
   std::int64_t ticks_emitted_ = 0;
   std::vector<fusion::TrackReport> tracks_;     // reused every tick
   std::vector<fusion::ZoneEvent> zone_events_;  // reused every tick
+  std::vector<std::string> array_ids_;
+  std::vector<std::vector<int>> channel_maps_;
+  std::vector<fusion::MirrorSwapEvent> mirror_events_;
+  // Per array, per channel: swapped said by the fusion at any time so far.
+  std::vector<std::vector<doa::ArrayFlags>> swapped_seen_;
 };
 
 }  // namespace dronetrack::apps

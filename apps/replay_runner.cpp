@@ -200,8 +200,18 @@ ReplaySummary run_replay(const config::SiteConfig& site,
   summary.counters = driver.engine().counters();
   summary.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   // Bad audio must not pass in silence: one line per array whose audio had problems.
-  for (const auto& lane : lanes) {
+  for (std::size_t a = 0; a < lanes.size(); ++a) {
+    const NodeLane& lane = lanes[a];
     summary.nodes.push_back(lane.node.status());
+    driver.mark_fusion_findings(summary.nodes.back());
+    // The fusion's swap check on this array (issue 16): how near its bar it came.
+    const fusion::MirrorCheckStatus& mirror = driver.engine().mirror_status(a);
+    if (mirror.mirrors > 0)
+      log::info("replay: ", lane.node.array_id(), " mirror check: ", mirror.evidence_doas,
+                " evidence DOAs held, largest evidence ratio ", mirror.largest_ratio, " (bar ",
+                site.fusion.mirror_check.evidence_ratio, "), last best swap ",
+                mirror.best_channel_a, "-", mirror.best_channel_b, " at ", mirror.best_ratio,
+                " over ", mirror.best_sectors, " sectors");
     if (options.incidents) options.incidents->fill_status(summary.nodes.back());
     if (const std::string problems = health_summary(summary.nodes.back()); !problems.empty())
       log::warn("replay: audio problems: ", problems);

@@ -142,6 +142,29 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
       section.number("doa_error_correlation_s", params.doa_error_correlation_s, 0.0, 60.0);
   params.ground_altitude_m =
       section.number("ground_altitude_m", params.ground_altitude_m, -1e4, 1e4);
+  if (section.has("mirror_check")) {
+    // Keys, units and defaults: docs/calibration.md ("Swaps the node cannot see").
+    ObjectReader reader = section.object("mirror_check");
+    fusion::MirrorCheckSettings& m = params.mirror_check;
+    m.enabled = reader.boolean("enabled", m.enabled);
+    m.gate_deg = reader.number("gate_deg", m.gate_deg, 0.1, 45.0);
+    m.min_separation_deg = reader.number("min_separation_deg", m.min_separation_deg, 1.0, 180.0);
+    if (!(m.min_separation_deg > m.gate_deg))
+      reader.diagnostics().error(reader.path_of("min_separation_deg"), "must exceed gate_deg");
+    m.evidence_ratio = reader.number("evidence_ratio", m.evidence_ratio, 1.5, 1e4);
+    m.floor_deg = reader.number("floor_deg", m.floor_deg, 0.01, 45.0);
+    m.min_sectors = reader.integer("min_sectors", m.min_sectors, 1, 1024);
+    m.min_sector_doas = reader.number("min_sector_doas", m.min_sector_doas, 1.0, 1e6);
+    m.sectors = reader.integer("sectors", m.sectors, 1, 1024);
+    if (m.min_sectors > m.sectors)
+      reader.diagnostics().error(reader.path_of("min_sectors"), "must not exceed sectors");
+    m.window_s = reader.number("window_s", m.window_s, 1.0, 86400.0);
+    m.judge_doas = reader.integer("judge_doas", m.judge_doas, 1, 100000);
+    m.symmetry_tolerance = reader.number("symmetry_tolerance", m.symmetry_tolerance, 0.0, 0.2);
+    m.min_other_arrays = reader.integer("min_other_arrays", m.min_other_arrays, 1, 63);
+    m.max_track_angle_deg = reader.number("max_track_angle_deg", m.max_track_angle_deg, 0.01, 45.0);
+    m.rewarn_s = reader.number("rewarn_s", m.rewarn_s, 0.0, 86400.0);
+  }
   if (section.has("classifier")) {
     // Keys, units and defaults: docs/classification.md.
     ObjectReader reader = section.object("classifier");

@@ -326,6 +326,7 @@ void to_idl(const doa::NodeStatus& status, std::int64_t time_ns, dronetrack_Node
     out.array_problems_seen = channel.array_problems_seen;
     out.level_offset_db = channel.level_offset_db;
     out.delay_offset_us = channel.delay_offset_us;
+    out.delay_std_us = channel.delay_std_us;
   }
 }
 
@@ -353,7 +354,7 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
   for (std::size_t c = 0; c < sample.channel_count; ++c) {
     const dronetrack_ChannelHealth& channel = sample.channels[c];
     if (!finite(channel.rms_dbfs) || !finite(channel.level_offset_db) ||
-        !finite(channel.delay_offset_us))
+        !finite(channel.delay_offset_us) || !finite(channel.delay_std_us))
       return SampleProblem::non_finite;
     if (channel.non_finite_samples < 0 || channel.clipped_samples < 0 ||
         (channel.problems & ~kKnownProblems) != 0 ||
@@ -361,7 +362,8 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
         (channel.array_problems & ~doa::kKnownArrayProblems) != 0 ||
         (channel.array_problems_seen & ~doa::kKnownArrayProblems) != 0 ||
         std::fabs(channel.level_offset_db) > doa::kMaxLevelOffset_db ||
-        std::fabs(channel.delay_offset_us) > doa::kMaxHealthDelay_us)
+        std::fabs(channel.delay_offset_us) > doa::kMaxHealthDelay_us ||
+        !(channel.delay_std_us >= 0.0 && channel.delay_std_us <= doa::kMaxHealthDelay_us))
       return SampleProblem::bad_value;
   }
   out.array_id.assign(id);
@@ -387,7 +389,7 @@ SampleProblem from_idl(const dronetrack_NodeStatus& sample,
     out.channels.push_back({channel.problems, channel.problems_seen, channel.non_finite_samples,
                             channel.clipped_samples, channel.rms_dbfs, channel.array_problems,
                             channel.array_problems_seen, channel.level_offset_db,
-                            channel.delay_offset_us});
+                            channel.delay_offset_us, channel.delay_std_us});
   }
   return SampleProblem::none;
 }

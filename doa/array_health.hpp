@@ -18,7 +18,8 @@
 //                    see it (a relabelling keeps every sum), nor can anything at one node when
 //                    the swap is a symmetry of the array (a regular tetrahedron's every swap is a
 //                    mirror: the swapped array hears the mirror world exactly); such swaps are
-//                    not tested (swap_observable()).
+//                    not tested here (swap_observable()): the fusion names them against tracks
+//                    the other arrays fix (fusion/array_mirror_check.hpp).
 // A pure per-channel delay d cancels exactly in a closure sum ((d_i - d_j) + (d_j - d_k) -
 // (d_i - d_k) = 0); closure catches the GCC picking different sources or cycles on different
 // pairs, which is what a skewed channel does to a harmonic drone, and the delay fit catches the

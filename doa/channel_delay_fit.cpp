@@ -22,6 +22,7 @@ ChannelDelayFit::ChannelDelayFit(const PairBySpace& pair_vectors_m, int channels
       speed_of_sound_mps_(speed_of_sound_mps),
       settings_(settings),
       forgetting_(std::exp(-hop_s / settings.window_s)),
+      sector_of_(settings.sectors),
       geometry_(pair_vectors_m) {
   const int pairs = static_cast<int>(pair_vectors_m.rows());
   difference_.setZero(pairs, channels_);
@@ -40,14 +41,6 @@ ChannelDelayFit::ChannelDelayFit(const PairBySpace& pair_vectors_m, int channels
   const double radius_m = std::sqrt(geometry_.squaredNorm()) / channels_;
   scale_length_s_ = radius_m / speed_of_sound_mps_;
 
-  // Sectors: the cells of a Fibonacci lattice over the sphere (near-equal areas).
-  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
-  for (int s = 0; s < settings_.sectors; ++s) {
-    const double z = 1.0 - (2.0 * s + 1.0) / settings_.sectors;
-    const double radius = std::sqrt(1.0 - z * z);
-    sector_directions_.emplace_back(radius * std::cos(golden_angle * s),
-                                    radius * std::sin(golden_angle * s), z);
-  }
   Sector empty;
   empty.information.setZero(parameters_, parameters_);
   empty.score.setZero(parameters_);
@@ -65,19 +58,6 @@ ChannelDelayFit::ChannelDelayFit(const PairBySpace& pair_vectors_m, int channels
 }
 
 double ChannelDelayFit::scale_error() const { return estimate_(channels_) / scale_length_s_; }
-
-int ChannelDelayFit::nearest_sector(const Eigen::Vector3d& direction) const {
-  int best = 0;
-  double best_dot = -2.0;
-  for (std::size_t s = 0; s < sector_directions_.size(); ++s) {
-    const double dot = sector_directions_[s].dot(direction);
-    if (dot > best_dot) {
-      best_dot = dot;
-      best = static_cast<int>(s);
-    }
-  }
-  return best;
-}
 
 void ChannelDelayFit::decay(Sector& sector) const {
   if (sector.updated_frame == frame_index_) return;
@@ -114,7 +94,7 @@ bool ChannelDelayFit::observe(const PairVector& tdoas_s) {
       radial * (slowness_of_delays_.transpose() * direction).transpose();
   jacobian_.col(channels_) = radial / (speed_of_sound_mps_ * scale_length_s_);
   misfit_.noalias() += jacobian_ * estimate_;
-  Sector& sector = sectors_[static_cast<std::size_t>(nearest_sector(direction))];
+  Sector& sector = sectors_[static_cast<std::size_t>(sector_of_.nearest(direction))];
   decay(sector);
   sector.information.noalias() += jacobian_.transpose() * jacobian_;
   sector.score.noalias() += jacobian_.transpose() * misfit_;

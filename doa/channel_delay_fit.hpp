@@ -23,6 +23,7 @@
 
 #include <Eigen/Core>
 
+#include "doa/direction_sectors.hpp"
 #include "doa/doa_measurement.hpp"
 
 namespace dronetrack::doa {
@@ -84,7 +85,6 @@ class ChannelDelayFit {
     double frames = 0.0;
     long long updated_frame = 0;  // the frame index its sums were last decayed to
   };
-  int nearest_sector(const Eigen::Vector3d& direction) const;
   void decay(Sector& sector) const;
 
   int channels_;
@@ -93,12 +93,12 @@ class ChannelDelayFit {
   Settings settings_;
   double forgetting_;
   double scale_length_s_;  // the scale parameter's unit: the array's rms radius over c
+  DirectionSectors sector_of_;
   PairBySpace geometry_{};
   Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxPairs> geometry_inverse_{};
   PairByChannel out_of_range_{};  // E = (I - G G^+) D
   Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxFitChannels> slowness_of_delays_{};  // G^+ D
   PairByChannel difference_{};                                                            // D
-  std::vector<Eigen::Vector3d> sector_directions_{};
   std::vector<Sector> sectors_{};
   long long frame_index_ = 0;
   double frames_ = 0.0;

@@ -9,6 +9,9 @@
 
 namespace dronetrack::doa {
 
+inline constexpr double kMaxLevelOffset_db = 300.0;  // |level_offset_db| bound (DDS validation)
+inline constexpr double kMaxHealthDelay_us = 1e6;    // |delay_offset_us|, residuals' bound
+
 // One channel (mic) of the node: its audio health (doa/channel_health.hpp) and how it compares
 // with the array's other channels (doa/array_health.hpp).
 struct ChannelStatus {
@@ -21,9 +24,10 @@ struct ChannelStatus {
   ArrayFlags array_problems_seen = 0;  // at any time since the node started
   double level_offset_db = 0.0;        // in-band level minus the array's median, after gains
   double delay_offset_us = 0.0;        // fitted channel delay minus the median channel's
+  // That offset's cluster-robust std (doa/channel_delay_fit.hpp); kMaxHealthDelay_us until the
+  // delay is judged (too few direction sectors seen, or an array without a delay fit).
+  double delay_std_us = kMaxHealthDelay_us;
 };
-inline constexpr double kMaxLevelOffset_db = 300.0;  // |level_offset_db| bound (DDS validation)
-inline constexpr double kMaxHealthDelay_us = 1e6;    // |delay_offset_us|, residuals' bound
 
 inline constexpr std::size_t kMaxStatusChannels = 8;  // the pipeline's mic limit; DDS array size
 

@@ -208,8 +208,16 @@ struct FusionEngine::Impl {
   std::vector<int> track_to_doa;
   std::vector<char> doa_taken;
   std::vector<Ray> rays;
+  // Issue 16: per array, the swap check against tracks the other arrays fix; its references
+  // (directions to those tracks, reused) and the swaps named not yet taken.
+  std::vector<ArrayMirrorCheck> mirror_checks;
+  std::vector<Eigen::Vector3d> references;
+  std::vector<MirrorSwapEvent> mirror_events;
 
   void feed_until(double cutoff_s);
+  // The frame's DOAs against the tracks that arrays other than `array` fix, before this frame
+  // updates them (a track the array itself pulled would read back what it put in).
+  void check_mirror(int array, std::size_t begin, std::size_t end, double time_s);
   void process_frame(std::size_t begin, std::size_t end);
   bool try_initiate(int array, std::size_t recent_index, double time_s);
   // Seeds older than fed_time_s - kInitiationDelayS: every array's DOAs of their moment are in
@@ -477,6 +485,10 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
   s.recent.resize(s.arrays.size());
   s.queue.reserve(1024);
+  for (std::size_t a = 0; a < s.arrays.size(); ++a)
+    s.mirror_checks.emplace_back(static_cast<int>(a), s.arrays[a], params.mirror_check);
+  s.references.reserve(static_cast<std::size_t>(params.max_tracks));
+  s.mirror_events.reserve(16);
   s.pending_seeds.reserve(kMaxPendingSeeds);
   s.pending_single_seeds.reserve(kMaxPendingSeeds);
   s.tracks.reserve(static_cast<std::size_t>(params.max_tracks));
@@ -659,6 +671,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       }
     }
   }
+  check_mirror(array, begin, end, time_s);
   assignment.solve(cost, track_count, doa_count, track_to_doa);
 
   doa_taken.assign(static_cast<std::size_t>(doa_count), 0);
@@ -722,6 +735,53 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       pending_single_seeds.push_back({array, sequence, time_s});
   }
   initiate_pending();
+}
+
+void FusionEngine::Impl::check_mirror(int array, std::size_t begin, std::size_t end,
+                                      double time_s) {
+  ArrayMirrorCheck& check = mirror_checks[static_cast<std::size_t>(array)];
+  const MirrorCheckSettings& settings = params.mirror_check;
+  if (!settings.enabled || check.mirrors() == 0 || frame_model.kind != MeasurementKind::azel)
+    return;
+  references.clear();
+  const double max_angle_rad = settings.max_track_angle_deg * kRadPerDeg;
+  for (const Track& track : tracks) {
+    if (!track.confirmed || !track.innovation_ok) continue;
+    int others = 0;
+    for (std::size_t a = 0; a < arrays.size(); ++a) {
+      if (static_cast<int>(a) != array &&
+          time_s - track.heard_by_array_s[a] <= kContributionMemoryS)
+        ++others;
+    }
+    if (others < settings.min_other_arrays) continue;
+    const double range_m = (position_of(track.filter->mean()) - frame_model.centre_m).norm();
+    const double spread_m =
+        std::sqrt(std::max(track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0, 0.0));
+    if (!(spread_m <= max_angle_rad * range_m)) continue;
+    // The innovation's prediction: where the sound now arriving left the track.
+    const Measurement& azel = track.innovation.predicted;
+    references.push_back(doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg));
+  }
+  if (references.empty()) return;
+  const doa::PoseStamp& pose = queue[begin].pose;
+  const Eigen::Matrix3d attitude = pose.moving
+                                       ? pose.array_to_site.toRotationMatrix()
+                                       : arrays[static_cast<std::size_t>(array)].array_to_site();
+  for (std::size_t i = begin; i < end; ++i) {
+    if (queue[i].ambiguity != doa::DoaAmbiguity::none) continue;
+    check.observe(time_s, queue[i].direction, attitude, references);
+  }
+  for (const MirrorSwapEvent& event : check.events()) mirror_events.push_back(event);
+  check.clear_events();
+}
+
+void FusionEngine::take_mirror_events(std::vector<MirrorSwapEvent>& out) {
+  out.insert(out.end(), impl_->mirror_events.begin(), impl_->mirror_events.end());
+  impl_->mirror_events.clear();
+}
+
+const MirrorCheckStatus& FusionEngine::mirror_status(std::size_t array) const {
+  return impl_->mirror_checks.at(array).status();
 }
 
 void FusionEngine::Impl::initiate_pending() {

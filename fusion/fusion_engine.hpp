@@ -61,6 +61,11 @@ class FusionEngine {
   void tracks_at(double time_s, std::vector<TrackReport>& out) const;
   const FusionCounters& counters() const;
   const std::vector<doa::ArrayGeometry>& arrays() const;
+  // Swaps the mirror check (fusion/array_mirror_check.hpp) named since the last call, appended
+  // to `out` (each once, when it is named).
+  void take_mirror_events(std::vector<MirrorSwapEvent>& out);
+  // Array `array`'s (site order) mirror check standing (the fusion's diagnostics).
+  const MirrorCheckStatus& mirror_status(std::size_t array) const;
 
  private:
   struct Impl;

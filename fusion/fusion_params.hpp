@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include "fusion/array_mirror_check.hpp"
 #include "fusion/track_classifier.hpp"
 
 namespace dronetrack::fusion {
@@ -173,6 +174,9 @@ struct FusionParams {
   OneArrayParams single_array;
   // Drone or not (issue 14): docs/classification.md.
   ClassifierSettings classifier;
+  // Two channels swapped on an array whose swap is a mirror (issue 16), judged against tracks
+  // fixed by the other arrays: fusion/array_mirror_check.hpp, docs/calibration.md.
+  MirrorCheckSettings mirror_check;
 };
 
 // A zone alerts when a track enters or leaves it: a polygon in the x-y plane (site frame)

@@ -119,6 +119,9 @@ json status_json(const doa::NodeStatus& s) {
         {"rms_dbfs", channel.rms_dbfs},
         {"level_offset_db", channel.level_offset_db},
         {"delay_offset_us", channel.delay_offset_us},
+        // null until the delay is judged (node_status.hpp).
+        {"delay_std_us", channel.delay_std_us < doa::kMaxHealthDelay_us ? json(channel.delay_std_us)
+                                                                        : json(nullptr)},
     });
   }
   return json{

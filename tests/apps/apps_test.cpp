@@ -333,6 +333,67 @@ TEST(FusionDriver, WithNoTrackObserverDoasAreCheckedAndNoTrackerRuns) {
   EXPECT_GE(tracked.tracks_started, 1);
 }
 
+// Issue 16: a swap the fusion's mirror check names reaches the node's status as the observers
+// (/api/nodes, the page) see it: both channels flagged `swapped`, the others not.
+TEST(FusionDriver, MirrorSwapMarksTheNodeStatus) {
+  class StatusKeeper : public FusionObserver {
+   public:
+    void on_node_status(const doa::NodeStatus& status) override { last = status; }
+    doa::NodeStatus last;
+  } keeper;
+  config::SiteConfig site = two_array_site();
+  site.arrays.push_back(site.arrays[1]);
+  site.arrays[2].geometry.id = "A3";
+  site.arrays[2].geometry.position_m = {10.0, 25.0, 1.5};
+  site.arrays[1].geometry.position_m = {10.0, 0.0, 1.5};
+  site.arrays[1].channel_map = {0, 1, 3, 2};  // mic 2 on input 3: named in the warning
+  FusionDriver driver(site, {&keeper});
+  // A drone circling A2; A2's mics 1 and 2 swapped: its DOAs mirrored through their plane.
+  const Eigen::Vector3d normal =
+      (site.arrays[1].geometry.mics_m[1] - site.arrays[1].geometry.mics_m[2]).normalized();
+  for (double t = 0.0; t < 30.0; t += 0.05) {
+    const Eigen::Vector3d drone(10.0 + 12.0 * std::cos(0.5 * t), 12.0 * std::sin(0.5 * t),
+                                15.0 + 5.0 * std::sin(0.2 * t));
+    for (int a = 0; a < 3; ++a) {
+      doa::DoaMeasurement doa;
+      doa.array_id = site.arrays[a].geometry.id;
+      doa.array_index = a;
+      doa.time_s = t;
+      doa.direction = (drone - site.arrays[a].geometry.centre_site_m()).normalized();
+      if (a == 1) doa.direction -= 2.0 * doa.direction.dot(normal) * normal;
+      doa.azel_covariance_rad2 = Eigen::Matrix2d::Identity() * 1e-5;
+      driver.on_doa(doa);
+    }
+    driver.advance_to(t);
+  }
+  doa::NodeStatus status;
+  status.array_id = "A2";
+  status.channels.resize(4);
+  driver.on_node_status(status);
+  const auto swapped = doa::array_flag(doa::ArrayProblem::swapped);
+  for (int c = 0; c < 4; ++c) {
+    const bool expected = c == 1 || c == 2;
+    EXPECT_EQ(
+        doa::has_problem(keeper.last.channels[c].array_problems_seen, doa::ArrayProblem::swapped),
+        expected)
+        << "channel " << c;
+    EXPECT_EQ((keeper.last.channels[c].array_problems & swapped) != 0, expected) << c;
+  }
+  status.array_id = "A1";  // a clean array: untouched
+  driver.on_node_status(status);
+  for (const auto& channel : keeper.last.channels) EXPECT_EQ(channel.array_problems_seen, 0);
+
+  fusion::MirrorSwapEvent event;
+  event.channel_a = 1;
+  event.channel_b = 2;
+  event.sectors = 5;
+  event.time_s = 12.5;
+  EXPECT_EQ(
+      mirror_swap_warning("A2", 1, 3, event)
+          .rfind("A2 channel 1: swapped with channel 2 (input channel 3) (seen by the fusion)", 0),
+      0U);
+}
+
 TEST(DoaFileReplay, DoaLinesReadBackAsTheMeasurementsWritten) {
   // Two DOAs written out of time order, one with correlated azimuth and elevation errors.
   std::vector<doa::DoaMeasurement> written(2);

@@ -1,7 +1,7 @@
-# `dronetrack sim` then `replay` on a site whose A1 has a fault (issue 16: its mic 2 wired
-# inverted, or two channels swapped): the replay completes (exit 0) and warns exactly once with
-# WARNING (the array and the channel), plus the run's one summary line for A1 holding SUMMARY;
-# the clean A2 is never named.
+# `dronetrack sim` then `replay` on a site where one array has a fault (issue 16: a mic wired
+# inverted, two channels swapped, a channel late): the replay completes (exit 0) and warns exactly
+# once with WARNING (the array and the channel), plus the run's one summary line for that array
+# holding SUMMARY; no other line names a channel of A1 or A2.
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
 execute_process(COMMAND ${BIN} sim ${SCENARIO} --out ${DIR}/scene

@@ -419,6 +419,22 @@ TEST_F(SiteWithRecordings, LoadPrefixesTheFileName) {
   }
 }
 
+// Issue 16: the fusion's swap check (fusion.mirror_check), keys with units and their bounds.
+TEST(SiteConfig, MirrorCheckKeys) {
+  json site = two_array_site();
+  site["fusion"] = {{"mirror_check", {{"gate_deg", 4}, {"evidence_ratio", 8}, {"enabled", false}}}};
+  std::vector<std::string> warnings;
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_EQ(parsed.fusion.mirror_check.gate_deg, 4.0);
+  EXPECT_EQ(parsed.fusion.mirror_check.evidence_ratio, 8.0);
+  EXPECT_FALSE(parsed.fusion.mirror_check.enabled);
+  EXPECT_EQ(parsed.fusion.mirror_check.min_separation_deg, 20.0);  // the default
+  site["fusion"] = {{"mirror_check", {{"gate_deg", 10}, {"min_separation_deg", 8}}}};
+  expect_problem(site, "fusion.mirror_check.min_separation_deg: must exceed gate_deg");
+  site["fusion"] = {{"mirror_check", {{"evidence_ratio", 1}}}};
+  expect_problem(site, "fusion.mirror_check.evidence_ratio: must be in [1.5, 10000], got 1");
+}
+
 TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
   json site = two_array_site();
   site["fusion"] = {{"likelihood", "student_t"}, {"student_t_dof", 6}};

@@ -290,7 +290,7 @@ TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
       {0, 0, 0, 0, -31.0, doa::array_flag(doa::ArrayProblem::polarity_flipped),
        doa::array_flag(doa::ArrayProblem::polarity_flipped) |
            doa::array_flag(doa::ArrayProblem::skew) | doa::array_flag(doa::ArrayProblem::swapped),
-       6.0, 200.0}};
+       6.0, 200.0, 12.5}};
   dronetrack_NodeStatus sample{};
   to_idl(status, 0, sample);
   doa::NodeStatus out;
@@ -302,6 +302,8 @@ TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
   EXPECT_EQ(out.channels[1].array_problems_seen, status.channels[1].array_problems_seen);
   EXPECT_EQ(out.channels[1].level_offset_db, 6.0);
   EXPECT_EQ(out.channels[1].delay_offset_us, 200.0);
+  EXPECT_EQ(out.channels[1].delay_std_us, 12.5);
+  EXPECT_EQ(out.channels[0].delay_std_us, doa::kMaxHealthDelay_us);  // not judged
   EXPECT_EQ(out.channels[0].level_offset_db, 0.25);
 
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -313,6 +315,9 @@ TEST(DdsConversions, NodeStatusArrayHealthRoundTripsAndIsValidated) {
   sample.channels[0].delay_offset_us = nan;
   EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::non_finite);
   sample.channels[0].delay_offset_us = 0.0;
+  sample.channels[0].delay_std_us = -1.0;
+  EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
+  sample.channels[0].delay_std_us = 5.0;
   sample.channels[0].array_problems_seen = 0x40;  // no such check
   EXPECT_EQ(from_idl(sample, kArrays, out), SampleProblem::bad_value);
   sample.channels[0].array_problems_seen = 0;

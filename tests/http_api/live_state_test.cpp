@@ -143,6 +143,8 @@ TEST(LiveState, NodesAreStaleWithoutRecentStatusOrWhenNotAlive) {
                   doa::health_flag(doa::HealthProblem::non_finite) |
                       doa::health_flag(doa::HealthProblem::dc_offset),
                   480, 3, -120.0}};
+  a1.channels[0].delay_offset_us = 22.5;
+  a1.channels[0].delay_std_us = 2.5;  // judged; channel 1 keeps the default: not judged
   state.publish_node(a1);
   doa::DoaMeasurement d;
   d.array_id = "A1";
@@ -177,6 +179,9 @@ TEST(LiveState, NodesAreStaleWithoutRecentStatusOrWhenNotAlive) {
   EXPECT_EQ(channels[1]["non_finite_samples"], 480);
   EXPECT_EQ(channels[1]["clipped_samples"], 3);
   EXPECT_DOUBLE_EQ(channels[1]["rms_dbfs"].get<double>(), -120.0);
+  EXPECT_DOUBLE_EQ(channels[0]["delay_offset_us"].get<double>(), 22.5);
+  EXPECT_DOUBLE_EQ(channels[0]["delay_std_us"].get<double>(), 2.5);
+  EXPECT_TRUE(channels[1]["delay_std_us"].is_null());
   ASSERT_EQ(n1["doa"].size(), 2u);
   EXPECT_EQ(n1["doa"][0]["source_index"], 0);
   EXPECT_NEAR(n1["doa"][0]["azimuth_deg"].get<double>(), 90.0, 1e-9);
