@@ -226,11 +226,8 @@ void GccPhat::cross_power_from(std::span<const std::complex<double>> pair_phasor
   cross_power(units(), keep, false);
   for (std::size_t k = 0; k < phasors_.size(); ++k) {
     if (phasors_[k] == std::complex<double>{}) continue;  // dropped or silent in this frame
-    // |W|^2 spelled out: std::abs (and libstdc++'s std::norm with it) calls hypot, which was
-    // 8 % of the whole pipeline's time here.
-    const std::complex<double> phasor = pair_phasors[k];
-    const double squared = phasor.real() * phasor.real() + phasor.imag() * phasor.imag();
-    phasors_[k] = squared > 0.0 ? phasor * (1.0 / std::sqrt(squared)) : std::complex<double>{};
+    const double length = std::abs(pair_phasors[k]);
+    phasors_[k] = length > 0.0 ? pair_phasors[k] / length : std::complex<double>{};
   }
 }
 
