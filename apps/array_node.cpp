@@ -35,6 +35,18 @@ std::string channel_prefix(const std::string& array_id, int input_channel, int m
   return line + ": ";
 }
 
+// The node's DSP settings. A moving array whose pose track the pipeline does not get (the live
+// node stamps DOAs from the ArrayPose stream after the pipeline) cannot tell a static source
+// from one riding along with the platform: no static look there (docs/doa.md stage 7a).
+doa::DoaParams node_params(const config::SiteConfig& site, int array_index, bool pose_from_file) {
+  const auto index = static_cast<std::size_t>(array_index);
+  doa::DoaParams params = site.doa_params(index);
+  const config::ArrayConfig& array = site.arrays.at(index);
+  if (array.moving() && !(pose_from_file && !array.pose.empty()))
+    params.static_look.enabled = false;
+  return params;
+}
+
 }  // namespace
 
 std::string health_warning(const std::string& array_id, int input_channel,
@@ -225,7 +237,7 @@ ArrayNode::ArrayNode(const config::SiteConfig& site, int array_index,
       channel_map_(site.arrays[static_cast<std::size_t>(array_index)].channel_map),
       source_(std::move(source)),
       pipeline_(site.arrays.at(static_cast<std::size_t>(array_index)).geometry, array_index,
-                site.doa_params(static_cast<std::size_t>(array_index)), source_->sample_rate_hz(),
+                node_params(site, array_index, pose_from_file), source_->sample_rate_hz(),
                 site.speed_of_sound_mps),
       sample_rate_hz_(source_->sample_rate_hz()),
       start_sample_(start_sample),

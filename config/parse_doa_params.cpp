@@ -45,6 +45,9 @@ void parse_static_look_settings(ObjectReader& section, doa::StaticLookSettings& 
       section.number("own_look_memory_s", settings.own_look_memory_s, 0.0, 10.0);
   settings.min_elevation_deg =
       section.number("min_elevation_deg", settings.min_elevation_deg, -90.0, 90.0);
+  settings.max_looks = section.integer("max_looks", settings.max_looks, 1, 8);
+  settings.search_every_frames =
+      section.integer("search_every_frames", settings.search_every_frames, 1, 100);
 }
 
 }  // namespace

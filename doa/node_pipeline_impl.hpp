@@ -77,9 +77,14 @@ struct NodePipeline::Impl {
   bool sources_to_publish(double time_s, bool detecting);
   void find_candidates();
   void find_further_sources();
-  // One more look on the frames' averaged phasors (static_look); adds at most one candidate
-  // (none when max_sources are found).
+  // The static look (static_look): the held source measured again, or a search on the frames'
+  // averaged phasors; adds at most one candidate (none when max_sources are found).
   void find_static_source();
+  bool follow_static_source();  // true: the held source added
+  bool search_static_source();  // true: a static source added
+  bool add_static_source(const Eigen::Vector3d& look_direction_site);
+  // The array's pose track (if any) says it held still over the static look's hold window.
+  bool array_still() const;
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();

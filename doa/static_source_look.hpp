@@ -13,11 +13,24 @@
 // wanders: a drone 200 m out at 10 m/s crosses ~3 deg/s), and min_elevation_deg or more above
 // the horizon (a generator and its ground image merge near 0 deg; the static null's business).
 //
+// A search over every direction on the average costs a correlation and an SRP look (more than
+// the rest of the look together), and a hovering drone's direction does not change from frame
+// to frame: the search runs every search_every_frames frames, and a source it added is held
+// (hold()) and measured again every frame near its held direction alone (follow()), until a
+// frame's measurement is no longer the same source or the own looks take it over. A
+// search lands first on what leads the average: up to max_looks looks a frame, each after the
+// last one's lobe is taken out, so a louder neighbour (explained, or not static) does not hide it.
+//
+// The test that a direction is static is made in the array's frame: an array that moves
+// (a pose track) must reset() it, or a source riding with the platform would count as static.
+//
 // Per frame: accumulate() right after GccPhat::whiten() (the unmasked, unweighted phasors),
-// load_average() for the look, held() on the look's direction. Everything is sized in the
-// constructor; nothing is allocated per frame.
+// then follow() the held source or, when search_due(), load_average() for the search and held()
+// on each look's direction. Everything is sized in the constructor; nothing is allocated per
+// frame.
 #include <complex>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -48,6 +61,22 @@ class StaticSourceLook {
   // max_drift_deg of a look hold_s..2 hold_s earlier) and high enough.
   bool held(double time_s, const Eigen::Vector3d& direction_site);
 
+  // The source a search added, to be measured again every frame near held_direction().
+  void hold(const Eigen::Vector3d& direction_site);
+  bool holding() const { return holding_; }
+  const Eigen::Vector3d& held_direction() const { return held_direction_; }
+  // A frame's measurement of the held source: true (and the held direction recorded as a look
+  // at time_s, so held() still sees it) when it is within `separation_cosine` of the held
+  // direction (the node's same-source test) and high enough; false lets it go (lose()).
+  bool follow(double time_s, const Eigen::Vector3d& direction_site, double separation_cosine);
+  void lose();
+  // Whether this frame (counted by accumulate()) searches every direction: every
+  // search_every_frames frames, and every frame for that many after the held source was lost.
+  bool search_due() const;
+  // Forgets every look's direction and the held source (the array moved: directions seen
+  // before are not comparable). The average and the own looks' sources stay.
+  void reset();
+
  private:
   struct Look {
     double time_s = -1e300;
@@ -62,6 +91,10 @@ class StaticSourceLook {
   std::size_t next_look_ = 0;
   std::vector<Look> found_;  // ring: the own looks' sources over own_look_memory_s
   std::size_t next_found_ = 0;
+  bool holding_ = false;
+  Eigen::Vector3d held_direction_ = Eigen::Vector3d::UnitZ();
+  std::int64_t frame_ = 0;  // accumulate() calls
+  std::int64_t lost_frame_ = std::numeric_limits<std::int64_t>::min() / 2;
 };
 
 }  // namespace dronetrack::doa
