@@ -120,12 +120,11 @@ void FusionDriver::advance_to(double now_s) {
   for (auto* observer : observers_) observer->on_time(now_s);
 }
 
-void FusionDriver::finish(double end_s) {
+void FusionDriver::finish() {
   if (!tracking_) return;
   if (first_tick_index_ < 0) first_tick_index_ = 0;  // nothing arrived: the one tick at 0
-  const double last_s = std::isfinite(end_s) ? std::max(latest_time_s_, end_s) : latest_time_s_;
-  while (next_tick_s_ <= last_s + kTimeEpsilon_s) emit_tick(next_tick_s_);
-  engine_.advance_to(last_s + reorder_window_s_);
+  while (next_tick_s_ <= latest_time_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
+  engine_.advance_to(latest_time_s_ + reorder_window_s_);
   report_mirror_swaps();
 }
 

@@ -34,10 +34,9 @@ class FusionDriver {
   void mark_fusion_findings(doa::NodeStatus& status) const;
   // The stream has reached now_s: every output tick up to now_s - reorder window is emitted.
   void advance_to(double now_s);
-  // End of stream: emits the remaining ticks up to the last time seen, or up to end_s when the
-  // stream's end is known and later (a recording's last sample): the tracks coast to it, as a
-  // live fusion keeps reporting between its last DOA and the coast timeout.
-  void finish(double end_s = 0.0);
+  // End of stream: emits the remaining ticks up to the last time seen. Not beyond it, to the
+  // recording's end: those reports would be predictions past the last DOA (docs/fusion.md).
+  void finish();
 
   const fusion::FusionEngine& engine() const { return engine_; }
   // False when no observer wants tracks: DOAs are then only checked (FusionEngine::admit), no

@@ -194,7 +194,7 @@ ReplaySummary run_replay(const config::SiteConfig& site,
                           std::to_string(lane.node.time_s()) +
                           " s, before its header's end (truncated while being read)";
   }
-  driver.finish(summary.stream_s);  // the tracks up to the recordings' end
+  driver.finish();
   if (options.incidents) options.incidents->service(true);
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
