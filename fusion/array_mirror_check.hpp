@@ -53,7 +53,7 @@ struct MirrorCheckSettings {
   double symmetry_tolerance = 0.01;
   // Which tracks are references (the engine's part): heard within the last second by at least
   // min_other_arrays arrays besides the one judged, position known to max_track_angle_deg seen
-  // from that array (1 sigma).
+  // from that array (1 sigma, across its ray).
   int min_other_arrays = 2;
   double max_track_angle_deg = 2.0;
   double rewarn_s = 60.0;  // a swap named is not named again sooner than this

@@ -754,10 +754,16 @@ void FusionEngine::Impl::check_mirror(int array, std::size_t begin, std::size_t 
         ++others;
     }
     if (others < settings.min_other_arrays) continue;
-    const double range_m = (position_of(track.filter->mean()) - frame_model.centre_m).norm();
-    const double spread_m =
-        std::sqrt(std::max(track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0, 0.0));
-    if (!(spread_m <= max_angle_rad * range_m)) continue;
+    const Eigen::Vector3d offset_m = position_of(track.filter->mean()) - frame_model.centre_m;
+    const double range_m = offset_m.norm();
+    if (!(range_m > 0.0)) continue;
+    // Only the spread across the judged array's ray turns its direction; the spread along the
+    // ray (the other arrays' range error) does not, so it must not keep a track out.
+    const Eigen::Matrix3d position_covariance = track.filter->covariance().topLeftCorner<3, 3>();
+    const Eigen::Vector3d ray = offset_m / range_m;
+    const double across_m2 =
+        0.5 * (position_covariance.trace() - ray.dot(position_covariance * ray));
+    if (!(std::sqrt(std::max(across_m2, 0.0)) <= max_angle_rad * range_m)) continue;
     // The innovation's prediction: where the sound now arriving left the track.
     const Measurement& azel = track.innovation.predicted;
     references.push_back(doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg));
