@@ -69,7 +69,12 @@ struct RecentDoa {
   Measurement z = Measurement::Zero();
   MeasurementCovariance noise = MeasurementCovariance::Identity();  // R incl. floor
   bool associated = false;                                          // went to a track
-  bool used = false;                                                // started a track
+  // The id of the tentative track one array alone keeps updating (held_by_one_array) that it
+  // went to, else -1. That track's range is only what its first pair said, which may have been
+  // a crossing with another source's ray: the DOA may still pair with another array's to start
+  // a track, which then replaces that one.
+  int weak_claimant_id = -1;
+  bool used = false;  // started a track
   // Rays a triangulation may use: the direction, and its mirror image for a planar array. A
   // cone is no ray (its display direction is one point of a surface): 0.
   int image_count() const {
@@ -207,6 +212,7 @@ struct FusionEngine::Impl {
   std::vector<double> cost;
   std::vector<int> track_to_doa;
   std::vector<char> doa_taken;
+  std::vector<int> weak_claimant;  // per DOA of the frame: RecentDoa::weak_claimant_id
   std::vector<Ray> rays;
   // Issue 16: per array, the swap check against tracks the other arrays fix; its references
   // (directions to those tracks, reused) and the swaps named not yet taken.
@@ -346,6 +352,12 @@ struct FusionEngine::Impl {
   // that array no longer hearing it (M of N), its spread across that ray beyond the bound, or
   // three stds along it beyond its range (the UKF's sigma points would then lie behind the array).
   bool lost(const Track& track, double now_s) const;
+  // A tentative track (not a one-array track) that one array has updated confirm_hits times
+  // while no other array updated it after its birth: nothing but its first pair ever said where
+  // along that array's ray it is. Where the pair was one source's ray crossing another's (issue
+  // 14: a drone's ray and a passing car's), it would otherwise hold that array's DOAs of the
+  // drone for as long as they come and keep the drone's own pair from starting its track.
+  bool held_by_one_array(const Track& track) const;
   // Echo test (issue 14): every array's rays to a source and to its ground mirror lie in the
   // vertical plane through both, so DOAs that mix the two (an echo the node could not remove)
   // meet on the vertical line through the source, below it. A track there, under a confirmed
@@ -675,6 +687,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   assignment.solve(cost, track_count, doa_count, track_to_doa);
 
   doa_taken.assign(static_cast<std::size_t>(doa_count), 0);
+  weak_claimant.assign(static_cast<std::size_t>(doa_count), -1);
   for (int t = 0; t < track_count; ++t) {
     Track& track = tracks[t];
     track.hits_by_array[array] <<= 1;
@@ -703,6 +716,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));
     note(status);
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
+    if (held_by_one_array(track)) weak_claimant[j] = track.id;
     if (status == FilterStatus::failed) continue;
     track.hits_by_array[array] |= 1u;
     track.last_update_s = time_s;
@@ -727,6 +741,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     entry.z = measured(m);
     entry.noise = noise_of(m);
     entry.associated = doa_taken[j] != 0;
+    entry.weak_claimant_id = weak_claimant[j];
     const std::uint64_t sequence = ring.push(entry);
     if (!entry.associated && entry.image_count() > 0 && pending_seeds.size() < kMaxPendingSeeds)
       pending_seeds.push_back({array, sequence, time_s});
@@ -879,7 +894,7 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
     RecentRing& ring = recent[other];
     for (std::size_t i = 0; i < ring.size(); ++i) {
       RecentDoa& partner = ring[i];
-      if (partner.used || partner.associated) continue;
+      if (partner.used || (partner.associated && partner.weak_claimant_id < 0)) continue;
       const double dt = std::abs(time_s - partner.time_s);
       if (dt > params.init_pair_window_s) continue;
       for (int seed_image = 0; seed_image < seed.image_count(); ++seed_image) {
@@ -1005,7 +1020,20 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   ++counters.tracks_started;
 
   seed.used = true;
-  recent[best.partner_array][best.partner_index].used = true;
+  RecentDoa& partner_used = recent[best.partner_array][best.partner_index];
+  partner_used.used = true;
+  // The partner's tentative track had only one array since its first pair; the new track has
+  // that array and another one now: it replaces it (else the older, sharper-looking one keeps
+  // the array's DOAs by the assignment's cost and neither is ever confirmed).
+  if (partner_used.weak_claimant_id >= 0) {
+    const int replaced = partner_used.weak_claimant_id;
+    const auto before = tracks.size();
+    std::erase_if(tracks, [this, replaced](const Track& other) {
+      return other.id == replaced && held_by_one_array(other);
+    });
+    counters.ghosts_rejected += static_cast<std::int64_t>(before - tracks.size());
+    counters.tracks_deleted += static_cast<std::int64_t>(before - tracks.size());
+  }
   for (int other = 0; other < array_count; ++other) {
     if (extra_index[other] >= 0) {
       recent[other][static_cast<std::size_t>(extra_index[other])].used = true;
@@ -1169,6 +1197,19 @@ bool FusionEngine::Impl::lost(const Track& track, double now_s) const {
   const double max_variance = params.max_position_std_m * params.max_position_std_m;
   return !(solver.eigenvalues().maxCoeff() <= max_variance) ||
          !(9.0 * along.dot(spread * along) < range_m * range_m);
+}
+
+bool FusionEngine::Impl::held_by_one_array(const Track& track) const {
+  if (track.confirmed || track.one_array) return false;
+  int holding = 0;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    if (track.updates_by_array[a] >= params.confirm_hits) {
+      ++holding;
+    } else if (track.updates_by_array[a] > 1) {
+      return false;  // a second array did update it after its birth
+    }
+  }
+  return holding == 1;
 }
 
 int FusionEngine::Impl::recent_arrays(const Track& track) const {

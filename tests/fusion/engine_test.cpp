@@ -431,6 +431,39 @@ TEST(FusionEngine, TwoArraySiteConfirmsOnlyWhenBothArraysKeepAgreeing) {
   EXPECT_TRUE(confirmed_late);
 }
 
+// The mixed site's car (issue 14): N4 hears a drone from the start, N2 only a car on the ground,
+// and N4's ray to the drone passes within the pairing gate of N2's ray to the car, so the two
+// start a tentative track near N4 that only N4 then feeds. When N1 starts hearing the drone, its
+// DOAs must still pair with N4's: before, N4's DOAs went to that ghost (claimed, no partner) and
+// the drone had no track until a third array heard it.
+TEST(FusionEngine, TentativeTrackOneArrayFeedsDoesNotKeepTheDroneFromStarting) {
+  const std::vector<doa::ArrayGeometry> arrays = square_site(100.0);
+  const Trajectory drone = line({-150, 10, 35}, {7, 0, 0});
+  const Trajectory car = [](double) { return Eigen::Vector3d(-247.5, 121.3, 0.7); };
+  const std::vector<Trajectory> sources{drone, car};
+  const Audibility heard = [](int array, int source, double t, std::mt19937_64&) {
+    if (source == 1) return array == 1 && t < 0.03;  // N2: one frame of the car
+    return array == 3 || (array == 0 && t >= 1.0);   // N4 from the start, N1 from 1 s
+  };
+  const RunResult result = run(FusionParams{}, arrays, sources, 5.0, {0.2, true}, 3, heard);
+  double first_drone_s = -1.0;
+  int ghost_confirmed_ticks = 0;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    for (const TrackReport& track : result.reports[i]) {
+      if (track.status == TrackStatus::tentative) continue;
+      const double error_m = (track.position_m - drone(result.times[i])).norm();
+      if (error_m < 5.0 && first_drone_s < 0.0) first_drone_s = result.times[i];
+      if (error_m > 10.0) ++ghost_confirmed_ticks;
+    }
+  }
+  // N1 hears the drone from 1.0 s; its pair with N4 confirms within a few frames (1.4 s; 2.1 s
+  // before, when the ghost kept N4's DOAs).
+  EXPECT_GE(first_drone_s, 1.0);
+  EXPECT_LE(first_drone_s, 1.6);
+  EXPECT_EQ(ghost_confirmed_ticks, 0);
+  EXPECT_EQ(result.counters.tracks_started, 2);  // the ghost, then the drone's own
+}
+
 // The ground echo of a drone comes from its image under the ground; a node that reports it as a
 // second source gives every array a consistent ray to (x, y, -z). No track may start there.
 TEST(FusionEngine, GroundReflectionImagesStartNoTrack) {
