@@ -143,6 +143,12 @@ ReplaySummary replay_doas(const config::SiteConfig& site,
   driver.finish();
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
+  if (site.fusion.likelihood == fusion::DoaLikelihoodKind::outlier_mixture) {
+    std::string shares;
+    for (std::size_t a = 0; a < driver.engine().arrays().size(); ++a)
+      shares += (a ? " " : "") + std::to_string(driver.engine().outlier_share(a));
+    log::info("fusion: outlier share e per array at the end: ", shares);
+  }
   summary.wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return summary;

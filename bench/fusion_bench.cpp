@@ -7,17 +7,20 @@
 #include <benchmark/benchmark.h>
 
 #include "fusion/fusion_engine.hpp"
+#include "fusion/outlier_share.hpp"
 #include "fusion/track_filter.hpp"
 
 namespace dronetrack::fusion {
 namespace {
 
-// The DOA likelihood by a benchmark argument: 0 gaussian, 1 outlier_mixture, 2 student_t
-// (doa_likelihood.hpp, the engine's defaults otherwise).
+// The DOA likelihood by a benchmark argument: 0 gaussian, 1 outlier_mixture, 2 student_t,
+// 3 outlier_mixture with e estimated from the gated DOAs as the engine does per array
+// (outlier_share.hpp, adaptive_outlier_probability) (doa_likelihood.hpp, the engine's defaults
+// otherwise).
 DoaLikelihoodKind likelihood_of(std::int64_t argument) {
-  return argument == 1   ? DoaLikelihoodKind::outlier_mixture
-         : argument == 2 ? DoaLikelihoodKind::student_t
-                         : DoaLikelihoodKind::gaussian;
+  return argument == 1 || argument == 3 ? DoaLikelihoodKind::outlier_mixture
+         : argument == 2                ? DoaLikelihoodKind::student_t
+                                        : DoaLikelihoodKind::gaussian;
 }
 
 // One asynchronous DOA step: predict 50 ms, innovation from one of three arrays, update.
@@ -47,6 +50,8 @@ void filter_update(benchmark::State& state, FilterKind kind, int imm = 0,
   std::normal_distribution<double> normal(0.0, 0.0087);
   std::size_t step = 0;
   Innovation innovation;
+  OutlierShareEstimate share(defaults.outlier_probability, defaults.outlier_prior_doas,
+                             defaults.outlier_window_doas);
   for (auto _ : state) {
     truth = ConstantJerkModel::propagate(truth, 0.05);
     filter->predict(0.05);
@@ -55,6 +60,14 @@ void filter_update(benchmark::State& state, FilterKind kind, int imm = 0,
     const Measurement z =
         model.predict(truth) + spread * Measurement(normal(random), normal(random));
     filter->innovation(model, noise, innovation);
+    if (likelihood == 3) {
+      innovation.outlier_probability = share.share();
+      const double d2 = innovation.mahalanobis2(z);
+      if (d2 <= settings.likelihood.gate_d2()) {
+        share.add(settings.likelihood.outlier_density_ratio(d2, 2));
+        share.refresh();
+      }
+    }
     benchmark::DoNotOptimize(filter->update(innovation, z));
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
@@ -69,7 +82,7 @@ void BM_EkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ek
 void BM_ParticleUpdate(benchmark::State& state) { filter_update(state, FilterKind::particle); }
 void BM_ImmUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 1); }
 void BM_ImmTurnUkfUpdate(benchmark::State& state) { filter_update(state, FilterKind::ukf, 2); }
-BENCHMARK(BM_UkfUpdate)->ArgNames({"likelihood", "outliers"})->ArgsProduct({{0, 1, 2}, {0, 1}});
+BENCHMARK(BM_UkfUpdate)->ArgNames({"likelihood", "outliers"})->ArgsProduct({{0, 1, 2, 3}, {0, 1}});
 BENCHMARK(BM_ImmUkfUpdate);
 BENCHMARK(BM_ImmTurnUkfUpdate);
 BENCHMARK(BM_UkfSeed002Update);
@@ -92,6 +105,7 @@ void BM_EngineFourArrays(benchmark::State& state) {
   FusionParams params;
   params.imm_turn_mode = state.range(0) != 0;
   params.likelihood = likelihood_of(state.range(1));
+  params.adaptive_outlier_probability = state.range(1) == 3;
   const bool outliers = state.range(2) != 0;
   const std::vector<doa::ArrayGeometry> arrays{
       tetrahedron("N1", {-100, -100, 2}), tetrahedron("N2", {100, -100, 2}),
@@ -135,6 +149,8 @@ BENCHMARK(BM_EngineFourArrays)
     ->Args({1, 0, 1})
     ->Args({1, 1, 1})
     ->Args({1, 2, 1})
+    ->Args({1, 3, 0})
+    ->Args({1, 3, 1})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace

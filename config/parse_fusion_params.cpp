@@ -66,6 +66,13 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.student_t_dof = section.number("student_t_dof", params.student_t_dof, 1.0, 100.0);
   params.outlier_probability =
       section.number("outlier_probability", params.outlier_probability, 0.0, 0.9);
+  params.adaptive_outlier_probability =
+      section.boolean("adaptive_outlier_probability", params.adaptive_outlier_probability);
+  // A window under 50 DOAs cannot tell e = 0 from e = 0.1 (docs/fusion.md "Estimating e").
+  params.outlier_window_doas =
+      section.integer("outlier_window_doas", params.outlier_window_doas, 50, 100000);
+  params.outlier_prior_doas =
+      section.number("outlier_prior_doas", params.outlier_prior_doas, 0.0, 100000.0);
   params.confirm_hits = section.integer("confirm_hits", params.confirm_hits, 1, 1000);
   params.confirm_window = section.integer("confirm_window", params.confirm_window, 1, 32);
   if (params.confirm_hits > params.confirm_window) {

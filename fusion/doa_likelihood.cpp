@@ -63,21 +63,24 @@ DoaLikelihood::DoaLikelihood(DoaLikelihoodKind kind, double student_t_dof,
     gate_d2_ = chi_square_quantile(gate_probability, 2);
     gate_d2_1d_ = chi_square_quantile(gate_probability, 1);
   }
+  // (2 pi) / (pi gamma) for an ellipse; sqrt(2 pi) / (2 sqrt(gamma)) for an interval.
+  ratio_per_odds_ = 2.0 / gate_d2_;
+  ratio_per_odds_1d_ = std::sqrt(2.0 * std::numbers::pi) / (2.0 * std::sqrt(gate_d2_1d_));
   if (kind_ == DoaLikelihoodKind::outlier_mixture) {
     const double odds = outlier_probability_ / (1.0 - outlier_probability_);
-    // (2 pi) / (pi gamma) for an ellipse; sqrt(2 pi) / (2 sqrt(gamma)) for an interval.
-    outlier_ratio_ = odds * 2.0 / gate_d2_;
-    outlier_ratio_1d_ = odds * std::sqrt(2.0 * std::numbers::pi) / (2.0 * std::sqrt(gate_d2_1d_));
+    outlier_ratio_ = odds * ratio_per_odds_;
+    outlier_ratio_1d_ = odds * ratio_per_odds_1d_;
   }
 }
 
-double DoaLikelihood::inlier_probability(double d2, int dimension) const {
+double DoaLikelihood::inlier_probability(double d2, double kappa) {
   const double inlier = std::exp(-0.5 * d2);
-  const double total = inlier + outlier_ratio(dimension);
+  const double total = inlier + kappa;
   return total > 0.0 ? inlier / total : 0.0;
 }
 
-double DoaLikelihood::assignment_cost(double d2, double log_det_covariance, int dimension) const {
+double DoaLikelihood::assignment_cost(double d2, double log_det_covariance, int dimension,
+                                      std::optional<double> outlier_probability) const {
   switch (kind_) {
     case DoaLikelihoodKind::gaussian:
       break;
@@ -86,7 +89,7 @@ double DoaLikelihood::assignment_cost(double d2, double log_det_covariance, int 
     case DoaLikelihoodKind::outlier_mixture: {
       // -2 ln(exp(-d^2 / 2) + kappa) = d^2 - 2 ln(1 + kappa exp(d^2 / 2)): the Gaussian's cost
       // near the prediction, flattening towards the gate.
-      const double kappa = outlier_ratio(dimension);
+      const double kappa = outlier_ratio(dimension, outlier_probability);
       if (kappa > 0.0)
         return d2 - 2.0 * std::log1p(kappa * std::exp(0.5 * d2)) + log_det_covariance;
       break;
@@ -99,8 +102,9 @@ double DoaLikelihood::weigh(Innovation& innovation, const Measurement& z) const 
   if (kind_ == DoaLikelihoodKind::gaussian) return 1.0;
   const Measurement residual = innovation.residual(z);
   if (kind_ == DoaLikelihoodKind::outlier_mixture) {
-    return inlier_probability(residual.dot(innovation.covariance.ldlt().solve(residual)),
-                              innovation.dimension());
+    return inlier_probability(
+        residual.dot(innovation.covariance.ldlt().solve(residual)),
+        outlier_ratio(innovation.dimension(), innovation.outlier_probability));
   }
   const MeasurementCovariance state_part = innovation.covariance - innovation.noise;
   const MeasurementCovariance noise = innovation.noise;
@@ -133,14 +137,16 @@ double DoaLikelihood::weigh(Innovation& innovation, const Measurement& z) const 
   return 1.0;
 }
 
-double DoaLikelihood::particle_kernel(double d2_under_noise, int dimension) const {
+double DoaLikelihood::particle_kernel(double d2_under_noise, int dimension,
+                                      std::optional<double> outlier_probability) const {
   switch (kind_) {
     case DoaLikelihoodKind::gaussian:
       break;
     case DoaLikelihoodKind::student_t:
       return std::pow(1.0 + d2_under_noise / dof_, -0.5 * (dof_ + dimension));
     case DoaLikelihoodKind::outlier_mixture:
-      return (1.0 - outlier_probability_) * std::exp(-0.5 * d2_under_noise);
+      return (1.0 - outlier_probability.value_or(outlier_probability_)) *
+             std::exp(-0.5 * d2_under_noise);
   }
   return std::exp(-0.5 * d2_under_noise);
 }
@@ -160,7 +166,8 @@ double DoaLikelihood::particle_floor(const Innovation& innovation) const {
     case DoaLikelihoodKind::outlier_mixture: {
       const double det_covariance = innovation.covariance.determinant();
       if (!(det_covariance > 0.0)) return 0.0;
-      return (1.0 - outlier_probability_) * outlier_ratio(dimension) *
+      const std::optional<double> share = innovation.outlier_probability;
+      return (1.0 - share.value_or(outlier_probability_)) * outlier_ratio(dimension, share) *
              std::sqrt(det_noise / det_covariance);
     }
   }

@@ -21,6 +21,9 @@
 // p is the measurement's dimension: 2 for a direction, 1 for a two-mic array's cone angle (issue
 // 15), so a cone is gated and costed with its own degrees of freedom.
 // Plain arithmetic on the innovation: no filter internals, nothing allocated.
+#include <cmath>
+#include <optional>
+
 #include "fusion/fusion_params.hpp"
 #include "fusion/innovation.hpp"
 #include "fusion/state.hpp"
@@ -38,24 +41,44 @@ class DoaLikelihood {
   double gate_d2(int dimension = 2) const { return dimension == 1 ? gate_d2_1d_ : gate_d2_; }
   // Twice the negative log-likelihood of a DOA at d^2 under an innovation covariance S, up to a
   // constant: the assignment cost. The IMM weighs its modes by -1/2 of it.
-  double assignment_cost(double d2, double log_det_covariance, int dimension = 2) const;
+  // outlier_probability: the DOA's e when the tracker estimates it (Innovation::
+  // outlier_probability); unset: the configured one.
+  double assignment_cost(double d2, double log_det_covariance, int dimension = 2,
+                         std::optional<double> outlier_probability = std::nullopt) const;
   // Prepares `innovation` for the filter's update of `z` and returns the inlier probability beta
-  // the Kalman correction is scaled by (1 for gaussian and student_t). student_t rescales the
-  // noise part of the innovation (covariance and noise) instead.
+  // the Kalman correction is scaled by (1 for gaussian and student_t), at the innovation's e when
+  // it carries one. student_t rescales the noise part of the innovation (covariance and noise)
+  // instead.
   double weigh(Innovation& innovation, const Measurement& z) const;
   // The particle filter's density of z for a particle whose residual has d^2 under R (not S),
   // scaled by (2 pi)^(p/2) sqrt(det R) (the same for every particle)...
-  double particle_kernel(double d2_under_noise, int dimension) const;
+  double particle_kernel(double d2_under_noise, int dimension,
+                         std::optional<double> outlier_probability = std::nullopt) const;
   // ...plus this floor at the same scale: the uniform part over the gate of the cloud's S
   // (outlier_mixture), a uniform DOA over the sphere with probability 0.05 (gaussian: a cloud
   // must not collapse on one wild DOA), 0 (student_t: its tails do that).
   double particle_floor(const Innovation& innovation) const;
 
+  // The configured e (outlier_mixture): the adaptive estimate's prior mean.
+  double outlier_probability() const { return outlier_probability_; }
+  // The uniform part's density over the Gaussian part's at d^2, per unit of the odds e / (1 - e):
+  // (2 / gamma) exp(d^2 / 2) for a direction, sqrt(2 pi) / (2 sqrt gamma) exp(d^2 / 2) for a cone.
+  // One gated DOA's whole say on e (outlier_share.hpp): its likelihood is proportional to
+  // 1 - e + e g.
+  double outlier_density_ratio(double d2, int dimension) const {
+    return ratio_per_odds(dimension) * std::exp(0.5 * d2);
+  }
+
  private:
   // Inlier probability at d^2: exp(-d^2 / 2) / (exp(-d^2 / 2) + kappa).
-  double inlier_probability(double d2, int dimension) const;
-  double outlier_ratio(int dimension) const {
-    return dimension == 1 ? outlier_ratio_1d_ : outlier_ratio_;
+  static double inlier_probability(double d2, double kappa);
+  double ratio_per_odds(int dimension) const {
+    return dimension == 1 ? ratio_per_odds_1d_ : ratio_per_odds_;
+  }
+  // kappa at the given e, or at the configured one.
+  double outlier_ratio(int dimension, std::optional<double> outlier_probability) const {
+    if (!outlier_probability) return dimension == 1 ? outlier_ratio_1d_ : outlier_ratio_;
+    return *outlier_probability / (1.0 - *outlier_probability) * ratio_per_odds(dimension);
   }
 
   DoaLikelihoodKind kind_ = DoaLikelihoodKind::gaussian;
@@ -67,6 +90,8 @@ class DoaLikelihood {
   // density over the Gaussian part's peak (both scale with 1 / sqrt(det S), which cancels).
   double outlier_ratio_ = 0.0;
   double outlier_ratio_1d_ = 0.0;
+  double ratio_per_odds_ = 0.0;  // kappa / odds: 2 / gamma, sqrt(2 pi) / (2 sqrt gamma)
+  double ratio_per_odds_1d_ = 0.0;
 };
 
 }  // namespace dronetrack::fusion

@@ -20,6 +20,7 @@
 #include "fusion/doa_likelihood.hpp"
 #include "fusion/gaussian_sum_filter.hpp"
 #include "fusion/measurement_model.hpp"
+#include "fusion/outlier_share.hpp"
 #include "fusion/track_filter.hpp"
 #include "fusion/triangulation.hpp"
 
@@ -197,6 +198,8 @@ struct FusionEngine::Impl {
   std::vector<Eigen::Vector3d> last_centre_m;  // each array's centre at its newest frame
   DoaMeasurementModel frame_model;  // the current frame's (pose, ambiguity); innovations point here
   std::optional<DoaLikelihood> likelihood;  // the tracks' gate, assignment cost and update
+  // Per array, the outlier mixture's e (adaptive_outlier_probability; else empty).
+  std::vector<OutlierShareEstimate> outlier_shares;
   double floor_variance_rad2 = 0.0;
 
   std::vector<doa::DoaMeasurement> queue;  // sorted by (time, array, source)
@@ -499,6 +502,13 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.queue.reserve(1024);
   for (std::size_t a = 0; a < s.arrays.size(); ++a)
     s.mirror_checks.emplace_back(static_cast<int>(a), s.arrays[a], params.mirror_check);
+  if (params.likelihood == DoaLikelihoodKind::outlier_mixture &&
+      params.adaptive_outlier_probability) {
+    s.outlier_shares.reserve(s.arrays.size());
+    for (std::size_t a = 0; a < s.arrays.size(); ++a)
+      s.outlier_shares.emplace_back(params.outlier_probability, params.outlier_prior_doas,
+                                    params.outlier_window_doas);
+  }
   s.references.reserve(static_cast<std::size_t>(params.max_tracks));
   s.mirror_events.reserve(16);
   s.pending_seeds.reserve(kMaxPendingSeeds);
@@ -656,6 +666,11 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   last_centre_m[static_cast<std::size_t>(array)] = model.centre_m;
   const int dimension = model.dimension();
   const doa::DoaAmbiguity frame_ambiguity = queue[begin].ambiguity;
+  // The array's e as it stood before this frame: gate, cost and update alike.
+  OutlierShareEstimate* const outlier_share =
+      outlier_shares.empty() ? nullptr : &outlier_shares[static_cast<std::size_t>(array)];
+  const std::optional<double> share =
+      outlier_share ? std::optional<double>(outlier_share->share()) : std::nullopt;
 
   // Predict and gate: cost = d^2 + ln det S (the negative log-likelihood up to a constant), so a
   // vague track does not steal DOAs from a sharp one.
@@ -679,7 +694,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       const double d2 = candidate.mahalanobis2(measured(m));
       if (d2 <= likelihood->gate_d2(dimension)) {
         cost[static_cast<std::size_t>(t) * doa_count + j] = likelihood->assignment_cost(
-            d2, std::log(candidate.covariance.determinant()), dimension);
+            d2, std::log(candidate.covariance.determinant()), dimension, share);
       }
     }
   }
@@ -711,7 +726,14 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     innovation.covariance += track.inflation * own_noise(m);
     innovation.noise = track.inflation * noise_of(m);
     if (m.ambiguity == doa::DoaAmbiguity::cone) innovation.noise(1, 1) = 1.0;  // the pad
+    innovation.outlier_probability = share;
     const Measurement z = measured(m);
+    // A confirmed track's gated DOAs inform the array's e (another source's DOA in the gate is an
+    // outlier for this track, which is what e models). A tentative track may be a ghost, whose
+    // "inliers" are nobody's.
+    if (outlier_share && track.confirmed) {
+      outlier_share->add(likelihood->outlier_density_ratio(innovation.mahalanobis2(z), dimension));
+    }
     // The filter weighs z by the DOA likelihood itself (FilterSettings::likelihood).
     const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));
     note(status);
@@ -728,6 +750,8 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       hand_over(track);
     }
   }
+
+  if (outlier_share) outlier_share->refresh();
 
   // Unassigned DOAs: remember them, and try to start a track with other arrays' recent DOAs.
   RecentRing& ring = recent[array];
@@ -803,6 +827,13 @@ void FusionEngine::take_mirror_events(std::vector<MirrorSwapEvent>& out) {
 
 const MirrorCheckStatus& FusionEngine::mirror_status(std::size_t array) const {
   return impl_->mirror_checks.at(array).status();
+}
+
+double FusionEngine::outlier_share(std::size_t array) const {
+  const Impl& s = *impl_;
+  if (!s.outlier_shares.empty()) return s.outlier_shares.at(array).share();
+  return s.params.likelihood == DoaLikelihoodKind::outlier_mixture ? s.params.outlier_probability
+                                                                   : 0.0;
 }
 
 void FusionEngine::Impl::initiate_pending() {

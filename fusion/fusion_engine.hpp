@@ -66,6 +66,9 @@ class FusionEngine {
   void take_mirror_events(std::vector<MirrorSwapEvent>& out);
   // Array `array`'s (site order) mirror check standing (the fusion's diagnostics).
   const MirrorCheckStatus& mirror_status(std::size_t array) const;
+  // The outlier mixture's e for array `array`'s DOAs now: its estimate when
+  // adaptive_outlier_probability, else outlier_probability (0 under another likelihood).
+  double outlier_share(std::size_t array) const;
 
  private:
   struct Impl;

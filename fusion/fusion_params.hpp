@@ -103,6 +103,13 @@ struct FusionParams {
   // likelihood = outlier_mixture: prior probability that a gated DOA is not the track's but
   // uniform over the gate (docs/fusion.md "Impulsive DOA errors").
   double outlier_probability = 0.1;
+  // likelihood = outlier_mixture: e estimated per array from its DOAs gated to confirmed tracks
+  // (outlier_share.hpp), the maximum of its posterior over the array's last outlier_window_doas
+  // such DOAs with a Beta prior of mean outlier_probability worth outlier_prior_doas DOAs
+  // (docs/fusion.md "Estimating e"). Off: e = outlier_probability everywhere.
+  bool adaptive_outlier_probability = false;
+  int outlier_window_doas = 500;
+  double outlier_prior_doas = 10.0;
   int confirm_hits = 5;          // M of N: M
   int confirm_window = 8;        //         N
   double coast_timeout_s = 3.0;  // a track unheard this long is deleted

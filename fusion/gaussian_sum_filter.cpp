@@ -129,7 +129,7 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
   }
   s = 0.5 * (s + s.transpose()).eval();
   if (!valid(s)) return FilterStatus::failed;
-  out = {z_hat, s, cross, noise, &model};
+  out = {z_hat, s, cross, noise, &model, std::nullopt};
   return worst;
 }
 
@@ -149,6 +149,7 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     Innovation own = innovations_[j];
     own.covariance += extra;
     own.noise = innovation.noise;
+    own.outlier_probability = innovation.outlier_probability;
     if (!valid(own.covariance)) continue;
     // Each hypothesis's own prediction, judged on the mixture's common spread (see below).
     const Measurement residual = own.residual(z);
@@ -165,11 +166,13 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     // platform's motion rules out).
     // Under the settings' DOA likelihood, as the IMM weighs its modes.
     const DoaLikelihood& law = settings_.likelihood;
-    log_likelihood_[j] = -0.5 * law.assignment_cost(d2, 0.0, own.dimension());
+    log_likelihood_[j] =
+        -0.5 * law.assignment_cost(d2, 0.0, own.dimension(), own.outlier_probability);
     if (settings_.one_array.own_spread_weights)  // seed 003's eq. 9 as printed
       log_likelihood_[j] =
           -0.5 * law.assignment_cost(residual.dot(own.covariance.ldlt().solve(residual)),
-                                     std::log(own.covariance.determinant()), own.dimension());
+                                     std::log(own.covariance.determinant()), own.dimension(),
+                                     own.outlier_probability);
     best_log = std::max(best_log, log_likelihood_[j]);
   }
   if (!std::isfinite(best_log)) return FilterStatus::failed;

@@ -176,10 +176,10 @@ class UnscentedFilter final : public GaussianFilter {
       const Eigen::Vector2d clamped = eigen.eigenvalues().cwiseMax(noise.diagonal().minCoeff());
       s = eigen.eigenvectors() * clamped.asDiagonal() * eigen.eigenvectors().transpose();
       if (!valid_innovation_covariance(s)) return FilterStatus::failed;
-      out = {z_hat, s, cross, noise, &model};
+      out = {z_hat, s, cross, noise, &model, std::nullopt};
       return FilterStatus::repaired;
     }
-    out = {z_hat, s, cross, noise, &model};
+    out = {z_hat, s, cross, noise, &model, std::nullopt};
     return factor_status;
   }
 
@@ -232,7 +232,7 @@ class ExtendedFilter final : public GaussianFilter {
     MeasurementCovariance s = jacobian * cross + noise;
     s = 0.5 * (s + s.transpose()).eval();
     if (!valid_innovation_covariance(s) || !z_hat.allFinite()) return FilterStatus::failed;
-    out = {z_hat, s, cross, noise, &model};
+    out = {z_hat, s, cross, noise, &model, std::nullopt};
     return FilterStatus::ok;
   }
 };
@@ -293,7 +293,7 @@ class ParticleFilter final : public TrackFilter {
       cross += weights_(i) * (particles_.col(i) - mean_) * dz.transpose();
     }
     if (!valid_innovation_covariance(s)) return FilterStatus::failed;
-    out = {z_hat, s, cross, noise, &model};
+    out = {z_hat, s, cross, noise, &model, std::nullopt};
     return FilterStatus::ok;
   }
 
@@ -383,7 +383,8 @@ class ParticleFilter final : public TrackFilter {
                                    ? innovation.model->residual(readings[k], predicted_.col(i))
                                    : azel_residual(readings[k], predicted_.col(i));
         likelihood += reading_weights[k] / weight_sum *
-                      law.particle_kernel(dz.dot(information * dz), dimension);
+                      law.particle_kernel(dz.dot(information * dz), dimension,
+                                          innovation.outlier_probability);
       }
       likelihood += floor;
       weights_(i) *= likelihood;
@@ -619,7 +620,7 @@ class InteractingFilter final : public TrackFilter {
     }
     s = 0.5 * (s + s.transpose()).eval();
     if (!valid_innovation_covariance(s)) return FilterStatus::failed;
-    out = {z_hat, s, cross, noise, &model};
+    out = {z_hat, s, cross, noise, &model, std::nullopt};
     return worst;
   }
 
@@ -637,6 +638,7 @@ class InteractingFilter final : public TrackFilter {
       Innovation own = innovations_[j];
       own.covariance += extra;
       own.noise = innovation.noise;
+      own.outlier_probability = innovation.outlier_probability;
       if (!valid_innovation_covariance(own.covariance)) continue;
       const Measurement residual = own.residual(z);
       const double d2 = residual.dot(own.covariance.ldlt().solve(residual));
@@ -646,8 +648,9 @@ class InteractingFilter final : public TrackFilter {
       // Each mode is judged by the same DOA likelihood, on its own prediction: under a robust law
       // one wild DOA does not hand the weight to the widest mode, and a manoeuvre still moves it
       // to the mode that predicted it (each mode weighs the DOA itself in its update, above).
-      log_likelihood_[j] = -0.5 * likelihood_.assignment_cost(
-                                      d2, std::log(own.covariance.determinant()), own.dimension());
+      log_likelihood_[j] =
+          -0.5 * likelihood_.assignment_cost(d2, std::log(own.covariance.determinant()),
+                                             own.dimension(), own.outlier_probability);
       best_log = std::max(best_log, log_likelihood_[j]);
       any = true;
     }

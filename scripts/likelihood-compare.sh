@@ -4,17 +4,21 @@
 # truth; one line per scene and likelihood: RMSE, coverage, id switches, per source. The README's
 # and docs/fusion.md's "price without outliers" figures (session 12). Scenes with a pose file
 # relative to their site are reported as failed (their sites are not copied with it).
+# LIKELIHOODS (default "gaussian outlier_mixture adaptive"): `outlier_mixture` is the fixed e
+# (fusion.adaptive_outlier_probability false), `adaptive` the mixture with e estimated per array.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bin=$PWD/${BUILD:-build/release}/dronetrack
 for d in ${BUILD:-build/release}/tests/e2e/*/; do
   [[ -f $d/doa.jsonl && -f $d/site.json ]] || continue
   name=$(basename $d)
-  for lik in gaussian outlier_mixture; do
+  for lik in ${LIKELIHOODS:-gaussian outlier_mixture adaptive}; do
     out=${WORK:-build/likelihood-compare}/$name/$lik; mkdir -p $out
     python3 - "$d/site.json" "$out/site.json" "$lik" <<'PY'
 import json,sys,os
-s=json.load(open(sys.argv[1])); s.setdefault("fusion",{})["likelihood"]=sys.argv[3]
+s=json.load(open(sys.argv[1])); f=s.setdefault("fusion",{})
+f["likelihood"]="outlier_mixture" if sys.argv[3]=="adaptive" else sys.argv[3]
+f["adaptive_outlier_probability"]=sys.argv[3]=="adaptive"
 base=os.path.dirname(os.path.abspath(sys.argv[1]))
 # keep recording paths resolvable
 for a in s.get("arrays",[]):

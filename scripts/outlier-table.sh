@@ -7,6 +7,10 @@
 #
 # Usage: scripts/outlier-table.sh [--work DIR] [--scenes "a b"] [--filters "ukf ekf"]
 #                                 [--likelihoods "gaussian outlier_mixture"] [--shares "0 0.1 0.3"]
+#                                 [--fusion '{"outlier_probability": 0.05}']
+# Likelihood `outlier_mixture` is the fixed e (fusion.adaptive_outlier_probability false),
+# `adaptive` the mixture with e estimated per array; --fusion merges more fusion keys into each
+# site (the row names the likelihood only: keep one --fusion per --work directory).
 # Defaults: DIR build/outlier-table (kept: a second run reuses its scenes and DOAs), the scenes
 # seed002-rectangle and perimeter-two-drones, filters ukf ukf_seed002 ekf particle, likelihoods
 # gaussian outlier_mixture student_t, shares 0 0.1 0.3. Outliers: alpha 1.5, scale 5 deg, seed 1
@@ -18,6 +22,7 @@ scenes="seed002-rectangle perimeter-two-drones"
 filters="ukf ukf_seed002 ekf particle"
 likelihoods="gaussian outlier_mixture student_t"
 shares="0 0.1 0.3"
+fusion="{}"
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --work) work="$2"; shift 2 ;;
@@ -25,6 +30,7 @@ while [[ $# -gt 0 ]]; do
     --filters) filters="$2"; shift 2 ;;
     --likelihoods) likelihoods="$2"; shift 2 ;;
     --shares) shares="$2"; shift 2 ;;
+    --fusion) fusion="$2"; shift 2 ;;
     *) echo "outlier-table.sh: unknown argument '$1' (see the header for usage)" >&2; exit 2 ;;
   esac
 done
@@ -48,10 +54,14 @@ for scene in $scenes; do
   for filter in $filters; do
     for likelihood in $likelihoods; do
       site=$dir/site-$filter-$likelihood.json
-      python3 - "$dir/site.json" "$site" "$filter" "$likelihood" <<'EOF'
+      python3 - "$dir/site.json" "$site" "$filter" "$likelihood" "$fusion" <<'EOF'
 import json, sys
 site = json.load(open(sys.argv[1]))
-site.setdefault("fusion", {}).update({"filter": sys.argv[3], "likelihood": sys.argv[4]})
+adaptive = sys.argv[4] == "adaptive"
+site.setdefault("fusion", {}).update({
+    "filter": sys.argv[3], "likelihood": "outlier_mixture" if adaptive else sys.argv[4],
+    "adaptive_outlier_probability": adaptive})
+site["fusion"].update(json.loads(sys.argv[5]))
 json.dump(site, open(sys.argv[2], "w"), indent=1)
 EOF
       for share in $shares; do

@@ -461,6 +461,19 @@ TEST(SiteConfig, DoaLikelihoodIsChosenByName) {
   expect_problem(site, "fusion.student_t_dof: must be in [1, 100], got 0.5");
   site["fusion"] = {{"outlier_probability", 0.95}};
   expect_problem(site, "fusion.outlier_probability: must be in [0, 0.9], got 0.95");
+  // e estimated per array (off by default): window and prior strength in DOAs.
+  EXPECT_FALSE(defaults.fusion.adaptive_outlier_probability);
+  site["fusion"] = {{"adaptive_outlier_probability", true},
+                    {"outlier_window_doas", 800},
+                    {"outlier_prior_doas", 20}};
+  const SiteConfig adaptive = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(adaptive.fusion.adaptive_outlier_probability);
+  EXPECT_EQ(adaptive.fusion.outlier_window_doas, 800);
+  EXPECT_EQ(adaptive.fusion.outlier_prior_doas, 20.0);
+  site["fusion"] = {{"outlier_window_doas", 10}};
+  expect_problem(site, "fusion.outlier_window_doas: must be in [50, 100000], got 10");
+  site["fusion"] = {{"outlier_prior_doas", -1}};
+  expect_problem(site, "fusion.outlier_prior_doas: must be in [0, 100000], got -1");
 }
 
 }  // namespace
