@@ -30,10 +30,22 @@ Eigen::Vector3d fibonacci_direction(int n, int count) {
   return {radius * std::cos(golden_angle * n), radius * std::sin(golden_angle * n), z};
 }
 
+// The nearest of the Fibonacci centres fibonacci_direction(c, centres.size()) to a unit
+// direction, the lowest index among equals. Centre c sits at z = 1 - 2 (c + 0.5) / count and two
+// unit vectors' z differ by no more than their angle, so only centres within the lattice's
+// covering radius in z can be nearest: twice the mean spacing is well beyond it (start-up: a
+// third of the centres looked at).
 std::size_t nearest(const Eigen::Vector3d& direction, const std::vector<Eigen::Vector3d>& centres) {
-  std::size_t nearest_centre = 0;
+  const auto count = static_cast<double>(centres.size());
+  const double reach = 2.0 * std::sqrt(4.0 * std::numbers::pi / count);
+  auto index_at = [count](double z) {
+    return std::clamp((1.0 - z) * count / 2.0 - 0.5, 0.0, count - 1.0);
+  };
+  const auto first = static_cast<std::size_t>(std::floor(index_at(direction.z() + reach)));
+  const auto last = static_cast<std::size_t>(std::ceil(index_at(direction.z() - reach)));
+  std::size_t nearest_centre = first;
   double nearest_cosine = -2.0;
-  for (std::size_t c = 0; c < centres.size(); ++c) {
+  for (std::size_t c = first; c <= last; ++c) {
     const double cosine = direction.dot(centres[c]);
     if (cosine > nearest_cosine) {
       nearest_cosine = cosine;
