@@ -236,12 +236,11 @@ void NodePipeline::Impl::find_static_source() {
     return;
   }
   if (candidate_count >= params.max_sources) return;
-  const bool following = static_look->holding();
-  if (following && follow_static_source()) return;
-  const bool searching = static_look->search_due();
-  if (searching && search_static_source()) return;
-  // The later stages read the frame's phasors.
-  if (following || searching) gcc.cross_power(gcc.units(), frame_mask);
+  // The follow and the search leave other phasors in gcc (a re-measure's, the average's): no
+  // later stage reads them, each remakes its own from the units under the mask it wants (the
+  // ground echoes, the static null's own look), so they are not put back.
+  if (static_look->holding() && follow_static_source()) return;
+  if (static_look->search_due()) search_static_source();
 }
 
 // The held source measured on the frame's own phasors (the other sources' bins dropped) from

@@ -13,8 +13,12 @@ namespace dronetrack::doa {
 
 namespace {
 // Directions per patch of the bounded search: small patches have tight bounds, many patches
-// cost more bounds per look; 16 is near the minimum of the sum for a 5 deg grid.
+// cost more bounds per look; 16 is near the minimum of the sum for a 5 deg grid. A patch whose
+// bound passes is searched group by group, each group (~4 neighbouring directions) under its
+// own, tighter bound: most of a passing patch's directions are on the slope of a peak, below
+// the best found.
 constexpr int kDirectionsPerPatch = 16;
+constexpr int kDirectionsPerGroup = 4;
 // An interpolated value may exceed the larger of its two grid values by a rounding error.
 constexpr double kBoundMargin = 1e-9;
 
@@ -24,6 +28,31 @@ Eigen::Vector3d fibonacci_direction(int n, int count) {
   const double z = 1.0 - 2.0 * (n + 0.5) / count;
   const double radius = std::sqrt(std::max(0.0, 1.0 - z * z));
   return {radius * std::cos(golden_angle * n), radius * std::sin(golden_angle * n), z};
+}
+
+// The nearest of the Fibonacci centres fibonacci_direction(c, centres.size()) to a unit
+// direction, the lowest index among equals. Centre c sits at z = 1 - 2 (c + 0.5) / count and two
+// unit vectors' z differ by no more than their angle, so only centres within the lattice's
+// covering radius in z can be nearest: twice the mean spacing is well beyond it (start-up: a
+// third of the centres looked at).
+std::size_t nearest(const Eigen::Vector3d& direction, const std::vector<Eigen::Vector3d>& centres) {
+  const auto count = static_cast<double>(centres.size());
+  const double reach = 2.0 * std::sqrt(4.0 * std::numbers::pi / count);
+  auto index_at = [count](double z) {
+    return std::clamp((1.0 - z) * count / 2.0 - 0.5, 0.0, count - 1.0);
+  };
+  const auto first = static_cast<std::size_t>(std::floor(index_at(direction.z() + reach)));
+  const auto last = static_cast<std::size_t>(std::ceil(index_at(direction.z() - reach)));
+  std::size_t nearest_centre = first;
+  double nearest_cosine = -2.0;
+  for (std::size_t c = first; c <= last; ++c) {
+    const double cosine = direction.dot(centres[c]);
+    if (cosine > nearest_cosine) {
+      nearest_cosine = cosine;
+      nearest_centre = c;
+    }
+  }
+  return nearest_centre;
 }
 }  // namespace
 
@@ -79,58 +108,78 @@ SrpPhat::SrpPhat(const LsDoaSolver& solver, const GccPhat& gcc, double grid_deg)
 }
 
 void SrpPhat::group_directions() {
-  // Patch centres: a coarser Fibonacci sphere; every direction joins its nearest centre.
-  const int centres = std::max(1, static_cast<int>(directions_.size() / kDirectionsPerPatch) *
-                                      (solver_->rank() == 2 ? 2 : 1));
-  std::vector<Eigen::Vector3d> centre_directions;
-  for (int c = 0; c < centres; ++c) centre_directions.push_back(fibonacci_direction(c, centres));
-  std::vector<std::vector<std::int32_t>> members(static_cast<std::size_t>(centres));
-  for (std::size_t d = 0; d < directions_.size(); ++d) {
-    int nearest = 0;
-    double nearest_cosine = -2.0;
-    for (int c = 0; c < centres; ++c) {
-      const double cosine = directions_[d].dot(centre_directions[static_cast<std::size_t>(c)]);
-      if (cosine > nearest_cosine) {
-        nearest_cosine = cosine;
-        nearest = c;
-      }
-    }
-    members[static_cast<std::size_t>(nearest)].push_back(static_cast<std::int32_t>(d));
-  }
+  // Groups: each direction joins its nearest centre of a coarser Fibonacci sphere; patches: each
+  // group joins (by its centre) the nearest centre of a coarser one still, so every patch is a
+  // union of whole groups.
+  const int sphere_share = solver_->rank() == 2 ? 2 : 1;  // the hemisphere's centres are half
+  auto centres = [&](int directions_per_centre) {
+    const int count =
+        std::max(1, static_cast<int>(directions_.size()) / directions_per_centre * sphere_share);
+    std::vector<Eigen::Vector3d> out;
+    for (int c = 0; c < count; ++c) out.push_back(fibonacci_direction(c, count));
+    return out;
+  };
+  const std::vector<Eigen::Vector3d> group_centres = centres(kDirectionsPerGroup);
+  const std::vector<Eigen::Vector3d> patch_centres = centres(kDirectionsPerPatch);
+  std::vector<std::vector<std::int32_t>> groups(group_centres.size());
+  for (std::size_t d = 0; d < directions_.size(); ++d)
+    groups[nearest(directions_[d], group_centres)].push_back(static_cast<std::int32_t>(d));
+  std::vector<std::vector<std::size_t>> patches(patch_centres.size());  // their groups
+  for (std::size_t c = 0; c < groups.size(); ++c)
+    if (!groups[c].empty()) patches[nearest(group_centres[c], patch_centres)].push_back(c);
   patch_offsets_.assign(1, 0);
-  for (const std::vector<std::int32_t>& patch : members) {
+  group_offsets_.assign(1, 0);
+  for (const std::vector<std::size_t>& patch : patches) {
     if (patch.empty()) continue;
-    patch_members_.insert(patch_members_.end(), patch.begin(), patch.end());
-    patch_offsets_.push_back(static_cast<std::int32_t>(patch_members_.size()));
-    for (int p = 0; p < pairs_; ++p) {
-      std::int32_t first = std::numeric_limits<std::int32_t>::max();
-      std::int32_t last = 0;
-      for (const std::int32_t d : patch) {
-        const std::int32_t below =
-            lag_index_[static_cast<std::size_t>(d) * static_cast<std::size_t>(pairs_) +
-                       static_cast<std::size_t>(p)];
-        first = std::min(first, below);
-        last = std::max(last, below + 1);
-      }
-      patch_first_.push_back(first);
-      patch_last_.push_back(last);
+    const std::size_t patch_first_member = members_.size();
+    for (const std::size_t c : patch) {
+      members_.insert(members_.end(), groups[c].begin(), groups[c].end());
+      group_offsets_.push_back(static_cast<std::int32_t>(members_.size()));
+      append_range_positions(groups[c], group_low_, group_high_);
     }
+    patch_offsets_.push_back(static_cast<std::int32_t>(group_offsets_.size() - 1));
+    append_range_positions(std::span<const std::int32_t>(members_).subspan(patch_first_member),
+                           patch_low_, patch_high_);
   }
   patch_bounds_.assign(patch_offsets_.size() - 1, 0.0);
-  // Each patch's range maximum per pair is the larger of two entries of the sparse table:
-  // their positions are fixed, so they are found once here, not per look.
+}
+
+// Per pair, the two entries of the sparse table whose larger is the range maximum over the lags
+// the members' interpolations read: their positions are fixed, so they are found once here.
+void SrpPhat::append_range_positions(std::span<const std::int32_t> members,
+                                     std::vector<std::int32_t>& low,
+                                     std::vector<std::int32_t>& high) const {
   const auto stride = static_cast<std::size_t>(grid_stride_);
-  for (std::size_t at = 0; at < patch_first_.size(); ++at) {
-    const auto p = static_cast<std::size_t>(static_cast<int>(at) % pairs_);
-    const int first = patch_first_[at];
-    const int last = patch_last_[at];
+  for (int p = 0; p < pairs_; ++p) {
+    std::int32_t first = std::numeric_limits<std::int32_t>::max();
+    std::int32_t last = 0;
+    for (const std::int32_t d : members) {
+      const std::int32_t below =
+          lag_index_[static_cast<std::size_t>(d) * static_cast<std::size_t>(pairs_) +
+                     static_cast<std::size_t>(p)];
+      first = std::min(first, below);
+      last = std::max(last, below + 1);
+    }
     const int l = std::bit_width(static_cast<unsigned>(last - first + 1)) - 1;
     const std::size_t level =
-        (p * static_cast<std::size_t>(range_levels_) + static_cast<std::size_t>(l)) * stride;
-    patch_low_.push_back(static_cast<std::int32_t>(level + static_cast<std::size_t>(first)));
-    patch_high_.push_back(
+        (static_cast<std::size_t>(p) * static_cast<std::size_t>(range_levels_) +
+         static_cast<std::size_t>(l)) *
+        stride;
+    low.push_back(static_cast<std::int32_t>(level + static_cast<std::size_t>(first)));
+    high.push_back(
         static_cast<std::int32_t>(level + static_cast<std::size_t>(last - (1 << l) + 1)));
   }
+}
+
+double SrpPhat::bound(const std::vector<std::int32_t>& low, const std::vector<std::int32_t>& high,
+                      std::size_t index) const {
+  double sum = kBoundMargin;
+  for (int p = 0; p < pairs_; ++p) {
+    const std::size_t at = index * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
+    sum += std::max(range_maxima_[static_cast<std::size_t>(low[at])],
+                    range_maxima_[static_cast<std::size_t>(high[at])]);
+  }
+  return sum;
 }
 
 void SrpPhat::build_range_maxima() const {
@@ -223,27 +272,26 @@ bool SrpPhat::strongest(SrpPeak& out, double min_power) const {
   const std::size_t patches = patch_bounds_.size();
   std::size_t most_promising = 0;
   for (std::size_t g = 0; g < patches; ++g) {
-    double bound = kBoundMargin;
-    for (int p = 0; p < pairs_; ++p) {
-      const std::size_t at = g * static_cast<std::size_t>(pairs_) + static_cast<std::size_t>(p);
-      bound += std::max(range_maxima_[static_cast<std::size_t>(patch_low_[at])],
-                        range_maxima_[static_cast<std::size_t>(patch_high_[at])]);
-    }
-    patch_bounds_[g] = bound;
-    if (bound > patch_bounds_[most_promising]) most_promising = g;
+    patch_bounds_[g] = bound(patch_low_, patch_high_, g);
+    if (patch_bounds_[g] > patch_bounds_[most_promising]) most_promising = g;
   }
   if (patch_bounds_[most_promising] < floor_sum) return false;
   // Same answer as visiting every direction in order: the highest power, and among equal
-  // powers the lowest direction index.
+  // powers the lowest direction index. A bound equal to the best may still hide an equal power
+  // at a lower index: only a bound below it is skipped.
   std::size_t best = directions_.size();
   double best_power = 0.0;
   auto visit = [&](std::size_t g) {
-    for (auto m = patch_offsets_[g]; m < patch_offsets_[g + 1]; ++m) {
-      const auto d = static_cast<std::size_t>(patch_members_[static_cast<std::size_t>(m)]);
-      const double sum = power_sum(d);
-      if (sum > best_power || (sum == best_power && best < directions_.size() && d < best)) {
-        best_power = sum;
-        best = d;
+    for (auto q = patch_offsets_[g]; q < patch_offsets_[g + 1]; ++q) {
+      const auto group = static_cast<std::size_t>(q);
+      if (bound(group_low_, group_high_, group) < std::max(best_power, floor_sum)) continue;
+      for (auto m = group_offsets_[group]; m < group_offsets_[group + 1]; ++m) {
+        const auto d = static_cast<std::size_t>(members_[static_cast<std::size_t>(m)]);
+        const double sum = power_sum(d);
+        if (sum > best_power || (sum == best_power && best < directions_.size() && d < best)) {
+          best_power = sum;
+          best = d;
+        }
       }
     }
   };

@@ -7,8 +7,10 @@
 //
 // The search is exact but does not visit every direction: directions are grouped into small
 // patches, and a patch whose upper bound (per pair, the highest correlation over the lags its
-// directions touch, summed over pairs) is below the best power found so far is skipped. The
-// correlation of a source is a narrow peak, so a look visits a few patches of ~16 directions.
+// directions touch, summed over pairs) is below the best power found so far is skipped; inside a
+// patch that passes, so is each group of ~4 directions under its own bound. The correlation of
+// a source is a narrow peak, so a look visits a few patches of ~16 directions and few of their
+// groups.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -55,6 +57,11 @@ class SrpPhat {
   void group_directions();
   double power_sum(std::size_t direction) const;  // sum over pairs of the interpolated residual
   void build_range_maxima() const;
+  void append_range_positions(std::span<const std::int32_t> members, std::vector<std::int32_t>& low,
+                              std::vector<std::int32_t>& high) const;
+  // Upper bound of the power sum over a patch's or group's directions (range maxima built).
+  double bound(const std::vector<std::int32_t>& low, const std::vector<std::int32_t>& high,
+               std::size_t index) const;
 
   const LsDoaSolver* solver_;
   int pairs_;
@@ -64,16 +71,18 @@ class SrpPhat {
   std::vector<double> residual_;         // pairs x grid_stride_
   int grid_stride_ = 0;
   std::vector<int> grid_last_;  // per pair: the last grid index (2 * half span)
-  // Patches of neighbouring directions: members (ascending direction index) of patch g at
-  // patch_members_[patch_offsets_[g] .. patch_offsets_[g + 1]); per patch and pair the grid
-  // index range [first, last] its directions' interpolations read.
+  // Patches of neighbouring directions, each a union of groups of fewer neighbours: group q's
+  // members (direction indices) at members_[group_offsets_[q] .. group_offsets_[q + 1]), patch
+  // g's groups at [patch_offsets_[g], patch_offsets_[g + 1]). Per patch (group) and pair: the
+  // two range_maxima_ entries whose larger is the range maximum over the lags its directions'
+  // interpolations read.
   std::vector<std::int32_t> patch_offsets_;
-  std::vector<std::int32_t> patch_members_;
-  std::vector<std::int32_t> patch_first_;  // patches x pairs
-  std::vector<std::int32_t> patch_last_;   // patches x pairs
-  // patches x pairs: the two range_maxima_ entries whose larger is the range maximum.
-  std::vector<std::int32_t> patch_low_;
+  std::vector<std::int32_t> group_offsets_;
+  std::vector<std::int32_t> members_;
+  std::vector<std::int32_t> patch_low_;  // patches x pairs
   std::vector<std::int32_t> patch_high_;
+  std::vector<std::int32_t> group_low_;  // groups x pairs
+  std::vector<std::int32_t> group_high_;
   // Sparse table of range maxima of the residual: level l holds max over [m, m + 2^l).
   int range_levels_ = 0;
   mutable std::vector<double> range_maxima_;  // pairs x levels x grid_stride_

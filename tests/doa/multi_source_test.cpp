@@ -8,8 +8,12 @@
 #include <gtest/gtest.h>
 
 #include "doa/array_geometry.hpp"
+#include "doa/gcc_phat.hpp"
+#include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/source_tracks.hpp"
+#include "doa/spectral_frame.hpp"
+#include "doa/srp_phat.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
 namespace dronetrack::doa {
@@ -170,6 +174,59 @@ TEST(NodePipeline, SourcesBelowTheHorizonMaskAreNotReported) {
   const auto frame_count = pipeline.diagnostics().frames_processed;
   EXPECT_GT(drone_doas, frame_count * 3 / 4);
   EXPECT_GT(pipeline.diagnostics().below_horizon_rejected, frame_count / 2);
+}
+
+// SrpPhat's bounded search (patches, then groups of directions, skipped under their bounds) must
+// give what visiting every direction gives: the same direction and power on frames of two
+// sources and of noise alone (many near-equal maxima), after each found lobe is subtracted,
+// and nothing when the floor is just above that power.
+TEST(SrpPhat, BoundedSearchFindsWhatEveryDirectionFinds) {
+  const ArrayGeometry geometry = testing::tetrahedron(30.0);
+  const DoaParams params;
+  const LsDoaSolver solver(geometry, LsDoaSettings{});
+  std::vector<MicPairSpec> pairs;
+  for (int p = 0; p < solver.pair_count(); ++p)
+    pairs.push_back({solver.pair_mic_i(p), solver.pair_mic_j(p), solver.max_lag_s(p)});
+  const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
+  MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
+  GccPhat gcc(fft.fft_size(), frame_length, kRate, params.bands_hz, pairs, params.lag_interpolation,
+              params.correlation_oversample);
+  SrpPhat srp(solver, gcc, params.srp_grid_deg);
+  std::vector<double> channels(static_cast<std::size_t>(4 * frame_length));
+  int compared = 0;
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    testing::Recording recording = testing::silent_recording(4, channels.size() / 4);
+    if (seed < 4)  // the last frame: sensor noise alone
+      recording = two_sources(geometry, direction_from_azel_deg(40.0 + 70.0 * seed, 25.0), 0.05,
+                              direction_from_azel_deg(200.0 - 40.0 * seed, 55.0), 0.02,
+                              frame_length / kRate, seed);
+    else
+      testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, seed);
+    for (int c = 0; c < 4; ++c)
+      for (int n = 0; n < frame_length; ++n)
+        channels[static_cast<std::size_t>(c * frame_length + n)] =
+            recording.interleaved[static_cast<std::size_t>(n) * 4 + static_cast<std::size_t>(c)];
+    fft.process(FrameView{0, 4, frame_length, channels.data(), 0, 0});
+    gcc.whiten(fft);
+    gcc.correlate(false, false);
+    srp.begin_frame(gcc);
+    for (int look = 0; look < 3; ++look) {
+      SrpPeak bounded;
+      SrpPeak every;
+      const bool found = srp.strongest_exhaustive(every);
+      ASSERT_EQ(srp.strongest(bounded), found);
+      if (!found) break;
+      EXPECT_TRUE(bounded.direction_array == every.direction_array) << seed << " " << look;
+      EXPECT_EQ(bounded.power, every.power);
+      SrpPeak floored;
+      EXPECT_TRUE(srp.strongest(floored, every.power * (1.0 - 1e-12)));
+      EXPECT_TRUE(floored.direction_array == every.direction_array);
+      EXPECT_FALSE(srp.strongest(floored, every.power * (1.0 + 1e-9)));
+      ++compared;
+      srp.subtract_direction(gcc, every.direction_array);
+    }
+  }
+  EXPECT_GE(compared, 10);
 }
 
 }  // namespace
