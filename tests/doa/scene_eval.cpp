@@ -216,11 +216,13 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
       const FrameBinPowers drone_power = frame_bin_powers(
           rendered.drone_alone[d][a].samples, full.channels, full.sample_rate_hz, params);
       // Everything but this drone: the full scene minus its own rendering.
-      std::vector<float> others = full.samples;
-      for (std::size_t n = 0; n < others.size(); ++n)
-        others[n] -= rendered.drone_alone[d][a].samples[n];
-      const FrameBinPowers others_power =
-          frame_bin_powers(others, full.channels, full.sample_rate_hz, params);
+      FrameBinPowers others_power;
+      if (settings.audibility) {
+        std::vector<float> others = full.samples;
+        for (std::size_t n = 0; n < others.size(); ++n)
+          others[n] -= rendered.drone_alone[d][a].samples[n];
+        others_power = frame_bin_powers(others, full.channels, full.sample_rate_hz, params);
+      }
       DroneAtArray cell;
       cell.drone_id = source.id;
       cell.array_id = geometry.id;
@@ -242,9 +244,11 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
         }
         FrameAudibility audibility;
         audibility.background_snr_db = snr_db;
-        audibility.band_snr_db = ratio_db(drone_power.band_power(k), others_power.band_power(k));
-        audibility.comb_snr_db = comb_snr_db(drone_power.frame(k), others_power.frame(k),
-                                             drone_power.bins_per_frame, scratch);
+        if (settings.audibility) {
+          audibility.band_snr_db = ratio_db(drone_power.band_power(k), others_power.band_power(k));
+          audibility.comb_snr_db = comb_snr_db(drone_power.frame(k), others_power.frame(k),
+                                               drone_power.bins_per_frame, scratch);
+        }
         audibility.error_deg = best;
         audibility.elevation_error_deg = best_elevation_error;
         cell.frames.push_back(audibility);

@@ -61,6 +61,9 @@ struct SceneResult {
 struct EvaluationSettings {
   double audible_snr_db = 6.0;
   double found_within_deg = 3.0;
+  // Fill FrameAudibility::band_snr_db / comb_snr_db (one more spectrum per drone and array:
+  // off for the tests, which use the background rule only).
+  bool audibility = false;
 };
 
 SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
       }
       if (argv[i] == std::string("--audibility")) {
         audibility = true;
+        settings.audibility = true;
         continue;
       }
       if (argv[i] == std::string("--static-null") && i + 1 < argc) {
