@@ -42,6 +42,9 @@ inline constexpr int kMaxSources = 8;
 inline constexpr std::int64_t kStaticNullLookFrames = 2;
 // A comb of fewer lines in the band is not trusted to say which bins are a source's own.
 inline constexpr int kMinOwnCombLines = 4;
+// A bin off the comb whose mean phasor agreement with the source reaches this is its own (the
+// SourceBinMask default: one dominant source ~1, noise or another source ~0).
+inline constexpr double kOwnBinAgreement = 0.5;
 
 std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
                           double sample_rate_hz, double speed_of_sound_mps);
@@ -154,6 +157,7 @@ struct NodePipeline::Impl {
   std::unique_ptr<HarmonicCombDetector> own_comb;
   int comb_first_bin = 0;
   std::vector<double> comb_power;
+  std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
   std::vector<std::uint8_t> comb_lines;
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);

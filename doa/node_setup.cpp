@@ -216,6 +216,7 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
     own_comb = std::make_unique<HarmonicCombDetector>(
         comb_first_bin, bins, sample_rate_hz / fft.fft_size(), HarmonicCombSettings{});
     comb_power.assign(static_cast<std::size_t>(bins), 0.0);
+    comb_agreement.assign(static_cast<std::size_t>(bins), 0.0);
     comb_lines.assign(static_cast<std::size_t>(bins), 0);
   }
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a

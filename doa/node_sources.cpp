@@ -377,17 +377,22 @@ bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& unit
 // The source's spectrum is its steered cross-power, bin by bin: sum over pairs of
 // |X_i||X_j| cos(phase_ij - w tau_ij) at its TDOAs, large where it dominates, near zero or
 // negative where another source or noise does. A rotor's lines stand out of it as a comb; the
-// bins between them hold the other sources' broadband and lines (a generator's 50 Hz comb, a
-// car's tyres) that pull the source's peaks towards theirs (docs/doa.md, "Own comb bins"), so
-// only the lines are kept. No comb (a broadband source): nothing dropped.
+// bins between them hold its own broadband and the other sources' broadband and lines (a
+// generator's 50 Hz comb, a car's tyres) that pull its peaks towards theirs (docs/doa.md, "Own
+// comb bins"). Kept: its lines, and the bins between them whose phasors agree with it on average
+// over the pairs as SourceBinMask judges a source's own bin (a lone drone keeps its broadband
+// and loses nothing). No comb (a broadband source): nothing dropped.
 bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& units) {
   const Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::fill(comb_power.begin(), comb_power.end(), 0.0);
+  std::fill(comb_agreement.begin(), comb_agreement.end(), 0.0);
+  int pairs = 0;
   const std::span<std::uint8_t> keep = gcc.bin_keep();
   const double omega = gcc.bin_omega_rad_per_s();
   for (int p = 0; p < gcc.pair_count(); ++p) {
     const PairTdoa& tdoa = candidate.tdoas[static_cast<std::size_t>(p)];
     if (!(tdoa.variance_s2 > 0.0)) continue;
+    ++pairs;
     const MicPairSpec& spec = gcc.pair_spec(p);
     const std::span<const double> magnitude = gcc.magnitudes(p);
     const std::span<const double> ri = units.real_row(spec.mic_i);
@@ -401,18 +406,24 @@ bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& uni
         const std::complex<double> phasor = std::complex<double>(ri[index], ii[index]) *
                                             std::complex<double>(rj[index], -ij[index]);
         const double turn = omega * k * tdoa.tdoa_s;
-        comb_power[static_cast<std::size_t>(k - comb_first_bin)] +=
-            magnitude[index] * (phasor.real() * std::cos(turn) - phasor.imag() * std::sin(turn));
+        const double agreement = phasor.real() * std::cos(turn) - phasor.imag() * std::sin(turn);
+        const auto bin = static_cast<std::size_t>(k - comb_first_bin);
+        comb_power[bin] += magnitude[index] * agreement;
+        comb_agreement[bin] += agreement;
       }
     }
   }
   for (double& power : comb_power) power = std::max(power, 0.0);
   const HarmonicComb comb = own_comb->analyse(comb_power);
   if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
+  const double own_bin_agreement = node_detail::kOwnBinAgreement * pairs;
   std::size_t index = 0;
-  for (const BandRun& run : gcc.band())
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
-      if (comb_lines[static_cast<std::size_t>(k - comb_first_bin)] == 0) keep[index] = 0;
+  for (const BandRun& run : gcc.band()) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      const auto bin = static_cast<std::size_t>(k - comb_first_bin);
+      if (comb_lines[bin] == 0 && comb_agreement[bin] < own_bin_agreement) keep[index] = 0;
+    }
+  }
   return true;
 }
 
