@@ -129,7 +129,7 @@ struct DoaParams {
   // Opt-in (docs/doa.md stage 7c, measured): when a frame has several sources, a source with a
   // harmonic comb (a rotor) is measured again on its comb's lines and the bins it owns; the
   // other bins between its lines carry the others' broadband and lines, which pull its peaks.
-  // Off: on the mixed site it brings a short ghost drone (2.3 s said drone, limit 0.6 s).
+  // Off: every mixed-site and perimeter figure gains, but the far low-SNR pass loses 0.05 m.
   bool own_comb_bins = false;
 
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the

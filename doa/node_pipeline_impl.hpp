@@ -156,6 +156,9 @@ struct NodePipeline::Impl {
   // own_comb_bins: the comb of each source's steered cross-power (FFT bins comb_first_bin..).
   std::unique_ptr<HarmonicCombDetector> own_comb;
   int comb_first_bin = 0;
+  // False during the static look's own re-measures: a direction found on averaged phasors is
+  // tested against all the frame's bins, not only those that agree with it.
+  bool comb_allowed = true;
   std::vector<double> comb_power;
   std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
   std::vector<std::uint8_t> comb_lines;

@@ -261,7 +261,9 @@ bool NodePipeline::Impl::follow_static_source() {
     candidate.tdoas[p] = {solver.tdoa_for_direction(static_cast<int>(p), held_array), 1.0, 0.0,
                           0.0};
   ++candidate_count;
+  comb_allowed = false;
   bool kept = remeasure(index, gcc.units());
+  comb_allowed = true;
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -317,7 +319,9 @@ bool NodePipeline::Impl::add_static_source(const Eigen::Vector3d& look_direction
   const int index = candidate_count++;
   // Measured again on the frame's own phasors, the other sources' bins dropped: the frame's
   // measurement may have moved it onto a found source.
+  comb_allowed = false;
   bool kept = remeasure(index, gcc.units());
+  comb_allowed = true;
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -371,7 +375,7 @@ bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& unit
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
                              candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
-  return own_comb && candidate_count > 1 && keep_own_comb(source, units);
+  return own_comb && comb_allowed && candidate_count > 1 && keep_own_comb(source, units);
 }
 
 // The source's spectrum is its steered cross-power, bin by bin: sum over pairs of
