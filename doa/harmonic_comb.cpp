@@ -122,6 +122,45 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
   }
 }
 
+// The most salient bin near each multiple of the fundamental in the last spectrum, where it
+// stands line_salience_db over its envelope: on_line(index) per line; returns how many.
+template <typename OnLine>
+int HarmonicCombDetector::walk_lines(double fundamental_hz, OnLine&& on_line) const {
+  const int n = bin_count_;
+  const double lag = fundamental_hz / bin_hz_;
+  const int first_harmonic =
+      std::max(1, static_cast<int>(std::ceil(first_bin_ * bin_hz_ / fundamental_hz)));
+  const int last_harmonic =
+      static_cast<int>(std::floor((first_bin_ + n - 1) * bin_hz_ / fundamental_hz));
+  const int reach = std::max(1, static_cast<int>(0.25 * lag));
+  int lines = 0;
+  for (int h = first_harmonic; h <= last_harmonic; ++h) {
+    const int expected = static_cast<int>(std::lround(h * fundamental_hz / bin_hz_)) - first_bin_;
+    int peak = -1;
+    double peak_salience = 0.0;
+    for (int i = std::max(0, expected - reach); i <= std::min(n - 1, expected + reach); ++i) {
+      if (salience_[i] + salience_mean_ > peak_salience) {
+        peak_salience = salience_[i] + salience_mean_;
+        peak = i;
+      }
+    }
+    if (peak < 0 || peak_salience < settings_.line_salience_db) continue;
+    ++lines;
+    on_line(peak);
+  }
+  return lines;
+}
+
+int HarmonicCombDetector::mark_lines(const HarmonicComb& comb,
+                                     std::span<std::uint8_t> on_line) const {
+  std::fill(on_line.begin(), on_line.end(), std::uint8_t{0});
+  if (!comb.found || !valid_) return 0;
+  return walk_lines(comb.fundamental_hz, [&](int peak) {
+    for (int i = std::max(peak - 1, 0); i <= std::min(bin_count_ - 1, peak + 1); ++i)
+      if (static_cast<std::size_t>(i) < on_line.size()) on_line[static_cast<std::size_t>(i)] = 1;
+  });
+}
+
 HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation) const {
   HarmonicComb comb;
   if (static_cast<int>(autocorrelation.size()) < lag_count()) return comb;
@@ -165,32 +204,16 @@ HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation)
   const double refined_lag = lag + parabolic_offset(at(lag - 1), at(lag), at(lag + 1));
   const double fundamental_hz = refined_lag * bin_hz_;
 
-  // The lines of the last spectrum on this comb: the most salient bin near each multiple.
+  // The lines of the last spectrum on this comb.
   if (valid_) {
-    const int n = bin_count_;
-    const int first_harmonic =
-        std::max(1, static_cast<int>(std::ceil(first_bin_ * bin_hz_ / fundamental_hz)));
-    const int last_harmonic =
-        static_cast<int>(std::floor((first_bin_ + n - 1) * bin_hz_ / fundamental_hz));
-    const int reach = std::max(1, static_cast<int>(0.25 * refined_lag));
     double harmonic_power = 0.0;
     int previous_end = -1;
-    for (int h = first_harmonic; h <= last_harmonic; ++h) {
-      const int expected = static_cast<int>(std::lround(h * fundamental_hz / bin_hz_)) - first_bin_;
-      int peak = -1;
-      double peak_salience = 0.0;
-      for (int i = std::max(0, expected - reach); i <= std::min(n - 1, expected + reach); ++i) {
-        if (salience_[i] + salience_mean_ > peak_salience) {
-          peak_salience = salience_[i] + salience_mean_;
-          peak = i;
-        }
-      }
-      if (peak < 0 || peak_salience < settings_.line_salience_db) continue;
-      ++comb.harmonic_count;
-      for (int i = std::max(peak - 1, previous_end + 1); i <= std::min(n - 1, peak + 1); ++i)
+    comb.harmonic_count = walk_lines(fundamental_hz, [&](int peak) {
+      for (int i = std::max(peak - 1, previous_end + 1); i <= std::min(bin_count_ - 1, peak + 1);
+           ++i)
         harmonic_power += power_[i];
       previous_end = peak + 1;
-    }
+    });
     comb.harmonic_share = std::clamp(harmonic_power / total_power_, 0.0, 1.0);
   }
   comb.found =

@@ -54,6 +54,10 @@ class HarmonicCombDetector {
   HarmonicComb find(std::span<const double> autocorrelation) const;
   // Both, on one spectrum.
   HarmonicComb analyse(std::span<const double> power);
+  // The bins within one bin of each line of `comb` (found on the last spectrum analysed) set to
+  // 1 in on_line (bin_count() values, index i = bin first_bin + i), the rest 0; returns the
+  // number of lines.
+  int mark_lines(const HarmonicComb& comb, std::span<std::uint8_t> on_line) const;
 
   int lag_count() const { return last_lag_ - first_lag_ + 1; }
   int first_lag() const { return first_lag_; }
@@ -62,6 +66,9 @@ class HarmonicCombDetector {
   const HarmonicCombSettings& settings() const { return settings_; }
 
  private:
+  template <typename OnLine>
+  int walk_lines(double fundamental_hz, OnLine&& on_line) const;
+
   HarmonicCombSettings settings_;
   int first_bin_;
   int bin_count_;

@@ -21,6 +21,7 @@
 #include "doa/detection_gate.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ground_echo.hpp"
+#include "doa/harmonic_comb.hpp"
 #include "doa/ls_doa_solver.hpp"
 #include "doa/source_bin_mask.hpp"
 #include "doa/source_tracks.hpp"
@@ -39,6 +40,11 @@ inline constexpr int kMaxSources = 8;
 // at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left the
 // generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.
 inline constexpr std::int64_t kStaticNullLookFrames = 2;
+// A comb of fewer lines in the band is not trusted to say which bins are a source's own.
+inline constexpr int kMinOwnCombLines = 4;
+// A bin off the comb whose mean phasor agreement with the source reaches this is its own (the
+// SourceBinMask default: one dominant source ~1, noise or another source ~0).
+inline constexpr double kOwnBinAgreement = 0.5;
 
 std::string setup_problem(const ArrayGeometry& geometry, const DoaParams& params,
                           double sample_rate_hz, double speed_of_sound_mps);
@@ -95,7 +101,11 @@ struct NodePipeline::Impl {
   bool remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
   void remove_ground_echoes();
   // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
-  void only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);
+  // Returns whether only the source's own comb lines are kept (keep_own_comb()).
+  bool only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);
+  // Drops the kept bins off the source's own harmonic comb; false (nothing dropped) when it
+  // shows no comb.
+  bool keep_own_comb(int source, const GccPhat::UnitsView& units);
   // The mask as it stands (static null, sources below the horizon): what every later look of
   // this frame starts from.
   void keep_frame_mask();
@@ -143,6 +153,15 @@ struct NodePipeline::Impl {
   std::unique_ptr<SrpPhat> srp;
   double srp_noise_floor = 0.0;  // a further source's SRP power must exceed this
   SourceBinMask bin_mask{gcc};
+  // own_comb_bins: the comb of each source's steered cross-power (FFT bins comb_first_bin..).
+  std::unique_ptr<HarmonicCombDetector> own_comb;
+  int comb_first_bin = 0;
+  // False during the static look's own re-measures: a direction found on averaged phasors is
+  // tested against all the frame's bins, not only those that agree with it.
+  bool comb_allowed = true;
+  std::vector<double> comb_power;
+  std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
+  std::vector<std::uint8_t> comb_lines;
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped

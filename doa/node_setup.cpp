@@ -210,6 +210,15 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
   if (params.static_look.enabled && srp && solver.rank() >= 3)
     static_look = std::make_unique<StaticSourceLook>(gcc, tracker_settings.hop_s,
                                                      params.max_sources, params.static_look);
+  if (params.own_comb_bins && !gcc.band().empty()) {
+    comb_first_bin = gcc.band().front().first_bin;
+    const int bins = gcc.band().back().last_bin - comb_first_bin + 1;
+    own_comb = std::make_unique<HarmonicCombDetector>(
+        comb_first_bin, bins, sample_rate_hz / fft.fft_size(), HarmonicCombSettings{});
+    comb_power.assign(static_cast<std::size_t>(bins), 0.0);
+    comb_agreement.assign(static_cast<std::size_t>(bins), 0.0);
+    comb_lines.assign(static_cast<std::size_t>(bins), 0);
+  }
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
   // horizontal one hears the same comb at every mic: no differential phase to remove.
   if (params.ground_echo && solver.rank() >= 3) {

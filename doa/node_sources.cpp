@@ -260,7 +260,9 @@ bool NodePipeline::Impl::follow_static_source() {
     candidate.tdoas[p] = {solver.tdoa_for_direction(static_cast<int>(p), held_array), 1.0, 0.0,
                           0.0};
   ++candidate_count;
+  comb_allowed = false;
   bool kept = remeasure(index, gcc.units());
+  comb_allowed = true;
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -316,7 +318,9 @@ bool NodePipeline::Impl::add_static_source(const Eigen::Vector3d& look_direction
   const int index = candidate_count++;
   // Measured again on the frame's own phasors, the other sources' bins dropped: the frame's
   // measurement may have moved it onto a found source.
+  comb_allowed = false;
   bool kept = remeasure(index, gcc.units());
+  comb_allowed = true;
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -364,12 +368,66 @@ void NodePipeline::Impl::keep_frame_mask() {
 }
 
 // The frame's cross-power again from `units`, minus every other candidate's bins.
-void NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted) {
+bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted) {
   gcc.cross_power(units, frame_mask, weighted);
   for (int s = 0; s < candidate_count; ++s)
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
                              candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  return own_comb && comb_allowed && candidate_count > 1 && keep_own_comb(source, units);
+}
+
+// The source's spectrum is its steered cross-power, bin by bin: sum over pairs of
+// |X_i||X_j| cos(phase_ij - w tau_ij) at its TDOAs, large where it dominates, near zero or
+// negative where another source or noise does. A rotor's lines stand out of it as a comb; the
+// bins between them hold its own broadband and the other sources' broadband and lines (a
+// generator's 50 Hz comb, a car's tyres) that pull its peaks towards theirs (docs/doa.md, "Own
+// comb bins"). Kept: its lines, and the bins between them whose phasors agree with it on average
+// over the pairs as SourceBinMask judges a source's own bin (a lone drone keeps its broadband
+// and loses nothing). No comb (a broadband source): nothing dropped.
+bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& units) {
+  const Candidate& candidate = candidates[static_cast<std::size_t>(source)];
+  std::fill(comb_power.begin(), comb_power.end(), 0.0);
+  std::fill(comb_agreement.begin(), comb_agreement.end(), 0.0);
+  int pairs = 0;
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  const double omega = gcc.bin_omega_rad_per_s();
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& tdoa = candidate.tdoas[static_cast<std::size_t>(p)];
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    ++pairs;
+    const MicPairSpec& spec = gcc.pair_spec(p);
+    const std::span<const double> magnitude = gcc.magnitudes(p);
+    const std::span<const double> ri = units.real_row(spec.mic_i);
+    const std::span<const double> ii = units.imag_row(spec.mic_i);
+    const std::span<const double> rj = units.real_row(spec.mic_j);
+    const std::span<const double> ij = units.imag_row(spec.mic_j);
+    std::size_t index = 0;
+    for (const BandRun& run : gcc.band()) {
+      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+        if (keep[index] == 0) continue;
+        const std::complex<double> phasor = std::complex<double>(ri[index], ii[index]) *
+                                            std::complex<double>(rj[index], -ij[index]);
+        const double turn = omega * k * tdoa.tdoa_s;
+        const double agreement = phasor.real() * std::cos(turn) - phasor.imag() * std::sin(turn);
+        const auto bin = static_cast<std::size_t>(k - comb_first_bin);
+        comb_power[bin] += magnitude[index] * agreement;
+        comb_agreement[bin] += agreement;
+      }
+    }
+  }
+  for (double& power : comb_power) power = std::max(power, 0.0);
+  const HarmonicComb comb = own_comb->analyse(comb_power);
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
+  const double own_bin_agreement = node_detail::kOwnBinAgreement * pairs;
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band()) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      const auto bin = static_cast<std::size_t>(k - comb_first_bin);
+      if (comb_lines[bin] == 0 && comb_agreement[bin] < own_bin_agreement) keep[index] = 0;
+    }
+  }
+  return true;
 }
 
 // Every source's ground reflection, found on its own bins (the others' dropped), divided out of
@@ -424,7 +482,10 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
 // pull its peaks), near its own TDOAs.
 bool NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
                                    bool near_known_lags) {
-  only_bins_of(source, units, true);
+  // On its comb's lines alone a source's correlation is a correction of the one on all its
+  // bins, not a new search: fewer bins leave neighbouring carrier lobes nearly as high, so the
+  // peak is refined from the known lags only.
+  near_known_lags = only_bins_of(source, units, true) || near_known_lags;
   if (!near_known_lags) gcc.correlate(false);
   Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::array<PairTdoa, kMaxPairs> remeasured{};

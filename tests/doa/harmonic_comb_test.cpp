@@ -224,5 +224,41 @@ TEST(HarmonicComb, RejectsGeneratorCarAndNoiseAtTheSameSnr) {
   }
 }
 
+// mark_lines() keeps a rotor's lines and nothing between them, even where a generator's 50 Hz
+// comb is as loud: the bins the node measures a comb source's TDOAs on (own_comb_bins).
+TEST(HarmonicComb, MarksTheCombsLinesAndNotTheGaps) {
+  const double bin_hz = 48000.0 / 8192.0;
+  const int first_bin = 256;  // 1.5 kHz
+  const int bins = 342;       // to 3.5 kHz
+  HarmonicCombDetector detector(first_bin, bins, bin_hz);
+  std::mt19937 random(5);
+  std::exponential_distribution<double> floor(1.0);
+  std::vector<double> power(static_cast<std::size_t>(bins));
+  for (double& p : power) p = floor(random);
+  const double rotor_hz = 205.0;
+  std::vector<int> rotor_lines;
+  for (int h = 8; h <= 17; ++h) {
+    const int line = static_cast<int>(std::lround(h * rotor_hz / bin_hz)) - first_bin;
+    rotor_lines.push_back(line);
+    power[static_cast<std::size_t>(line)] += 1000.0;
+  }
+  std::vector<std::uint8_t> on_line(static_cast<std::size_t>(bins), 7);
+  const HarmonicComb rotor = detector.analyse(power);
+  ASSERT_TRUE(rotor.found);
+  EXPECT_NEAR(rotor.fundamental_hz, rotor_hz, 2.0);
+  EXPECT_EQ(detector.mark_lines(rotor, on_line), 10);
+  for (int i = 0; i < bins; ++i) {
+    bool near_line = false;
+    for (const int line : rotor_lines) near_line = near_line || std::abs(i - line) <= 1;
+    EXPECT_EQ(on_line[static_cast<std::size_t>(i)], near_line ? 1 : 0) << "bin " << i;
+  }
+  // Broadband only: no comb, nothing marked.
+  for (double& p : power) p = floor(random);
+  const HarmonicComb none = detector.analyse(power);
+  EXPECT_FALSE(none.found);
+  EXPECT_EQ(detector.mark_lines(none, on_line), 0);
+  EXPECT_EQ(std::count(on_line.begin(), on_line.end(), std::uint8_t{1}), 0);
+}
+
 }  // namespace
 }  // namespace dronetrack::doa

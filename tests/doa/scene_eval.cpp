@@ -34,26 +34,70 @@ Eigen::Vector3d truth_direction(const sim::SourceTruth& source, std::size_t arra
   return (directions[index - 1] * (1.0 - fraction) + directions[index] * fraction).normalized();
 }
 
-// In-band power of each analysis frame of interleaved audio (same frames as the pipeline).
-std::vector<double> frame_powers(const std::vector<float>& samples, std::size_t channels,
-                                 double sample_rate_hz, const DoaParams& params) {
+// Power of each band bin of each analysis frame of interleaved audio, summed over the channels
+// (same frames and bins as the pipeline): frame-major, `bins_per_frame` values a frame.
+struct FrameBinPowers {
+  std::size_t bins_per_frame = 0;
+  std::vector<double> values;
+  std::size_t frames() const { return bins_per_frame > 0 ? values.size() / bins_per_frame : 0; }
+  const double* frame(std::size_t k) const { return values.data() + k * bins_per_frame; }
+  double band_power(std::size_t k) const {
+    double total = 0.0;
+    for (std::size_t b = 0; b < bins_per_frame; ++b) total += frame(k)[b];
+    return total;
+  }
+};
+
+FrameBinPowers frame_bin_powers(const std::vector<float>& samples, std::size_t channels,
+                                double sample_rate_hz, const DoaParams& params) {
   const int frame_length = static_cast<int>(std::lround(params.frame_s * sample_rate_hz));
   const int hop = std::max(1, static_cast<int>(std::lround(params.hop_s * sample_rate_hz)));
   Framer framer(static_cast<int>(channels), frame_length, hop);
   MultichannelFft fft(static_cast<int>(channels), frame_length, fftw_friendly_size(frame_length));
   const std::vector<BandRun> runs = band_runs(params.bands_hz, sample_rate_hz, fft.fft_size());
-  std::vector<double> powers;
+  FrameBinPowers powers;
+  for (const BandRun& run : runs)
+    powers.bins_per_frame += static_cast<std::size_t>(run.last_bin - run.first_bin + 1);
   const AudioBlockView block{0, static_cast<int>(channels), samples.size() / channels,
                              samples.data()};
   framer.push(block, [&](const FrameView& frame) {
     fft.process(frame);
-    double total = 0.0;
-    for (int c = 0; c < fft.channels(); ++c)
+    const std::size_t first = powers.values.size();
+    powers.values.resize(first + powers.bins_per_frame, 0.0);
+    for (int c = 0; c < fft.channels(); ++c) {
+      std::size_t b = first;
       for (const BandRun& run : runs)
-        for (int k = run.first_bin; k <= run.last_bin; ++k) total += std::norm(fft.spectrum(c)[k]);
-    powers.push_back(total);
+        for (int k = run.first_bin; k <= run.last_bin; ++k)
+          powers.values[b++] += std::norm(fft.spectrum(c)[k]);
+    }
   });
   return powers;
+}
+
+double ratio_db(double signal, double noise) {
+  return 10.0 * std::log10(std::max(signal, 1e-30) / std::max(noise, 1e-30));
+}
+
+// SNR on the drone's own comb: the band bins where the drone alone stands at least
+// kCombAboveMedianDb above its own median band bin (its harmonics, not its broadband floor),
+// the drone's power there against everything else's power in the same bins. It is the SNR a
+// receiver that keeps only the drone's bins would see; it does not depend on the interferers'
+// spectra to choose the bins.
+constexpr double kCombAboveMedianDb = 10.0;
+double comb_snr_db(const double* drone, const double* others, std::size_t bins,
+                   std::vector<double>& scratch) {
+  scratch.assign(drone, drone + bins);
+  std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(bins / 2),
+                   scratch.end());
+  const double threshold = scratch[bins / 2] * std::pow(10.0, kCombAboveMedianDb / 10.0);
+  double signal = 0.0;
+  double noise = 0.0;
+  for (std::size_t b = 0; b < bins; ++b) {
+    if (drone[b] < threshold) continue;
+    signal += drone[b];
+    noise += others[b];
+  }
+  return signal > 0.0 ? ratio_db(signal, noise) : -100.0;
 }
 
 }  // namespace
@@ -119,8 +163,8 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
       for (std::size_t n = 0; n < noise.size(); ++n) noise[n] -= drone[a].samples[n];
     for (std::size_t n = 0; n < noise.size(); ++n)
       noise[n] -= rendered.interferers_alone[a].samples[n];
-    const std::vector<double> noise_power =
-        frame_powers(noise, full.channels, full.sample_rate_hz, params);
+    const FrameBinPowers noise_power =
+        frame_bin_powers(noise, full.channels, full.sample_rate_hz, params);
 
     NodePipeline pipeline(geometry, static_cast<int>(a), params, full.sample_rate_hz,
                           scenario.site.speed_of_sound_mps);
@@ -169,24 +213,48 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
 
     for (std::size_t d = 0; d < drone_truth.size(); ++d) {
       const sim::SourceTruth& source = rendered.truth.sources[drone_truth[d]];
-      const std::vector<double> drone_power = frame_powers(
+      const FrameBinPowers drone_power = frame_bin_powers(
           rendered.drone_alone[d][a].samples, full.channels, full.sample_rate_hz, params);
+      // Everything but this drone: the full scene minus its own rendering.
+      FrameBinPowers others_power;
+      if (settings.audibility) {
+        std::vector<float> others = full.samples;
+        for (std::size_t n = 0; n < others.size(); ++n)
+          others[n] -= rendered.drone_alone[d][a].samples[n];
+        others_power = frame_bin_powers(others, full.channels, full.sample_rate_hz, params);
+      }
       DroneAtArray cell;
       cell.drone_id = source.id;
       cell.array_id = geometry.id;
-      for (std::size_t k = 0; k < drone_power.size() && k < noise_power.size(); ++k) {
-        const double snr_db =
-            10.0 * std::log10(std::max(drone_power[k], 1e-30) / std::max(noise_power[k], 1e-30));
-        cell.max_snr_db = std::max(cell.max_snr_db, snr_db);
-        if (snr_db < settings.audible_snr_db) continue;
-        ++cell.audible_frames;
+      std::vector<double> scratch;
+      const std::size_t frames = std::min(drone_power.frames(), noise_power.frames());
+      for (std::size_t k = 0; k < frames; ++k) {
+        const double snr_db = ratio_db(drone_power.band_power(k), noise_power.band_power(k));
         const double time_s =
             (static_cast<double>(k) * hop + 0.5 * (frame_length - 1)) / full.sample_rate_hz;
         const Eigen::Vector3d truth = truth_direction(source, a, time_s);
         double best = 180.0;
+        double best_elevation_error = 0.0;
         const auto range = by_frame.equal_range(static_cast<int>(k));
-        for (auto it = range.first; it != range.second; ++it)
-          best = std::min(best, angle_between_deg(it->second->direction, truth));
+        for (auto it = range.first; it != range.second; ++it) {
+          const double error = angle_between_deg(it->second->direction, truth);
+          if (error >= best) continue;
+          best = error;
+          best_elevation_error = elevation_deg(it->second->direction) - elevation_deg(truth);
+        }
+        FrameAudibility audibility;
+        audibility.background_snr_db = snr_db;
+        if (settings.audibility) {
+          audibility.band_snr_db = ratio_db(drone_power.band_power(k), others_power.band_power(k));
+          audibility.comb_snr_db = comb_snr_db(drone_power.frame(k), others_power.frame(k),
+                                               drone_power.bins_per_frame, scratch);
+        }
+        audibility.error_deg = best;
+        audibility.elevation_error_deg = best_elevation_error;
+        cell.frames.push_back(audibility);
+        cell.max_snr_db = std::max(cell.max_snr_db, snr_db);
+        if (snr_db < settings.audible_snr_db) continue;
+        ++cell.audible_frames;
         if (best <= settings.found_within_deg) {
           ++cell.found_frames;
           cell.errors_deg.push_back(best);
@@ -196,6 +264,44 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
     }
   }
   return result;
+}
+
+std::string format_audibility_rows(const std::string& scene, const SceneResult& result,
+                                   double found_within_deg) {
+  std::string rows;
+  char line[384];
+  for (const DroneAtArray& cell : result.cells) {
+    std::string columns;
+    auto add = [&](auto&& audible) {
+      int heard = 0;
+      int found = 0;
+      for (const FrameAudibility& frame : cell.frames) {
+        if (!audible(frame)) continue;
+        ++heard;
+        found += frame.error_deg <= found_within_deg ? 1 : 0;
+      }
+      char column[64];
+      std::snprintf(column, sizeof column, " %d, %.1f %% |", heard,
+                    heard > 0 ? 100.0 * found / heard : 0.0);
+      columns += column;
+    };
+    add([](const FrameAudibility&) { return true; });
+    for (const double threshold_db : {0.0, 6.0})
+      add([threshold_db](const FrameAudibility& f) { return f.background_snr_db >= threshold_db; });
+    for (const double threshold_db : {0.0, 6.0})
+      add([threshold_db](const FrameAudibility& f) { return f.band_snr_db >= threshold_db; });
+    for (const double threshold_db : {0.0, 6.0})
+      add([threshold_db](const FrameAudibility& f) { return f.comb_snr_db >= threshold_db; });
+    std::vector<double> elevation_errors;
+    for (const FrameAudibility& frame : cell.frames)
+      if (frame.error_deg <= found_within_deg)
+        elevation_errors.push_back(frame.elevation_error_deg);
+    std::snprintf(line, sizeof line, "| %s | %s | %s |%s %+.2f |\n", scene.c_str(),
+                  cell.array_id.c_str(), cell.drone_id.c_str(), columns.c_str(),
+                  percentile(elevation_errors, 0.5));
+    rows += line;
+  }
+  return rows;
 }
 
 std::string format_rows(const std::string& scene, const std::string& tracker,

@@ -1,6 +1,8 @@
-// doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] [TRACKER ...]: renders a
-// simulated scene in memory, runs every array's NodePipeline with each TDOA tracker (default: all
-// four) and prints the accuracy table (markdown rows) that docs/doa.md quotes.
+// doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] [--audibility]
+// [TRACKER ...]: renders a simulated scene in memory, runs every array's NodePipeline with each
+// TDOA tracker (default: all four) and prints the accuracy table (markdown rows) that
+// docs/doa.md quotes; --audibility adds each drone's frames heard by each audibility rule and the
+// DOA coverage over them.
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -16,6 +18,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
+                 "[--audibility] "
                  "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
@@ -26,9 +29,15 @@ int main(int argc, char** argv) {
     std::vector<doa::TdoaTracker> trackers;
     doa::testing::EvaluationSettings settings;
     int static_null = -1;  // -1: as the scene's config says
+    bool audibility = false;
     for (int i = 2; i < argc; ++i) {
       if (argv[i] == std::string("--audible-snr-db") && i + 1 < argc) {
         settings.audible_snr_db = std::stod(argv[++i]);
+        continue;
+      }
+      if (argv[i] == std::string("--audibility")) {
+        audibility = true;
+        settings.audibility = true;
         continue;
       }
       if (argv[i] == std::string("--static-null") && i + 1 < argc) {
@@ -63,6 +72,13 @@ int main(int argc, char** argv) {
       const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);
       std::printf("%s",
                   doa::testing::format_rows(name, doa::tdoa_tracker_name(tracker), result).c_str());
+      if (audibility) {
+        std::printf(
+            "\n| scene | array | drone | all frames: n, found | background >= 0 dB | >= 6 dB | "
+            "band vs all >= 0 dB | >= 6 dB | comb vs all >= 0 dB | >= 6 dB | median el error "
+            "deg |\n|---|---|---|---|---|---|---|---|---|---|---|\n%s\n",
+            doa::testing::format_audibility_rows(name, result, settings.found_within_deg).c_str());
+      }
       std::fflush(stdout);
     }
   } catch (const std::exception& error) {
