@@ -252,10 +252,12 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
     return;
   }
   Impl& impl = *impl_;
-  // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
-  impl.health.scan(block);
+  // The samples' health counted as they came (the framer replaces the non-finite ones by 0),
+  // from the framer's own pass over them: one read of the block serves both.
+  impl.health.clear_events();
   impl.array_health.clear_events();
-  impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
+  impl.framer.push(
+      block, [&](const FrameView& frame) { impl.analyse(frame, out); }, impl.health);
   const FramerCounters& counters = impl.framer.counters();
   impl.diagnostics.non_finite_samples = impl.health.non_finite_samples();
   impl.diagnostics.clipped_samples = impl.health.clipped_samples();

@@ -186,13 +186,15 @@ int drop_owned_bins(const OwnedBinScan& scan);
 
 // Four interleaved channels' `count` frames into each channel's run (channel c at
 // target + c * stride), whole vectors only: returns how many frames it did; adds each channel's
-// sum of squares to sums[c] and raises peaks[c] to its largest magnitude.
+// sum and sum of squares to sums[c] and squares[c] and raises peaks[c] to its largest
+// magnitude (one pass serves the framer's checks and the channel health's statistics).
 struct FourChannelRows {
   const float* source;
   int count;
   double* target;
   std::ptrdiff_t stride;
   double* sums;
+  double* squares;
   double* peaks;
 };
 int deinterleave_four(const FourChannelRows& rows);

@@ -1,5 +1,6 @@
-// The per-frame statistics' SIMD kernels (doa/simd/stats_kernels.cpp) on every target this CPU
-// has, against plain scalar references: row lengths that leave partial vectors, ties, NaN.
+// The per-frame statistics' SIMD kernels (doa/simd/stats_kernels.cpp) and the framer's
+// deinterleave on every target this CPU has, against plain scalar references: row lengths that
+// leave partial vectors, ties, NaN.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -122,6 +123,44 @@ TEST(SimdKernels, ChannelSumsPerChannel) {
     simd::channel_sums({interleaved.data(), 100, 4, sums, squares, peaks});
     for (int c = 0; c < 4; ++c) EXPECT_EQ(std::isnan(squares[c]), c == 2) << target << c;
   });
+}
+
+// Four interleaved channels split into rows of doubles, with each channel's sum, squares and
+// peak: whole vectors only (the rest is the caller's), every value copied exactly.
+TEST(SimdKernels, DeinterleaveFourSplitsAndSumsPerChannel) {
+  std::mt19937 random(17);
+  std::uniform_real_distribution<float> sample(-1.0F, 1.0F);
+  for (const int frames : {3, 37, 2400}) {
+    std::vector<float> interleaved;
+    for (int n = 0; n < 4 * frames; ++n)  // channel 3's peak, early: in every target's vectors
+      interleaved.push_back(n == 4 * 2 + 3 ? -1.25F : sample(random));
+    constexpr std::ptrdiff_t kStride = 2500;
+    on_every_target([&](const std::string& target) {
+      std::vector<double> rows(4 * kStride, -9.0);
+      double sums[4] = {}, squares[4] = {}, peaks[4] = {};
+      const int done = simd::deinterleave_four(
+          {interleaved.data(), frames, rows.data(), kStride, sums, squares, peaks});
+      EXPECT_LE(done, frames) << target;
+      EXPECT_GT(done, frames - 32) << target;  // all but a partial step
+      for (int c = 0; c < 4; ++c) {
+        double want_sum = 0.0, want_square = 0.0, want_peak = 0.0;
+        for (int n = 0; n < done; ++n) {
+          const double value = interleaved[4 * static_cast<std::size_t>(n) + c];
+          EXPECT_EQ(rows[static_cast<std::size_t>(c * kStride + n)], value) << target << c << n;
+          want_sum += value;
+          want_square += value * value;
+          want_peak = std::max(want_peak, std::fabs(value));
+        }
+        EXPECT_EQ(rows[static_cast<std::size_t>(c * kStride + done)], -9.0) << target << c;
+        EXPECT_NEAR(sums[c], want_sum, 1e-12 * frames) << target << c;
+        EXPECT_NEAR(squares[c], want_square, 1e-12 * frames) << target << c;
+        EXPECT_EQ(peaks[c], want_peak) << target << c;
+      }
+      if (frames >= 32) {
+        EXPECT_EQ(peaks[3], 1.25) << target;
+      }
+    });
+  }
 }
 
 TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
