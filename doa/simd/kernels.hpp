@@ -237,6 +237,28 @@ struct InterleavedRows {
 inline constexpr int kMaxInterleavedChannels = 8;
 void channel_sums(const InterleavedRows& rows);
 
+// The acoustic features' bins (AcousticFeatureExtractor): per FFT bin k of [first_bin,
+// first_bin + bins) the mics' mean power |X|^2, and the source whose steered sum
+// S = sum_m X_m(k) e^{j w_k delay_sm} is the most coherent, |S|^2 >= coherence x mics x sum_m
+// |X_m|^2 with coherence from min_coherence up (the first source in order on a tie, as a scalar
+// loop over them finds); that source's |S|^2 / mics goes to its row, 0 to every other source's.
+struct SteeredBins {
+  const std::complex<double>* const* spectra;  // per mic, indexed by FFT bin
+  int mics;
+  int first_bin;
+  int bins;
+  double bin_omega;
+  const double* delays_s;  // source s, mic m at s * delay_stride + m
+  std::size_t delay_stride;
+  int sources;  // at most kMaxSteeredSources
+  double min_coherence;
+  double* mic_power;     // bins
+  double* source_power;  // source s's row of `bins` at s * bins
+};
+inline constexpr int kMaxSteeredSources = 8;
+inline constexpr int kMaxSteeredMics = 8;
+void steered_bins(const SteeredBins& job);
+
 // sum_i a[i] a[i + lag] over i + lag < n, in single precision.
 float lagged_product(const float* a, int n, int lag);
 

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -161,6 +162,66 @@ TEST(SimdKernels, DeinterleaveFourSplitsAndSumsPerChannel) {
       }
     });
   }
+}
+
+// The acoustic features' bin assignment against the scalar rule it replaced: bins steered to
+// one of two sources (and noise) go to that source with its steered power, the rest to nobody.
+TEST(SimdKernels, SteeredBinsOwnerIsTheMostCoherentSource) {
+  constexpr int kMics = 4, kSources = 2, kFirst = 37, kBins = 101;
+  constexpr double kOmega = 2.0 * 3.141592653589793 * 48000.0 / 8192.0;
+  const double delays[kSources][kMics] = {{0.0, 1.1e-3, -0.4e-3, 0.7e-3},
+                                          {0.0, -0.9e-3, 0.8e-3, -0.2e-3}};
+  std::mt19937 random(23);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<std::vector<std::complex<double>>> spectra(
+      kMics, std::vector<std::complex<double>>(kFirst + kBins + 8));
+  for (int k = kFirst; k < kFirst + kBins; ++k) {
+    // Every third bin noise, the others a plane wave from source 0 or 1 (its steering undone).
+    const int source = k % 3 == 0 ? -1 : (k / 7) % 2;
+    const std::complex<double> amplitude(noise(random), noise(random));
+    for (int m = 0; m < kMics; ++m) {
+      std::complex<double> x(0.1 * noise(random), 0.1 * noise(random));
+      if (source >= 0) x += amplitude * std::polar(1.0, -k * kOmega * delays[source][m]);
+      if (k == kFirst + 5) x = 0.0;  // a silent bin owns nothing
+      spectra[static_cast<std::size_t>(m)][static_cast<std::size_t>(k)] = x;
+    }
+  }
+  constexpr double kMinCoherence = 0.3;
+  std::vector<double> want_mic(kBins), want_source(kSources * kBins, 0.0);
+  for (int k = kFirst; k < kFirst + kBins; ++k) {
+    double energy = 0.0;
+    for (int m = 0; m < kMics; ++m) energy += std::norm(spectra[static_cast<std::size_t>(m)][k]);
+    want_mic[static_cast<std::size_t>(k - kFirst)] = energy / kMics;
+    double best = kMinCoherence, power = 0.0;
+    int owner = -1;
+    for (int s = 0; s < kSources; ++s) {
+      std::complex<double> sum = 0.0;
+      for (int m = 0; m < kMics; ++m)
+        sum += spectra[static_cast<std::size_t>(m)][k] * std::polar(1.0, k * kOmega * delays[s][m]);
+      if (energy > 0.0 && std::norm(sum) >= best * kMics * energy) {
+        best = std::norm(sum) / (kMics * energy);
+        owner = s;
+        power = std::norm(sum) / kMics;
+      }
+    }
+    if (owner >= 0) want_source[static_cast<std::size_t>(owner * kBins + k - kFirst)] = power;
+  }
+  int owned = 0;
+  for (const double power : want_source) owned += power > 0.0 ? 1 : 0;
+  EXPECT_GT(owned, kBins / 2);  // the planted bins, not the noise ones
+  const std::complex<double>* rows[kMics];
+  for (int m = 0; m < kMics; ++m) rows[m] = spectra[static_cast<std::size_t>(m)].data();
+  on_every_target([&](const std::string& target) {
+    std::vector<double> mic(kBins, -1.0), source(kSources * kBins, -1.0);
+    simd::steered_bins({rows, kMics, kFirst, kBins, kOmega, &delays[0][0], kMics, kSources,
+                        kMinCoherence, mic.data(), source.data()});
+    for (std::size_t i = 0; i < mic.size(); ++i)
+      EXPECT_NEAR(mic[i], want_mic[i], 1e-12 * want_mic[i]) << target << i;
+    for (std::size_t i = 0; i < source.size(); ++i) {
+      EXPECT_EQ(source[i] > 0.0, want_source[i] > 0.0) << target << i;
+      EXPECT_NEAR(source[i], want_source[i], 1e-9 * want_mic[i % kBins]) << target << i;
+    }
+  });
 }
 
 TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
