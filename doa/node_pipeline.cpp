@@ -54,7 +54,7 @@ void NodePipeline::Impl::whiten(const FrameView& frame, double time_s) {
   fft.process(frame);
   gcc.whiten(fft);
   if (static_look) static_look->accumulate(gcc);
-  if (snr_weight) snr_weight->update(fft, gcc.bin_weight());
+  if (snr_weight) snr_weight->update(gcc.band_powers(), gcc.unit_channels(), gcc.bin_weight());
   if (static_null) static_null->mask(time_s, gcc);
 }
 

@@ -49,6 +49,7 @@ void UnitPhasors(const UnitRows& rows) {
     }
     const V power = hn::MulAdd(re, re, hn::Mul(im, im));
     const V inverse = InverseSqrt(d, power);
+    StoreSome(d, power, rows.power + n, count);
     StoreSome(d, hn::Mul(power, inverse), rows.level + n, count);
     StoreSome(d, hn::Mul(re, inverse), rows.unit.re + n, count);
     StoreSome(d, hn::Mul(im, inverse), rows.unit.im + n, count);

@@ -22,12 +22,13 @@ struct SplitOut {
 
 // ---- GCC-PHAT ----
 
-// |X| and X / |X| of `count` band bins of one mic's spectrum (X at spectrum[fft_bins[n]]); a
-// silent bin (X = 0) gets the unit 0.
+// |X|^2, |X| and X / |X| of `count` band bins of one mic's spectrum (X at
+// spectrum[fft_bins[n]]); a silent bin (X = 0) gets the unit 0.
 struct UnitRows {
   const std::complex<double>* spectrum;
   const int* fft_bins;
   std::size_t count;
+  double* power;
   double* level;
   SplitOut unit;
 };
