@@ -1,9 +1,13 @@
 #include "doa/acoustic_features.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <complex>
 #include <numbers>
 #include <stdexcept>
+
+#include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
 
@@ -59,57 +63,15 @@ const AcousticFeatures& AcousticFeatureExtractor::features(int slot) const {
 // most coherent, if coherent enough. A plane wave from direction u reaches mic m (offset d_m
 // from the centroid) d_m.u / c early, so its phasor there is S e^{+j w d_m.u / c}.
 void AcousticFeatureExtractor::assign_bins(const MultichannelFft& fft, int sources) {
-  std::fill(source_power_.begin(), source_power_.end(), 0.0);
-  // Per source and mic the steering phasor e^{+j w t_m} (rotation) advanced bin by bin (step),
-  // in plain doubles: std::complex's multiply checks for NaN/Inf on every product.
-  std::array<std::array<double, kMaxMics>, kMaxSources> rotation_re{};
-  std::array<std::array<double, kMaxMics>, kMaxSources> rotation_im{};
-  std::array<std::array<double, kMaxMics>, kMaxSources> step_re{};
-  std::array<std::array<double, kMaxMics>, kMaxSources> step_im{};
-  for (int s = 0; s < sources; ++s)
-    for (int m = 0; m < mic_count_; ++m) {
-      const double step_phase = bin_omega_ * delays_s_[s][m];
-      step_re[s][m] = std::cos(step_phase);
-      step_im[s][m] = std::sin(step_phase);
-      const double first_phase = step_phase * band_.first_bin;
-      rotation_re[s][m] = std::cos(first_phase);
-      rotation_im[s][m] = std::sin(first_phase);
-    }
-  std::array<double, kMaxMics> bin_re{};
-  std::array<double, kMaxMics> bin_im{};
-  for (int k = band_.first_bin; k <= band_.last_bin; ++k) {
-    double energy = 0.0;
-    for (int m = 0; m < mic_count_; ++m) {
-      const std::complex<double> x = fft.spectrum(m)[k];
-      bin_re[m] = x.real();
-      bin_im[m] = x.imag();
-      energy += bin_re[m] * bin_re[m] + bin_im[m] * bin_im[m];
-    }
-    mic_power_[static_cast<std::size_t>(k - first_bin_)] = energy / mic_count_;
-    int owner = -1;
-    double owner_power = 0.0;
-    double best_coherence = settings_.min_bin_coherence;
-    for (int s = 0; s < sources; ++s) {
-      double sum_re = 0.0;
-      double sum_im = 0.0;
-      for (int m = 0; m < mic_count_; ++m) {
-        const double r_re = rotation_re[s][m];
-        const double r_im = rotation_im[s][m];
-        sum_re += bin_re[m] * r_re - bin_im[m] * r_im;
-        sum_im += bin_re[m] * r_im + bin_im[m] * r_re;
-        rotation_re[s][m] = r_re * step_re[s][m] - r_im * step_im[s][m];
-        rotation_im[s][m] = r_re * step_im[s][m] + r_im * step_re[s][m];
-      }
-      const double coherent = sum_re * sum_re + sum_im * sum_im;
-      if (energy > 0.0 && coherent >= best_coherence * mic_count_ * energy) {
-        best_coherence = coherent / (mic_count_ * energy);
-        owner = s;
-        owner_power = coherent / mic_count_;
-      }
-    }
-    if (owner >= 0)
-      source_power_[static_cast<std::size_t>(owner * bin_count_ + k - first_bin_)] = owner_power;
-  }
+  // Per bin the mics' mean power and the most coherent source's steered power (doa/simd); the
+  // delays are one block of kMaxSources rows of kMaxMics.
+  static_assert(kMaxSources <= simd::kMaxSteeredSources && kMaxMics <= simd::kMaxSteeredMics);
+  static_assert(sizeof(delays_s_) == sizeof(double) * kMaxSources * kMaxMics);
+  std::array<const std::complex<double>*, kMaxMics> spectra{};
+  for (int m = 0; m < mic_count_; ++m) spectra[static_cast<std::size_t>(m)] = fft.spectrum(m);
+  simd::steered_bins({spectra.data(), mic_count_, first_bin_, bin_count_, bin_omega_,
+                      delays_s_.front().data(), kMaxMics, sources, settings_.min_bin_coherence,
+                      mic_power_.data(), source_power_.data()});
   // A bin another source (or nobody) owns is this source's background: the frame's typical
   // bin power, or the bin's own if lower. Not zero: a sparse source's lines need a floor to
   // stand on; not the bin's own power: a broadband source would then see the other source's

@@ -17,4 +17,17 @@ struct AudioBlockView {
   }
 };
 
+// One run of consecutive frames of a block the framer has just copied (Framer::push), with each
+// channel's statistics of its samples as they came (before any non-finite one is replaced): what an
+// observer of every sample (ChannelHealth) needs, from the framer's own pass over them.
+struct ChannelRun {
+  const float* interleaved = nullptr;  // the run's frames in the block
+  std::size_t frames = 0;
+  int channels = 0;
+  std::int64_t first_sample = 0;
+  const double* sums = nullptr;  // per channel
+  const double* squares = nullptr;
+  const double* peaks = nullptr;  // largest |x| (a NaN sample: its squares are NaN)
+};
+
 }  // namespace dronetrack::doa

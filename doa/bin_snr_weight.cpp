@@ -43,6 +43,22 @@ void BinSnrWeight::update(const MultichannelFft& spectra, std::span<double> weig
       }
     }
   }
+  weigh(weights);
+}
+
+void BinSnrWeight::update(std::span<const double> channel_powers, int channels,
+                          std::span<double> weights) {
+  std::fill(power_.begin(), power_.end(), 0.0);
+  const double per_channel = 1.0 / channels;
+  const auto bins = power_.size();
+  for (int c = 0; c < channels; ++c) {
+    const double* row = channel_powers.data() + static_cast<std::size_t>(c) * bins;
+    for (std::size_t index = 0; index < bins; ++index) power_[index] += per_channel * row[index];
+  }
+  weigh(weights);
+}
+
+void BinSnrWeight::weigh(std::span<double> weights) {
   bool finite = true;
   for (const double p : power_) finite = finite && std::isfinite(p);
   if (!finite) {

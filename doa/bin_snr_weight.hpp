@@ -25,8 +25,14 @@ class BinSnrWeight {
   // One frame's channel spectra in, one weight in [0, 1] per band bin out (GccPhat order).
   // Non-finite spectra leave the estimates alone and give weight 1 (plain PHAT).
   void update(const MultichannelFft& spectra, std::span<double> weights);
+  // The same from each channel's |X|^2 over the band bins (channel c's row at c * band bins;
+  // GccPhat::band_powers()): no pass over the spectra of its own.
+  void update(std::span<const double> channel_powers, int channels, std::span<double> weights);
 
  private:
+  // The update from power_ (this frame's mean power per band bin).
+  void weigh(std::span<double> weights);
+
   std::vector<BandRun> runs_;
   int band_bins_ = 0;
   double floor_ = 0.0;

@@ -151,18 +151,39 @@ void ChannelHealth::accumulate(const float* interleaved, std::size_t frames,
     sum_run(channels_, run, count, run_sums_.data(), run_squares_.data(), run_peaks_.data());
     for (int c = 0; c < channels_; ++c) {
       const auto index = static_cast<std::size_t>(c);
-      if (!std::isfinite(run_squares_[index]) || !(run_peaks_[index] < settings_.clip_level)) {
-        accumulate_slowly(c, run, count, run_first);
-        continue;
-      }
-      Stretch& stretch = stretches_[index];
-      stretch.finite += static_cast<std::int64_t>(count);
-      stretch.sum += run_sums_[index];
-      stretch.sum_squares += run_squares_[index];
-      stretch.peak = std::max(stretch.peak, static_cast<double>(run_peaks_[index]));
-      counters_[index].samples += static_cast<std::int64_t>(count);
+      add_channel_run(c, run, count, run_first, run_sums_[index], run_squares_[index],
+                      run_peaks_[index]);
     }
   }
+}
+
+void ChannelHealth::observe(const ChannelRun& run) {
+  if (run.channels != channels_ || run.frames == 0 || run.interleaved == nullptr) return;
+  if (filled_ == 0) stretch_first_sample_ = run.first_sample;
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    add_channel_run(c, run.interleaved, run.frames, run.first_sample, run.sums[index],
+                    run.squares[index], run.peaks[index]);
+  }
+  filled_ += static_cast<std::int64_t>(run.frames);
+  next_sample_ = run.first_sample + static_cast<std::int64_t>(run.frames);
+  if (filled_ >= stretch_frames_) judge(filled_);
+}
+
+void ChannelHealth::add_channel_run(int channel, const float* interleaved, std::size_t frames,
+                                    std::int64_t first_sample, double sum, double squares,
+                                    double peak) {
+  const auto index = static_cast<std::size_t>(channel);
+  if (!std::isfinite(squares) || !(peak < settings_.clip_level)) {
+    accumulate_slowly(channel, interleaved, frames, first_sample);
+    return;
+  }
+  Stretch& stretch = stretches_[index];
+  stretch.finite += static_cast<std::int64_t>(frames);
+  stretch.sum += sum;
+  stretch.sum_squares += squares;
+  stretch.peak = std::max(stretch.peak, peak);
+  counters_[index].samples += static_cast<std::int64_t>(frames);
 }
 
 // Rare: a channel with a non-finite or clipped sample in this run, sample by sample.

@@ -9,8 +9,9 @@
 // Cost: one pass over each block (per channel: a sum, a sum of squares and a peak, the channels
 // of a frame in one vector); only a channel whose block holds a non-finite or clipped sample is
 // walked again sample by sample. ~2.3 us per 0.05 s hop of 4 channels at 48 kHz (doa_bench
-// BM_ChannelHealth; the whole pipeline takes ~115 us per hop).
-// Everything is sized in the constructor; scan() allocates nothing.
+// BM_ChannelHealth). In the node that pass is the framer's (observe()): the block is read once
+// for both, and a hop read cold from memory costs the same whether it is summed or not.
+// Everything is sized in the constructor; scan() and observe() allocate nothing.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -86,6 +87,14 @@ class ChannelHealth {
   // Counts one block and judges every stretch it completes. A block with another channel
   // count or no data is ignored. events() then holds the problems this call raised.
   void scan(const AudioBlockView& block);
+  // The same counting on a run another pass has already summed (Framer::push with this as its
+  // observer: the node's one pass over its samples): each channel's sum, squares and peak of the
+  // run as they came, the samples themselves for a channel that needs the per-sample path. A
+  // run holds at most run_limit() frames (the rest of the current stretch). events() then holds
+  // the problems raised since clear_events().
+  void observe(const ChannelRun& run);
+  std::size_t run_limit() const { return static_cast<std::size_t>(stretch_frames_ - filled_); }
+  void clear_events() { events_.clear(); }
   // End of stream: judges the last, partial stretch if it is at least min_last_stretch_s long.
   // events() then holds the problems it raised.
   void finish();
@@ -123,6 +132,8 @@ class ChannelHealth {
   };
 
   void accumulate(const float* interleaved, std::size_t frames, std::int64_t first_sample);
+  void add_channel_run(int channel, const float* interleaved, std::size_t frames,
+                       std::int64_t first_sample, double sum, double squares, double peak);
   void accumulate_slowly(int channel, const float* interleaved, std::size_t frames,
                          std::int64_t first_sample);
   void judge(std::int64_t frames);

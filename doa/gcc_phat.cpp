@@ -125,6 +125,7 @@ GccPhat::GccPhat(int fft_size, int frame_length, double sample_rate_hz,
   unit_im_.assign(unit_re_.size(), 0.0);
   phasor_keep_.assign(static_cast<std::size_t>(band_bins_), 1);
   levels_.assign(unit_re_.size(), 0.0);
+  powers_.assign(unit_re_.size(), 0.0);
   for (const BandRun& run : runs_)
     for (int k = run.first_bin; k <= run.last_bin; ++k) band_fft_bins_.push_back(k);
   refined_index_.assign(pairs_.size(), -1);
@@ -247,9 +248,10 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
     double* unit_re = unit_re_.data() + row;
     double* unit_im = unit_im_.data() + row;
     double* level = levels_.data() + row;
-    // One pass per mic: |X|^2, 1/|X|, then |X| = |X|^2 / |X| and the unit X / |X|. A silent
-    // bin (X = 0) gets the unit phasor 0.
-    simd::unit_phasors({x, band_fft_bins_.data(), bins, level, {unit_re, unit_im}});
+    // One pass per mic: |X|^2 (kept: band_powers()), 1/|X|, then |X| = |X|^2 / |X| and the unit
+    // X / |X|. A silent bin (X = 0) gets the unit phasor 0.
+    simd::unit_phasors(
+        {x, band_fft_bins_.data(), bins, powers_.data() + row, level, {unit_re, unit_im}});
   }
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
   pair_phasors(units(), false, false);

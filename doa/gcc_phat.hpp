@@ -137,6 +137,11 @@ class GccPhat {
     }
   };
   UnitsView units() const;
+  // whiten()'s |X|^2 of every mic over the band bins (mic m's row at m * band bins, mics
+  // 0..unit_channels() - 1): the frame's in-band powers, for stages that would otherwise read
+  // the spectra again (BinSnrWeight, the node's in-band level).
+  std::span<const double> band_powers() const { return powers_; }
+  int unit_channels() const { return unit_channels_; }
   std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
   std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
   // The band-limited cross-power of every pair from the given units under the given mask:
@@ -255,6 +260,7 @@ class GccPhat {
   std::vector<double> unit_re_;
   std::vector<double> unit_im_;
   std::vector<double> levels_;
+  std::vector<double> powers_;        // |X|^2, as levels_
   std::vector<int> band_fft_bins_;    // FFT bin of each band bin
   std::vector<double> band_omega2_;   // w_k^2 of each band bin
   std::vector<double> kernel_table_;  // phat_kernel at multiples of kernel_step_s_ from 0

@@ -54,7 +54,7 @@ void NodePipeline::Impl::whiten(const FrameView& frame, double time_s) {
   fft.process(frame);
   gcc.whiten(fft);
   if (static_look) static_look->accumulate(gcc);
-  if (snr_weight) snr_weight->update(fft, gcc.bin_weight());
+  if (snr_weight) snr_weight->update(gcc.band_powers(), gcc.unit_channels(), gcc.bin_weight());
   if (static_null) static_null->mask(time_s, gcc);
 }
 
@@ -252,10 +252,12 @@ void NodePipeline::process(const AudioBlockView& block, std::vector<DoaMeasureme
     return;
   }
   Impl& impl = *impl_;
-  // Counted on the samples as they came; the framer replaces the non-finite ones by 0.
-  impl.health.scan(block);
+  // The samples' health counted as they came (the framer replaces the non-finite ones by 0),
+  // from the framer's own pass over them: one read of the block serves both.
+  impl.health.clear_events();
   impl.array_health.clear_events();
-  impl.framer.push(block, [&](const FrameView& frame) { impl.analyse(frame, out); });
+  impl.framer.push(
+      block, [&](const FrameView& frame) { impl.analyse(frame, out); }, impl.health);
   const FramerCounters& counters = impl.framer.counters();
   impl.diagnostics.non_finite_samples = impl.health.non_finite_samples();
   impl.diagnostics.clipped_samples = impl.health.clipped_samples();

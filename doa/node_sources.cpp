@@ -3,6 +3,8 @@
 // measured again on its own bins, smoothed over frames, published.
 #include "doa/node_pipeline_impl.hpp"
 
+#include <numeric>
+
 namespace dronetrack::doa {
 
 // The static null learns from plain PHAT peaks: a steady ground source is as steady in power as
@@ -32,12 +34,13 @@ void NodePipeline::Impl::null_own_look() {
 double NodePipeline::Impl::inband_power() {
   // Parseval: one-sided bins count twice; per windowed sample.
   const double scale = 2.0 / (static_cast<double>(fft.fft_size()) * fft.window_energy());
+  // whiten()'s |X|^2 rows (every mic is in a pair: one row per channel).
+  const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
+  const std::span<const double> powers = gcc.band_powers();
   double total = 0.0;
   for (int c = 0; c < fft.channels(); ++c) {
-    const std::complex<double>* spectrum = fft.spectrum(c);
-    double power = 0.0;
-    for (const BandRun& run : band)
-      for (int k = run.first_bin; k <= run.last_bin; ++k) power += std::norm(spectrum[k]);
+    const std::span<const double> row = powers.subspan(static_cast<std::size_t>(c) * bins, bins);
+    const double power = std::accumulate(row.begin(), row.end(), 0.0);
     channel_power[static_cast<std::size_t>(c)] = scale * power;
     total += power;
   }

@@ -24,46 +24,47 @@ constexpr double kClipLevel = 0.999;
 constexpr std::uint8_t kFlagNonFinite = 1;
 constexpr std::uint8_t kFlagClipped = 2;
 
-// Deinterleaves `count` frames into each channel's run (channel c at target + c * stride);
-// returns their sum of squares and sets `odd` on any non-finite or clipped value.
-// kChannels 4: the SIMD layer's kernel for whole vectors of frames, the rest (fewer than a
-// vector's frames) below; 0: any count, channel by channel, four partial sums (one running sum
-// would make every sample wait for the previous addition). A float squared cannot overflow a
-// double, so the sum is finite exactly when every sample is: no per-sample test.
+// Deinterleaves `count` frames into each channel's run (channel c at target + c * stride) and
+// adds each channel's sum, sum of squares and peak to sums[c], squares[c], peaks[c] (zero
+// before). kChannels 4: the SIMD layer's kernel for whole vectors of frames, the rest (fewer
+// than a vector's frames) below; 0: any count, channel by channel, four partial sums (one
+// running sum would make every sample wait for the previous addition).
 template <int kChannels>
-double deinterleave(const float* source, int channels, int count, double* target,
-                    std::ptrdiff_t stride, bool& odd) {
-  double sums[4] = {0.0, 0.0, 0.0, 0.0};
-  double peaks[4] = {0.0, 0.0, 0.0, 0.0};
+void deinterleave(const float* source, int channels, int count, double* target,
+                  std::ptrdiff_t stride, double* sums, double* squares, double* peaks) {
   if constexpr (kChannels == 4) {
     // Whole vectors of the SIMD target first (doa/simd), the rest below.
-    const int done = simd::deinterleave_four({source, count, target, stride, sums, peaks});
+    const int done = simd::deinterleave_four({source, count, target, stride, sums, squares, peaks});
     source += done * 4;
     target += done;
     count -= done;
   }
   for (int c = 0; c < channels; ++c) {
     double* run = target + c * stride;
+    double sum[4] = {0.0, 0.0, 0.0, 0.0};
+    double square[4] = {0.0, 0.0, 0.0, 0.0};
+    double peak[4] = {0.0, 0.0, 0.0, 0.0};
     int n = 0;
     for (; n + 4 <= count; n += 4) {
       for (int lane = 0; lane < 4; ++lane) {
         const double value = source[(n + lane) * channels + c];
         run[n + lane] = value;
-        sums[lane] += value * value;
-        peaks[lane] = std::max(peaks[lane], std::fabs(value));
+        sum[lane] += value;
+        square[lane] += value * value;
+        peak[lane] = std::max(peak[lane], std::fabs(value));
       }
     }
     for (; n < count; ++n) {
       const double value = source[n * channels + c];
       run[n] = value;
-      sums[0] += value * value;
-      peaks[0] = std::max(peaks[0], std::fabs(value));
+      sum[0] += value;
+      square[0] += value * value;
+      peak[0] = std::max(peak[0], std::fabs(value));
     }
+    sums[c] += (sum[0] + sum[1]) + (sum[2] + sum[3]);
+    squares[c] += (square[0] + square[1]) + (square[2] + square[3]);
+    peaks[c] = std::max({peaks[c], peak[0], peak[1], peak[2], peak[3]});
   }
-  const double sum = (sums[0] + sums[1]) + (sums[2] + sums[3]);
-  const double peak = std::max(std::max(peaks[0], peaks[1]), std::max(peaks[2], peaks[3]));
-  odd = !std::isfinite(sum) || !(peak < kClipLevel);
-  return sum;
 }
 }  // namespace
 
@@ -75,6 +76,9 @@ Framer::Framer(int channels, int frame_length, int hop)
     throw std::invalid_argument("Framer: hop must be in [1, frame_length]");
   samples_.assign(static_cast<std::size_t>(channels) * static_cast<std::size_t>(capacity_), 0.0);
   flags_.assign(static_cast<std::size_t>(capacity_), 0);
+  run_sums_.assign(static_cast<std::size_t>(channels), 0.0);
+  run_squares_.assign(static_cast<std::size_t>(channels), 0.0);
+  run_peaks_.assign(static_cast<std::size_t>(channels), 0.0);
 }
 
 void Framer::reset() {
@@ -122,10 +126,25 @@ void Framer::append_run(const AudioBlockView& block, std::size_t first, std::siz
   std::fill_n(flags, frames, std::uint8_t{0});
   const float* source = block.interleaved + first * static_cast<std::size_t>(channels_);
   double* target = samples_.data() + position;
+  std::fill(run_sums_.begin(), run_sums_.end(), 0.0);
+  std::fill(run_squares_.begin(), run_squares_.end(), 0.0);
+  std::fill(run_peaks_.begin(), run_peaks_.end(), 0.0);
+  if (channels_ == 4) {
+    deinterleave<4>(source, 4, frames, target, capacity_, run_sums_.data(), run_squares_.data(),
+                    run_peaks_.data());
+  } else {
+    deinterleave<0>(source, channels_, frames, target, capacity_, run_sums_.data(),
+                    run_squares_.data(), run_peaks_.data());
+  }
+  // A float squared cannot overflow a double, so a channel's squares are finite exactly when
+  // its samples are: no per-sample test unless a sum or a peak says so.
+  double sum_squares = 0.0;
   bool odd = false;
-  double sum_squares = channels_ == 4
-                           ? deinterleave<4>(source, 4, frames, target, capacity_, odd)
-                           : deinterleave<0>(source, channels_, frames, target, capacity_, odd);
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    sum_squares += run_squares_[index];
+    odd = odd || !std::isfinite(run_squares_[index]) || !(run_peaks_[index] < kClipLevel);
+  }
   if (odd) {
     // Rare: redo the run sample by sample to replace and count.
     sum_squares = 0.0;

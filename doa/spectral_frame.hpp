@@ -8,6 +8,7 @@
 #include <complex>
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "doa/audio_block.hpp"
@@ -45,6 +46,13 @@ class Framer {
   // Calls on_frame(const FrameView&) for every frame completed by this block.
   template <class OnFrame>
   void push(const AudioBlockView& block, OnFrame&& on_frame);
+  // The same, and every sample of the block is shown to `observer` once, run by run, with the
+  // statistics the framer's pass made: observer.run_limit() says how many frames the next run
+  // may hold at most (where its own bookkeeping turns over), observer.observe(const ChannelRun&)
+  // takes each run before the frame it completes is handed out. A block the framer rejects is
+  // not shown.
+  template <class OnFrame, class Observer>
+  void push(const AudioBlockView& block, OnFrame&& on_frame, Observer& observer);
   const FramerCounters& counters() const { return counters_; }
   void reset();
 
@@ -67,8 +75,11 @@ class Framer {
   std::int64_t expected_next_sample_ = -1;
   std::vector<double> samples_;      // channels_ x capacity_
   std::vector<std::uint8_t> flags_;  // per buffer index: bit0 non-finite, bit1 clipped
-  int flagged_non_finite_ = 0;       // buffered time indices with bit0 set
-  int flagged_clipped_ = 0;          // buffered time indices with bit1 set
+  std::vector<double> run_sums_;     // per channel, of the last run appended (raw samples)
+  std::vector<double> run_squares_;
+  std::vector<double> run_peaks_;
+  int flagged_non_finite_ = 0;  // buffered time indices with bit0 set
+  int flagged_clipped_ = 0;     // buffered time indices with bit1 set
   double recent_sum_squares_ = 0.0;
   std::int64_t recent_values_ = 0;
   FramerCounters counters_;
@@ -76,12 +87,26 @@ class Framer {
 
 template <class OnFrame>
 void Framer::push(const AudioBlockView& block, OnFrame&& on_frame) {
+  struct Nobody {
+    static std::size_t run_limit() { return static_cast<std::size_t>(-1); }
+    static void observe(const ChannelRun&) {}
+  } nobody;
+  push(block, std::forward<OnFrame>(on_frame), nobody);
+}
+
+template <class OnFrame, class Observer>
+void Framer::push(const AudioBlockView& block, OnFrame&& on_frame, Observer& observer) {
   if (!accept_block(block)) return;
   std::size_t frame = 0;
   while (frame < block.frames) {
     const std::size_t count =
-        std::min(block.frames - frame, static_cast<std::size_t>(length_ - filled_));
+        std::min({block.frames - frame, static_cast<std::size_t>(length_ - filled_),
+                  std::max<std::size_t>(observer.run_limit(), 1)});
     append_run(block, frame, count);
+    observer.observe(ChannelRun{block.interleaved + frame * static_cast<std::size_t>(channels_),
+                                count, channels_,
+                                block.first_sample + static_cast<std::int64_t>(frame),
+                                run_sums_.data(), run_squares_.data(), run_peaks_.data()});
     frame += count;
     if (filled_ == length_) {
       on_frame(emit_and_shift_view());

@@ -49,6 +49,7 @@ void UnitPhasors(const UnitRows& rows) {
     }
     const V power = hn::MulAdd(re, re, hn::Mul(im, im));
     const V inverse = InverseSqrt(d, power);
+    StoreSome(d, power, rows.power + n, count);
     StoreSome(d, hn::Mul(power, inverse), rows.level + n, count);
     StoreSome(d, hn::Mul(re, inverse), rows.unit.re + n, count);
     StoreSome(d, hn::Mul(im, inverse), rows.unit.im + n, count);
@@ -455,28 +456,60 @@ int DropOwnedBins(const OwnedBinScan& scan) {
   return dropped;
 }
 
-// Frames as vectors of floats, split into the four channels and widened to doubles.
+// A whole vector of floats per channel and step (LoadInterleaved4 on the target's full float
+// width), each widened in two halves to doubles. Per channel one accumulator each for the sum,
+// the squares and the peak: the channels' four chains keep the adders busy, and the halves
+// meet before they join their chain (a step adds one value to each).
 int DeinterleaveFour(const FourChannelRows& rows) {
   note_dispatch(HWY_TARGET);
   const Full d;
-  const hn::Rebind<float, Full> floats;
   const auto lanes = static_cast<int>(hn::Lanes(d));
-  V sum[4] = {hn::Zero(d), hn::Zero(d), hn::Zero(d), hn::Zero(d)};
-  V peak[4] = {hn::Zero(d), hn::Zero(d), hn::Zero(d), hn::Zero(d)};
+  V sum[4], square[4], peak[4];
+  for (int c = 0; c < 4; ++c) {
+    sum[c] = hn::Zero(d);
+    square[c] = hn::Zero(d);
+    peak[c] = hn::Zero(d);
+  }
   int n = 0;
-  for (; n + lanes <= rows.count; n += lanes) {
-    hn::Vec<decltype(floats)> c0, c1, c2, c3;
-    hn::LoadInterleaved4(floats, rows.source + 4 * static_cast<std::ptrdiff_t>(n), c0, c1, c2, c3);
-    const V channels[4] = {hn::PromoteTo(d, c0), hn::PromoteTo(d, c1), hn::PromoteTo(d, c2),
-                           hn::PromoteTo(d, c3)};
+#if HWY_TARGET == HWY_SCALAR
+  // One lane: no wider float vector to split (the old Atom's fallback), a frame at a time.
+  const hn::Rebind<float, Full> floats;
+  const int step = lanes;
+  for (; n + step <= rows.count; n += step) {
+    hn::Vec<decltype(floats)> channel[4];
+    hn::LoadInterleaved4(floats, rows.source + 4 * static_cast<std::ptrdiff_t>(n), channel[0],
+                         channel[1], channel[2], channel[3]);
     for (int c = 0; c < 4; ++c) {
-      hn::StoreU(channels[c], d, rows.target + c * rows.stride + n);
-      sum[c] = hn::MulAdd(channels[c], channels[c], sum[c]);
-      peak[c] = hn::Max(peak[c], hn::Abs(channels[c]));
+      const V value = hn::PromoteTo(d, channel[c]);
+      hn::StoreU(value, d, rows.target + c * rows.stride + n);
+      sum[c] = hn::Add(sum[c], value);
+      square[c] = hn::MulAdd(value, value, square[c]);
+      peak[c] = hn::Max(peak[c], hn::Abs(value));
     }
   }
+#else
+  const hn::Repartition<float, Full> floats;
+  const hn::Half<decltype(floats)> half;
+  const int step = 2 * lanes;
+  for (; n + step <= rows.count; n += step) {
+    hn::Vec<decltype(floats)> channel[4];
+    hn::LoadInterleaved4(floats, rows.source + 4 * static_cast<std::ptrdiff_t>(n), channel[0],
+                         channel[1], channel[2], channel[3]);
+    for (int c = 0; c < 4; ++c) {
+      const V low = hn::PromoteTo(d, hn::LowerHalf(half, channel[c]));
+      const V high = hn::PromoteTo(d, hn::UpperHalf(half, channel[c]));
+      double* target = rows.target + c * rows.stride + n;
+      hn::StoreU(low, d, target);
+      hn::StoreU(high, d, target + lanes);
+      sum[c] = hn::Add(sum[c], hn::Add(low, high));
+      square[c] = hn::Add(square[c], hn::MulAdd(low, low, hn::Mul(high, high)));
+      peak[c] = hn::Max(peak[c], hn::Max(hn::Abs(low), hn::Abs(high)));
+    }
+  }
+#endif
   for (int c = 0; c < 4; ++c) {
     rows.sums[c] += SumLanes(d, sum[c]);
+    rows.squares[c] += SumLanes(d, square[c]);
     rows.peaks[c] = std::max(rows.peaks[c], hn::GetLane(hn::MaxOfLanes(d, peak[c])));
   }
   return n;

@@ -22,12 +22,13 @@ struct SplitOut {
 
 // ---- GCC-PHAT ----
 
-// |X| and X / |X| of `count` band bins of one mic's spectrum (X at spectrum[fft_bins[n]]); a
-// silent bin (X = 0) gets the unit 0.
+// |X|^2, |X| and X / |X| of `count` band bins of one mic's spectrum (X at
+// spectrum[fft_bins[n]]); a silent bin (X = 0) gets the unit 0.
 struct UnitRows {
   const std::complex<double>* spectrum;
   const int* fft_bins;
   std::size_t count;
+  double* power;
   double* level;
   SplitOut unit;
 };
@@ -186,13 +187,15 @@ int drop_owned_bins(const OwnedBinScan& scan);
 
 // Four interleaved channels' `count` frames into each channel's run (channel c at
 // target + c * stride), whole vectors only: returns how many frames it did; adds each channel's
-// sum of squares to sums[c] and raises peaks[c] to its largest magnitude.
+// sum and sum of squares to sums[c] and squares[c] and raises peaks[c] to its largest
+// magnitude (one pass serves the framer's checks and the channel health's statistics).
 struct FourChannelRows {
   const float* source;
   int count;
   double* target;
   std::ptrdiff_t stride;
   double* sums;
+  double* squares;
   double* peaks;
 };
 int deinterleave_four(const FourChannelRows& rows);
@@ -234,6 +237,28 @@ struct InterleavedRows {
 };
 inline constexpr int kMaxInterleavedChannels = 8;
 void channel_sums(const InterleavedRows& rows);
+
+// The acoustic features' bins (AcousticFeatureExtractor): per FFT bin k of [first_bin,
+// first_bin + bins) the mics' mean power |X|^2, and the source whose steered sum
+// S = sum_m X_m(k) e^{j w_k delay_sm} is the most coherent, |S|^2 >= coherence x mics x sum_m
+// |X_m|^2 with coherence from min_coherence up (the first source in order on a tie, as a scalar
+// loop over them finds); that source's |S|^2 / mics goes to its row, 0 to every other source's.
+struct SteeredBins {
+  const std::complex<double>* const* spectra;  // per mic, indexed by FFT bin
+  int mics;
+  int first_bin;
+  int bins;
+  double bin_omega;
+  const double* delays_s;  // source s, mic m at s * delay_stride + m
+  std::size_t delay_stride;
+  int sources;  // at most kMaxSteeredSources
+  double min_coherence;
+  double* mic_power;     // bins
+  double* source_power;  // source s's row of `bins` at s * bins
+};
+inline constexpr int kMaxSteeredSources = 8;
+inline constexpr int kMaxSteeredMics = 8;
+void steered_bins(const SteeredBins& job);
 
 // sum_i a[i] a[i + lag] over i + lag < n, in single precision.
 float lagged_product(const float* a, int n, int lag);

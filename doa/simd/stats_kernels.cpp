@@ -1,6 +1,7 @@
 // The per-frame statistics' vector kernels (kernels.hpp, "per-frame statistics"): the bin SNR
-// weights, the robust regression's middle value, the channel health's sums and the harmonic
-// comb's autocorrelation; compiled once per Highway target and dispatched at run time.
+// weights, the robust regression's middle value, the channel health's sums, the harmonic comb's
+// autocorrelation and the acoustic features' steered bins; compiled once per Highway target and
+// dispatched at run time.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "doa/simd/stats_kernels.cpp"
 #include "hwy/foreach_target.h"  // IWYU pragma: keep
@@ -169,6 +170,84 @@ float LaggedProduct(const float* a, int n, int lag) {
   return sum;
 }
 
+// Lane l holds bin first + l (+ a vector per step); each source's and mic's steering phasor
+// starts at e^{j w_k delay} per lane and is advanced by e^{j lanes w delay} (the error after a
+// band's hundred steps per lane is ~1e-14). The owner is chosen lane by lane with compares and
+// selects, sources in order, as the scalar rule does; a partial last vector's lanes have zero
+// spectra and own nothing.
+void SteeredBinsKernel(const SteeredBins& job) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const std::size_t lanes = hn::Lanes(d);
+  const int sources = std::min(job.sources, kMaxSteeredSources);
+  const int mics = std::min(job.mics, kMaxSteeredMics);
+  const V zero = hn::Zero(d);
+  const V mic_count = hn::Set(d, static_cast<double>(mics));
+  const V first_omega =
+      hn::Mul(hn::Add(hn::Iota(d, 0.0), hn::Set(d, job.first_bin)), hn::Set(d, job.bin_omega));
+  // Rotations and steps as rows of vectors (sources x mics): they do not all fit in registers.
+  HWY_ALIGN double rotation_re[kMaxSteeredSources * kMaxSteeredMics * kMaxLanes];
+  HWY_ALIGN double rotation_im[kMaxSteeredSources * kMaxSteeredMics * kMaxLanes];
+  HWY_ALIGN double step_re[kMaxSteeredSources * kMaxSteeredMics * kMaxLanes];
+  HWY_ALIGN double step_im[kMaxSteeredSources * kMaxSteeredMics * kMaxLanes];
+  for (int s = 0; s < sources; ++s) {
+    for (int m = 0; m < mics; ++m) {
+      const double delay = job.delays_s[static_cast<std::size_t>(s) * job.delay_stride +
+                                        static_cast<std::size_t>(m)];
+      const std::size_t at = static_cast<std::size_t>(s * mics + m) * lanes;
+      V re, im;
+      UnitPhasor(d, hn::Mul(first_omega, hn::Set(d, delay)), re, im);
+      hn::Store(re, d, rotation_re + at);
+      hn::Store(im, d, rotation_im + at);
+      UnitPhasor(d, hn::Set(d, static_cast<double>(lanes) * job.bin_omega * delay), re, im);
+      hn::Store(re, d, step_re + at);
+      hn::Store(im, d, step_im + at);
+    }
+  }
+  const auto bins = static_cast<std::size_t>(job.bins);
+  for (std::size_t k = 0; k < bins; k += lanes) {
+    const std::size_t count = std::min(lanes, bins - k);
+    V x_re[kMaxSteeredMics], x_im[kMaxSteeredMics];
+    V energy = zero;
+    for (int m = 0; m < mics; ++m) {
+      const auto* spectrum = reinterpret_cast<const double*>(job.spectra[m] + job.first_bin);
+      LoadSomePairs(d, spectrum + 2 * k, count, x_re[m], x_im[m]);
+      energy = hn::MulAdd(x_re[m], x_re[m], hn::MulAdd(x_im[m], x_im[m], energy));
+    }
+    StoreSome(d, hn::Div(energy, mic_count), job.mic_power + k, count);
+    const auto live = hn::Gt(energy, zero);
+    const V scaled_energy = hn::Mul(mic_count, energy);
+    V best = hn::Set(d, job.min_coherence);
+    V owner = hn::Set(d, -1.0);
+    V owner_power = zero;
+    for (int s = 0; s < sources; ++s) {
+      V sum_re = zero, sum_im = zero;
+      for (int m = 0; m < mics; ++m) {
+        const std::size_t at = static_cast<std::size_t>(s * mics + m) * lanes;
+        const V r_re = hn::Load(d, rotation_re + at);
+        const V r_im = hn::Load(d, rotation_im + at);
+        sum_re = hn::Add(sum_re, hn::MulSub(x_re[m], r_re, hn::Mul(x_im[m], r_im)));
+        sum_im = hn::Add(sum_im, hn::MulAdd(x_re[m], r_im, hn::Mul(x_im[m], r_re)));
+        const V s_re = hn::Load(d, step_re + at);
+        const V s_im = hn::Load(d, step_im + at);
+        hn::Store(hn::MulSub(r_re, s_re, hn::Mul(r_im, s_im)), d, rotation_re + at);
+        hn::Store(hn::MulAdd(r_re, s_im, hn::Mul(r_im, s_re)), d, rotation_im + at);
+      }
+      const V coherent = hn::MulAdd(sum_re, sum_re, hn::Mul(sum_im, sum_im));
+      const auto wins = hn::And(live, hn::Ge(coherent, hn::Mul(hn::Mul(best, mic_count), energy)));
+      // Lanes with no energy lose (not a division by 0 that would be kept).
+      best = hn::IfThenElse(wins, hn::Div(coherent, hn::IfThenElse(live, scaled_energy, mic_count)),
+                            best);
+      owner = hn::IfThenElse(wins, hn::Set(d, static_cast<double>(s)), owner);
+      owner_power = hn::IfThenElse(wins, hn::Div(coherent, mic_count), owner_power);
+    }
+    for (int s = 0; s < sources; ++s)
+      StoreSome(d,
+                hn::IfThenElseZero(hn::Eq(owner, hn::Set(d, static_cast<double>(s))), owner_power),
+                job.source_power + static_cast<std::size_t>(s) * bins + k, count);
+  }
+}
+
 }  // namespace
 }  // namespace dronetrack::doa::simd::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
@@ -180,6 +259,7 @@ HWY_EXPORT(SnrWeights);
 HWY_EXPORT(MiddleValue);
 HWY_EXPORT(ChannelSums);
 HWY_EXPORT(LaggedProduct);
+HWY_EXPORT(SteeredBinsKernel);
 void snr_weights(const SnrRows& rows) { HWY_DYNAMIC_DISPATCH(SnrWeights)(rows); }
 double middle_value(const double* values, int count) {
   return HWY_DYNAMIC_DISPATCH(MiddleValue)(values, count);
@@ -188,6 +268,7 @@ void channel_sums(const InterleavedRows& rows) { HWY_DYNAMIC_DISPATCH(ChannelSum
 float lagged_product(const float* a, int n, int lag) {
   return HWY_DYNAMIC_DISPATCH(LaggedProduct)(a, n, lag);
 }
+void steered_bins(const SteeredBins& job) { HWY_DYNAMIC_DISPATCH(SteeredBinsKernel)(job); }
 
 }  // namespace dronetrack::doa::simd
 #endif

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -77,6 +78,31 @@ void mean_weights(const GccPhat& gcc, std::span<const double> weights, double lo
   }
   inside = count_in > 0 ? sum_in / count_in : 0.0;
   outside = count_out > 0 ? sum_out / count_out : 0.0;
+}
+
+// The node's update reads whiten()'s |X|^2 rows instead of the spectra: the same weights, to
+// the rounding of a fused multiply-add, frame after frame (the estimates carry over).
+TEST(BinSnrWeight, FromTheWhiteningsPowersAsFromTheSpectra) {
+  const testing::Recording recording = two_mic_scene(1.0, 0.3, SourceLines{}, 0.0, 5);
+  FrameLoop loop;
+  BinSnrWeight from_powers{loop.gcc.band(), kHopSeconds, 1.0, 0.0};
+  std::vector<double> want(static_cast<std::size_t>(loop.gcc.band_bin_count()), 1.0);
+  std::vector<double> got = want;
+  int frames = 0;
+  double spread = 0.0;
+  loop.framer.push(recording.view(0, recording.frames()), [&](const FrameView& frame) {
+    loop.fft.process(frame);
+    loop.gcc.whiten(loop.fft);
+    loop.weights.update(loop.fft, want);
+    from_powers.update(loop.gcc.band_powers(), loop.gcc.unit_channels(), got);
+    for (std::size_t k = 0; k < want.size(); ++k) {
+      EXPECT_NEAR(got[k], want[k], 1e-12) << frames << " " << k;
+      spread = std::max(spread, std::abs(want[k] - want.front()));
+    }
+    ++frames;
+  });
+  EXPECT_GE(frames, 15);
+  EXPECT_GT(spread, 0.1);  // weights that differ from bin to bin: not all at the floor or 1
 }
 
 TEST(BinSnrWeight, NoiseFadesAndAnArrivingSourceStandsOut) {

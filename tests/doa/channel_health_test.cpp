@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "doa/node_pipeline.hpp"
+#include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
 namespace dronetrack::doa {
@@ -276,6 +277,60 @@ TEST(ChannelHealth, IgnoresBlocksOfAnotherShapeAndRejectsBadSettings) {
 
 // The node counts and raises on the samples as they came, and its FFTs never see a NaN: an
 // all-NaN channel does not stop the others' level meter nor crash anything.
+// The node counts from the framer's pass (Framer::push with the health as its observer): the
+// same stretches, counts and problems as scan() on the same samples, the block and frame
+// boundaries falling anywhere in the stretches.
+TEST(ChannelHealth, TheFramersPassCountsAsScanDoes) {
+  testing::Recording recording = sines(4, 5.3);
+  for (std::size_t n = 0; n < recording.frames(); ++n) {
+    if (n >= 9000 && n < 9700) at(recording, n, 0) = n % 2 == 0 ? kNaN : kInf;
+    at(recording, n, 1) += 0.5F;                                         // DC offset
+    at(recording, n, 2) = n < 20000 ? 0.0F : at(recording, n, 2);        // silent, then not
+    if (n % 50 == 0) at(recording, n, 3) = n % 100 == 0 ? 1.0F : -6.0F;  // clipped, absurd
+  }
+  ChannelHealth scanned(4, kRate);
+  const std::vector<HealthEvent> want = feed(scanned, recording, 400);
+  ChannelHealth observed(4, kRate);
+  Framer framer(4, 1000, 300);
+  std::vector<HealthEvent> got;
+  for (std::size_t first = 0; first < recording.frames(); first += 700) {
+    observed.clear_events();
+    framer.push(
+        recording.view(first, std::min<std::size_t>(700, recording.frames() - first)),
+        [](const FrameView&) {}, observed);
+    got.insert(got.end(), observed.events().begin(), observed.events().end());
+  }
+  observed.finish();
+  got.insert(got.end(), observed.events().begin(), observed.events().end());
+  ASSERT_EQ(got.size(), want.size());
+  EXPECT_GE(want.size(), 4U);  // each channel's problem raised
+  for (std::size_t e = 0; e < want.size(); ++e) {
+    EXPECT_EQ(got[e].channel, want[e].channel) << e;
+    EXPECT_EQ(got[e].problem, want[e].problem) << e;
+    EXPECT_EQ(got[e].since_s, want[e].since_s) << e;
+    EXPECT_EQ(got[e].time_s, want[e].time_s) << e;
+    EXPECT_EQ(got[e].share, want[e].share) << e;
+    // scan() sums a run in float, the framer in double.
+    EXPECT_NEAR(got[e].rms_dbfs, want[e].rms_dbfs, 1e-4) << e;
+    EXPECT_NEAR(got[e].mean, want[e].mean, 1e-6) << e;
+  }
+  for (int c = 0; c < 4; ++c) {
+    const ChannelHealthCounters& a = observed.channel(c);
+    const ChannelHealthCounters& b = scanned.channel(c);
+    EXPECT_EQ(a.samples, b.samples) << c;
+    EXPECT_EQ(a.non_finite_samples, b.non_finite_samples) << c;
+    EXPECT_EQ(a.clipped_samples, b.clipped_samples) << c;
+    EXPECT_EQ(a.absurd_samples, b.absurd_samples) << c;
+    EXPECT_EQ(a.problems_seen, b.problems_seen) << c;
+    EXPECT_EQ(a.peak, b.peak) << c;
+    EXPECT_NEAR(a.rms_dbfs, b.rms_dbfs, 1e-4) << c;
+  }
+  EXPECT_EQ(observed.channel(0).non_finite_samples, 700);
+  EXPECT_TRUE(has_problem(observed.channel(1).problems_seen, HealthProblem::dc_offset));
+  EXPECT_TRUE(has_problem(observed.channel(2).problems_seen, HealthProblem::silent));
+  EXPECT_TRUE(has_problem(observed.channel(3).problems_seen, HealthProblem::absurd_level));
+}
+
 TEST(ChannelHealth, TheNodePipelineCountsPerChannelAndRaisesOnce) {
   constexpr double kNodeRate = 48000.0;
   const ArrayGeometry geometry = testing::tetrahedron();

@@ -1,9 +1,11 @@
-// The per-frame statistics' SIMD kernels (doa/simd/stats_kernels.cpp) on every target this CPU
-// has, against plain scalar references: row lengths that leave partial vectors, ties, NaN.
+// The per-frame statistics' SIMD kernels (doa/simd/stats_kernels.cpp) and the framer's
+// deinterleave on every target this CPU has, against plain scalar references: row lengths that
+// leave partial vectors, ties, NaN.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -121,6 +123,104 @@ TEST(SimdKernels, ChannelSumsPerChannel) {
     float sums[4], squares[4], peaks[4];
     simd::channel_sums({interleaved.data(), 100, 4, sums, squares, peaks});
     for (int c = 0; c < 4; ++c) EXPECT_EQ(std::isnan(squares[c]), c == 2) << target << c;
+  });
+}
+
+// Four interleaved channels split into rows of doubles, with each channel's sum, squares and
+// peak: whole vectors only (the rest is the caller's), every value copied exactly.
+TEST(SimdKernels, DeinterleaveFourSplitsAndSumsPerChannel) {
+  std::mt19937 random(17);
+  std::uniform_real_distribution<float> sample(-1.0F, 1.0F);
+  for (const int frames : {3, 37, 2400}) {
+    std::vector<float> interleaved;
+    for (int n = 0; n < 4 * frames; ++n)  // channel 3's peak, early: in every target's vectors
+      interleaved.push_back(n == 4 * 2 + 3 ? -1.25F : sample(random));
+    constexpr std::ptrdiff_t kStride = 2500;
+    on_every_target([&](const std::string& target) {
+      std::vector<double> rows(4 * kStride, -9.0);
+      double sums[4] = {}, squares[4] = {}, peaks[4] = {};
+      const int done = simd::deinterleave_four(
+          {interleaved.data(), frames, rows.data(), kStride, sums, squares, peaks});
+      EXPECT_LE(done, frames) << target;
+      EXPECT_GT(done, frames - 32) << target;  // all but a partial step
+      for (int c = 0; c < 4; ++c) {
+        double want_sum = 0.0, want_square = 0.0, want_peak = 0.0;
+        for (int n = 0; n < done; ++n) {
+          const double value = interleaved[4 * static_cast<std::size_t>(n) + c];
+          EXPECT_EQ(rows[static_cast<std::size_t>(c * kStride + n)], value) << target << c << n;
+          want_sum += value;
+          want_square += value * value;
+          want_peak = std::max(want_peak, std::fabs(value));
+        }
+        EXPECT_EQ(rows[static_cast<std::size_t>(c * kStride + done)], -9.0) << target << c;
+        EXPECT_NEAR(sums[c], want_sum, 1e-12 * frames) << target << c;
+        EXPECT_NEAR(squares[c], want_square, 1e-12 * frames) << target << c;
+        EXPECT_EQ(peaks[c], want_peak) << target << c;
+      }
+      if (frames >= 32) {
+        EXPECT_EQ(peaks[3], 1.25) << target;
+      }
+    });
+  }
+}
+
+// The acoustic features' bin assignment against the scalar rule it replaced: bins steered to
+// one of two sources (and noise) go to that source with its steered power, the rest to nobody.
+TEST(SimdKernels, SteeredBinsOwnerIsTheMostCoherentSource) {
+  constexpr int kMics = 4, kSources = 2, kFirst = 37, kBins = 101;
+  constexpr double kOmega = 2.0 * 3.141592653589793 * 48000.0 / 8192.0;
+  const double delays[kSources][kMics] = {{0.0, 1.1e-3, -0.4e-3, 0.7e-3},
+                                          {0.0, -0.9e-3, 0.8e-3, -0.2e-3}};
+  std::mt19937 random(23);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<std::vector<std::complex<double>>> spectra(
+      kMics, std::vector<std::complex<double>>(kFirst + kBins + 8));
+  for (int k = kFirst; k < kFirst + kBins; ++k) {
+    // Every third bin noise, the others a plane wave from source 0 or 1 (its steering undone).
+    const int source = k % 3 == 0 ? -1 : (k / 7) % 2;
+    const std::complex<double> amplitude(noise(random), noise(random));
+    for (int m = 0; m < kMics; ++m) {
+      std::complex<double> x(0.1 * noise(random), 0.1 * noise(random));
+      if (source >= 0) x += amplitude * std::polar(1.0, -k * kOmega * delays[source][m]);
+      if (k == kFirst + 5) x = 0.0;  // a silent bin owns nothing
+      spectra[static_cast<std::size_t>(m)][static_cast<std::size_t>(k)] = x;
+    }
+  }
+  constexpr double kMinCoherence = 0.3;
+  std::vector<double> want_mic(kBins), want_source(kSources * kBins, 0.0);
+  for (int k = kFirst; k < kFirst + kBins; ++k) {
+    double energy = 0.0;
+    for (int m = 0; m < kMics; ++m) energy += std::norm(spectra[static_cast<std::size_t>(m)][k]);
+    want_mic[static_cast<std::size_t>(k - kFirst)] = energy / kMics;
+    double best = kMinCoherence, power = 0.0;
+    int owner = -1;
+    for (int s = 0; s < kSources; ++s) {
+      std::complex<double> sum = 0.0;
+      for (int m = 0; m < kMics; ++m)
+        sum += spectra[static_cast<std::size_t>(m)][k] * std::polar(1.0, k * kOmega * delays[s][m]);
+      if (energy > 0.0 && std::norm(sum) >= best * kMics * energy) {
+        best = std::norm(sum) / (kMics * energy);
+        owner = s;
+        power = std::norm(sum) / kMics;
+      }
+    }
+    if (owner >= 0) want_source[static_cast<std::size_t>(owner * kBins + k - kFirst)] = power;
+  }
+  int owned = 0;
+  for (const double power : want_source) owned += power > 0.0 ? 1 : 0;
+  EXPECT_GT(owned, kBins / 2);  // the planted bins, not the noise ones
+  const std::complex<double>* rows[kMics];
+  for (int m = 0; m < kMics; ++m) rows[m] = spectra[static_cast<std::size_t>(m)].data();
+  on_every_target([&](const std::string& target) {
+    std::vector<double> mic(kBins, -1.0), source(kSources * kBins, -1.0);
+    simd::steered_bins({rows, kMics, kFirst, kBins, kOmega, &delays[0][0], kMics, kSources,
+                        kMinCoherence, mic.data(), source.data()});
+    for (std::size_t i = 0; i < mic.size(); ++i)
+      EXPECT_NEAR(mic[i], want_mic[i], 1e-12 * want_mic[i]) << target << i;
+    for (std::size_t i = 0; i < source.size(); ++i) {
+      EXPECT_EQ(source[i] > 0.0, want_source[i] > 0.0) << target << i;
+      EXPECT_NEAR(source[i], want_source[i], 1e-9 * want_mic[i % kBins]) << target << i;
+    }
   });
 }
 
