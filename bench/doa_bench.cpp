@@ -266,9 +266,10 @@ void BM_Framer(benchmark::State& state) {
 }
 BENCHMARK(BM_Framer)->Unit(benchmark::kMicrosecond);
 
-// The audio health scan alone (NodePipeline runs it on every block before the framer): one hop
-// of interleaved audio, per channel a sum, a sum of squares and a peak, the stretch judged once a
-// second. Arg 1: one channel all NaN and one clipped hard (the sample-by-sample path).
+// The audio health scan alone, as a caller without a framer runs it (the node counts from the
+// framer's own pass instead: ChannelHealth::observe): one hop of interleaved audio, per channel a
+// sum, a sum of squares and a peak, the stretch judged once a second. Arg 1: one channel all NaN
+// and one clipped hard (the sample-by-sample path).
 void BM_ChannelHealth(benchmark::State& state) {
   const DoaParams params;
   const int hop = static_cast<int>(params.hop_s * kRate + 0.5);
