@@ -75,7 +75,8 @@ struct RecentDoa {
   // a crossing with another source's ray: the DOA may still pair with another array's to start
   // a track, which then replaces that one.
   int weak_claimant_id = -1;
-  bool used = false;  // started a track
+  bool used = false;               // started a track
+  doa::AcousticFeatures acoustic;  // what its spectrum said (the track it starts tallies it)
   // Rays a triangulation may use: the direction, and its mirror image for a planar array. A
   // cone is no ray (its display direction is one point of a surface): 0.
   int image_count() const {
@@ -135,6 +136,23 @@ class RecentRing {
   std::uint64_t first_sequence_ = 0;  // sequence number of the entry at start_
 };
 
+// What one array's DOAs taken by a track said of the source's spectrum (issue 14's ghosts): one
+// source has one spectrum at every array, so two arrays hearing different spectra on one track
+// are two sources whose rays cross.
+struct AcousticTally {
+  int analysed = 0;                 // DOAs with features
+  int with_comb = 0;                // of those, with a harmonic comb (any fundamental)
+  double fundamental_sum_hz = 0.0;  // over those with a comb
+  void add(const doa::AcousticFeatures& features) {
+    if (!features.valid) return;
+    ++analysed;
+    if (features.fundamental_hz > 0.0) {
+      ++with_comb;
+      fundamental_sum_hz += features.fundamental_hz;
+    }
+  }
+};
+
 // An unclaimed DOA waiting to seed a track until the other arrays' DOAs of its moment are in.
 struct PendingSeed {
   int array = 0;
@@ -159,6 +177,7 @@ struct Track {
   bool innovation_ok = false;
   double inflation = 1.0;  // of this frame's DOA covariance (correlated errors)
   TrackEvidence evidence;  // drone or not
+  std::array<AcousticTally, kMaxArrays> acoustic_by_array{};
   double confirmed_at_s = 0.0;
   // Started from one array's DOAs (issue 15) and not yet handed to the default filter: its
   // range rests on hypotheses or the platform's motion, not on a triangulation.
@@ -347,6 +366,11 @@ struct FusionEngine::Impl {
   // another confirmed track, so those tracks already explain its DOAs (two drones' crossing rays).
   bool explained_by_other_tracks(const Track& track) const;
   int recent_arrays(const Track& track) const;  // arrays that updated it within the last second
+  // Ghost test (issue 14): the arrays feeding the track hear different spectra (a harmonic comb
+  // at one, none at another, or combs whose spacings no Doppler shift between the arrays
+  // explains): the rays of two sources that cross, each source heard by one of the arrays.
+  bool spectra_disagree(const Track& track) const;
+  double sound_speed_mps = 343.0;
   // A position spread beyond max_position_std_m is a lost track, except along the ray of an array
   // that still hears it: one static array's bearings give no range, so a hovering drone only that
   // array hears keeps a spread along its ray that grows for as long as no second array hears it
@@ -456,6 +480,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   }
   Impl& s = *impl_;
   s.params = params;
+  s.sound_speed_mps = speed_of_sound_mps;
   s.arrays = std::move(arrays);
   for (const auto& array : s.arrays) {
     s.models.push_back(
@@ -719,6 +744,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       track.last_update_s = time_s;
       track.heard_by_array_s[array] = time_s;
       ++track.updates_by_array[array];
+      track.acoustic_by_array[array].add(m.acoustic);
       classifier->add_acoustic(track.evidence, m.acoustic, time_s);
       continue;
     }
@@ -744,6 +770,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     track.last_update_s = time_s;
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
+    track.acoustic_by_array[array].add(m.acoustic);
     classifier->add_acoustic(track.evidence, m.acoustic, time_s);
     if (track.one_array) {
       if (log::level() <= log::Level::debug) log_branches(track, time_s);
@@ -766,6 +793,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     entry.noise = noise_of(m);
     entry.associated = doa_taken[j] != 0;
     entry.weak_claimant_id = weak_claimant[j];
+    entry.acoustic = m.acoustic;
     const std::uint64_t sequence = ring.push(entry);
     if (!entry.associated && entry.image_count() > 0 && pending_seeds.size() < kMaxPendingSeeds)
       pending_seeds.push_back({array, sequence, time_s});
@@ -1037,15 +1065,17 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   track.time_s = time_s;
   track.last_update_s = time_s;
   track.heard_by_array_s.fill(kNeverS);
-  const auto seed_support = [&track, time_s](int supporting_array) {
+  const auto seed_support = [&track, time_s](int supporting_array, const RecentDoa& doa) {
     track.hits_by_array[supporting_array] = 1u;
     track.heard_by_array_s[supporting_array] = time_s;
     track.updates_by_array[supporting_array] = 1;
+    track.acoustic_by_array[supporting_array].add(doa.acoustic);
   };
-  seed_support(array);
-  seed_support(best.partner_array);
+  seed_support(array, seed);
+  seed_support(best.partner_array, partner);
   for (int other = 0; other < array_count; ++other) {
-    if (extra_index[other] >= 0) seed_support(other);
+    if (extra_index[other] >= 0)
+      seed_support(other, recent[other][static_cast<std::size_t>(extra_index[other])]);
   }
   tracks.push_back(std::move(track));  // confirmed by life_cycle
   ++counters.tracks_started;
@@ -1283,6 +1313,35 @@ bool FusionEngine::Impl::explained_by_other_tracks(const Track& track) const {
   return supporting > 0;
 }
 
+bool FusionEngine::Impl::spectra_disagree(const Track& track) const {
+  // Only an array that gave the track enough analysed DOAs to say what it hears: a comb in most
+  // of them, or in few. A comb found now and then (a weak source near the detector's floor)
+  // says neither.
+  constexpr double kCombShare = 0.75;
+  constexpr double kNoCombShare = 0.25;
+  // Two arrays hear one source's comb spacing shifted by its Doppler towards each, at most
+  // 2 v / c apart, plus the detector's own spread (a few %). The detector takes the smallest
+  // spacing that correlates nearly as well as the best, so it does not report a multiple.
+  const double tolerance = 2.0 * params.init_max_speed_mps / sound_speed_mps + 0.05;
+  bool comb_heard = false;
+  bool no_comb_heard = false;
+  double lowest_hz = std::numeric_limits<double>::infinity();
+  double highest_hz = 0.0;
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    const AcousticTally& tally = track.acoustic_by_array[a];
+    if (tally.analysed < params.confirm_hits) continue;
+    const double share = static_cast<double>(tally.with_comb) / tally.analysed;
+    if (share <= kNoCombShare) no_comb_heard = true;
+    if (share < kCombShare) continue;
+    comb_heard = true;
+    const double fundamental_hz = tally.fundamental_sum_hz / tally.with_comb;
+    lowest_hz = std::min(lowest_hz, fundamental_hz);
+    highest_hz = std::max(highest_hz, fundamental_hz);
+  }
+  if (comb_heard && no_comb_heard) return true;
+  return highest_hz > lowest_hz * (1.0 + tolerance);
+}
+
 void FusionEngine::Impl::confirm_tracks(double now_s) {
   const std::uint32_t window_mask =
       params.confirm_window >= 32 ? ~0u : ((1u << params.confirm_window) - 1u);
@@ -1314,7 +1373,8 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
     if (supported && above_ground && hits >= params.confirm_hits &&
-        !explained_by_other_tracks(track) && !beneath_another_track(track)) {
+        !explained_by_other_tracks(track) && !beneath_another_track(track) &&
+        !spectra_disagree(track)) {
       track.confirmed = true;
       track.confirmed_at_s = now_s;
       ++counters.tracks_confirmed;
