@@ -41,7 +41,10 @@ constexpr double kSeconds = 12.0;
 // A source in view at 25 deg elevation; with `ground`, also its reflection off the ground under
 // the array (coefficient 0.5: the far-field image, mirrored direction, later by
 // 2 h sin(elevation) / c at the centre), so that the ground-echo removal runs as in the field.
-testing::Recording make_scene(bool ground) {
+// With `rotor`, also a rotor's harmonic comb (150 Hz lines, as loud) from another direction, so
+// that a frame has two sources and each re-measure looks for its own comb (doa.own_comb_bins,
+// stage 7c): band noise alone has no comb and that path never runs.
+testing::Recording make_scene(bool ground, bool rotor) {
   const ArrayGeometry geometry = testing::tetrahedron(30.0);
   const auto frames = static_cast<std::size_t>(kSeconds * kRate);
   testing::Recording out = testing::silent_recording(4, frames);
@@ -55,14 +58,28 @@ testing::Recording make_scene(bool ground) {
     for (int mic = 0; mic < 4; ++mic)
       out.add(mic, source.delayed(extra_s + delays[static_cast<std::size_t>(mic)], 0.5 * 0.05));
   }
+  if (rotor) {
+    const testing::BandNoise comb =
+        testing::BandNoise::comb(static_cast<int>(frames), kRate, 150.0, 500.0, 6000.0, 3);
+    testing::add_source(out, geometry, direction_from_azel_deg(200.0, 15.0), comb, 0.05);
+  }
   testing::add_sensor_noise(out, kRate, 100.0, 12000.0, 0.03, 2);
   return out;
 }
 
-const testing::Recording& scene(bool ground = true) {
-  static const testing::Recording with_ground = make_scene(true);
-  static const testing::Recording without_ground = make_scene(false);
-  return ground ? with_ground : without_ground;
+enum class Scene { ground, no_ground, rotor };
+const testing::Recording& scene(Scene kind = Scene::ground) {
+  // Each made on first use only: synthesising one takes a while.
+  if (kind == Scene::no_ground) {
+    static const testing::Recording without_ground = make_scene(false, false);
+    return without_ground;
+  }
+  if (kind == Scene::rotor) {
+    static const testing::Recording with_rotor = make_scene(true, true);
+    return with_rotor;
+  }
+  static const testing::Recording with_ground = make_scene(true, false);
+  return with_ground;
 }
 
 void BM_FftCrossSpectrumKernel(benchmark::State& state) {
@@ -109,9 +126,12 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // 4: default DoaParams without the acoustic features (their cost is /0 minus /4).
 // 5: three bands (0.5-1.5, 1.5-3.5, 3.5-6 kHz) with per-band detection (issue 15: a node per
 // band); 6: the same bands as one union (per_band_detection false); 7: default DoaParams without
-// the static look (its cost is /0 minus /7).
+// the static look (its cost is /0 minus /7); 8: default DoaParams on the scene with a rotor
+// beside the source (two sources a frame: the own-comb re-measures run); 9: the same without
+// own_comb_bins (that path's cost is /8 minus /9).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
+  if (state.range(0) == 9) params.own_comb_bins = false;
   if (state.range(0) == 4) params.acoustic.enabled = false;
   if (state.range(0) == 7) params.static_look.enabled = false;
   if (state.range(0) == 5 || state.range(0) == 6) {
@@ -122,7 +142,9 @@ void BM_NodePipeline(benchmark::State& state) {
   if (state.range(0) == 2) params.tdoa_tracker = TdoaTracker::per_frame;
   NodePipeline pipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
   const int hop = pipeline.hop_samples();
-  const testing::Recording& audio = scene(state.range(0) != 3);
+  const testing::Recording& audio = state.range(0) == 3   ? scene(Scene::no_ground)
+                                    : state.range(0) >= 8 ? scene(Scene::rotor)
+                                                          : scene();
   std::vector<DoaMeasurement> out;
   out.reserve(1 << 16);
   // Warm up: fill the first frame and let the noise floor settle.
@@ -161,6 +183,8 @@ BENCHMARK(BM_NodePipeline)
     ->Arg(5)
     ->Arg(6)
     ->Arg(7)
+    ->Arg(8)
+    ->Arg(9)
     ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.
@@ -266,10 +290,10 @@ void BM_Framer(benchmark::State& state) {
 }
 BENCHMARK(BM_Framer)->Unit(benchmark::kMicrosecond);
 
-// The audio health scan alone, as a caller without a framer runs it (the node counts from the
-// framer's own pass instead: ChannelHealth::observe): one hop of interleaved audio, per channel a
-// sum, a sum of squares and a peak, the stretch judged once a second. Arg 1: one channel all NaN
-// and one clipped hard (the sample-by-sample path).
+// The audio health as the node counts it: the framer's pass over one hop of interleaved audio
+// with ChannelHealth::observe() taking each run's per-channel sums (its cost is this minus
+// BM_Framer), the stretch judged once a second. Arg 1: one channel all NaN and one clipped hard
+// (the sample-by-sample path).
 void BM_ChannelHealth(benchmark::State& state) {
   const DoaParams params;
   const int hop = static_cast<int>(params.hop_s * kRate + 0.5);
@@ -282,14 +306,21 @@ void BM_ChannelHealth(benchmark::State& state) {
     return copy;
   }();
   const testing::Recording& audio = state.range(0) == 1 ? broken : scene();
+  const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
+  Framer framer(4, frame_length, hop);
   ChannelHealth health(4, kRate);
   std::size_t next = 0;
+  std::int64_t frames = 0;
   for (auto _ : state) {
     if (next + static_cast<std::size_t>(hop) > audio.frames()) next = 0;
     AudioBlockView block = audio.view(next, static_cast<std::size_t>(hop));
-    health.scan(block);
+    block.first_sample = static_cast<std::int64_t>(next);
+    health.clear_events();  // as the node does before each block
+    framer.push(
+        block, [&](const FrameView& frame) { frames += frame.length > 0 ? 1 : 0; }, health);
     next += static_cast<std::size_t>(hop);
   }
+  benchmark::DoNotOptimize(frames);
   benchmark::DoNotOptimize(health.non_finite_samples());
 }
 BENCHMARK(BM_ChannelHealth)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
@@ -417,6 +448,16 @@ int main(int argc, char** argv) {
           "us/frame)\n",
           no_static_look->second / kernel->second,
           (pipeline->second - no_static_look->second) * 1e6);
+    const auto rotor = reporter.seconds.find("BM_NodePipeline/8");
+    if (rotor != reporter.seconds.end())
+      std::printf("  pipeline / kernel:           %8.2f   (beside a rotor: two sources a frame)\n",
+                  rotor->second / kernel->second);
+    const auto rotor_no_comb = reporter.seconds.find("BM_NodePipeline/9");
+    if (rotor != reporter.seconds.end() && rotor_no_comb != reporter.seconds.end())
+      std::printf(
+          "  pipeline / kernel:           %8.2f   (the same without own_comb_bins: they add "
+          "%.1f us/frame)\n",
+          rotor_no_comb->second / kernel->second, (rotor->second - rotor_no_comb->second) * 1e6);
   }
   const std::string target = simd_target_name();
   std::printf("SIMD target %s (%d doubles per vector): %llu kernel calls on it, %llu on all\n",

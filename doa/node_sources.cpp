@@ -5,6 +5,8 @@
 
 #include <numeric>
 
+#include "doa/simd/kernels.hpp"
+
 namespace dronetrack::doa {
 
 // The static null learns from plain PHAT peaks: a steady ground source is as steady in power as
@@ -407,16 +409,19 @@ bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& uni
     const std::span<const double> ij = units.imag_row(spec.mic_j);
     std::size_t index = 0;
     for (const BandRun& run : gcc.band()) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        if (keep[index] == 0) continue;
-        const std::complex<double> phasor = std::complex<double>(ri[index], ii[index]) *
-                                            std::complex<double>(rj[index], -ij[index]);
-        const double turn = omega * k * tdoa.tdoa_s;
-        const double agreement = phasor.real() * std::cos(turn) - phasor.imag() * std::sin(turn);
-        const auto bin = static_cast<std::size_t>(k - comb_first_bin);
-        comb_power[bin] += magnitude[index] * agreement;
-        comb_agreement[bin] += agreement;
-      }
+      const auto bins = static_cast<std::size_t>(run.last_bin - run.first_bin + 1);
+      const auto bin = static_cast<std::size_t>(run.first_bin - comb_first_bin);
+      simd::steered_agreement({bins,
+                               static_cast<double>(run.first_bin),
+                               omega,
+                               tdoa.tdoa_s,
+                               {ri.data() + index, ii.data() + index},
+                               {rj.data() + index, ij.data() + index},
+                               magnitude.data() + index,
+                               keep.data() + index,
+                               comb_power.data() + bin,
+                               comb_agreement.data() + bin});
+      index += bins;
     }
   }
   for (double& power : comb_power) power = std::max(power, 0.0);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "doa/simd/kernels.hpp"
+
 namespace dronetrack::doa {
 
 namespace {
@@ -27,11 +29,12 @@ StaticSourceLook::StaticSourceLook(const GccPhat& gcc, double hop_s, int max_sou
 void StaticSourceLook::accumulate(const GccPhat& gcc) {
   ++frame_;
   const std::size_t bins = gcc.phasors(0).size();
-  const double fresh = 1.0 - keep_share_;
   for (int p = 0; p < gcc.pair_count(); ++p) {
     const std::span<const std::complex<double>> frame = gcc.phasors(p);
     std::complex<double>* average = average_.data() + static_cast<std::size_t>(p) * bins;
-    for (std::size_t k = 0; k < bins; ++k) average[k] = keep_share_ * average[k] + fresh * frame[k];
+    // A complex times a real is two products: the rows as doubles.
+    simd::exponential_average({reinterpret_cast<const double*>(frame.data()),
+                               reinterpret_cast<double*>(average), 2 * bins, keep_share_});
   }
 }
 

@@ -260,6 +260,34 @@ inline constexpr int kMaxSteeredSources = 8;
 inline constexpr int kMaxSteeredMics = 8;
 void steered_bins(const SteeredBins& job);
 
+// average[i] = keep_share x average[i] + (1 - keep_share) x fresh[i] for i < count (the
+// static look's phasors averaged over frames: complex rows as pairs of doubles).
+struct AverageRows {
+  const double* fresh;
+  double* average;
+  std::size_t count;
+  double keep_share;
+};
+void exponential_average(const AverageRows& rows);
+
+// One pair's agreement with a source at `tdoa_s`, bin by bin over the FFT bins first_bin ..
+// first_bin + count - 1 (one run of the band): g = Re(a b* e^{j w_k tdoa}) with a, b the two
+// mics' unit rows; where keep is 1, agreement[k] += g and power[k] += magnitude[k] g (the
+// steered cross-power), where 0 both unchanged.
+struct AgreementRows {
+  std::size_t count;
+  double first_bin;
+  double bin_omega;
+  double tdoa_s;
+  SplitRows a;
+  SplitRows b;
+  const double* magnitude;
+  const std::uint8_t* keep;
+  double* power;
+  double* agreement;
+};
+void steered_agreement(const AgreementRows& rows);
+
 // sum_i a[i] a[i + lag] over i + lag < n, in single precision.
 float lagged_product(const float* a, int n, int lag);
 

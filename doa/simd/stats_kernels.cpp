@@ -248,6 +248,56 @@ void SteeredBinsKernel(const SteeredBins& job) {
   }
 }
 
+// average = keep x average + (1 - keep) x fresh, lane by lane: the same two products and sum
+// per value as the scalar expression (no reduction).
+void ExponentialAverage(const AverageRows& rows) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const V old_share = hn::Set(d, rows.keep_share);
+  const V new_share = hn::Set(d, 1.0 - rows.keep_share);
+  for (std::size_t n = 0; n < rows.count; n += hn::Lanes(d)) {
+    const std::size_t count = std::min(hn::Lanes(d), rows.count - n);
+    const V blend = hn::Add(hn::Mul(old_share, LoadSome(d, rows.average + n, count)),
+                            hn::Mul(new_share, LoadSome(d, rows.fresh + n, count)));
+    StoreSome(d, blend, rows.average + n, count);
+  }
+}
+
+// Lane l holds bin first_bin + l (+ a vector per step); the steering e^{j w_k tdoa} starts per
+// lane from the polynomial phasor and is advanced by e^{j lanes w tdoa} (~1e-14 after a band's
+// hundred steps per lane), instead of a cos and a sin per bin. A dropped bin adds 0 to both
+// rows; a partial last vector's lanes are not stored.
+void SteeredAgreementKernel(const AgreementRows& rows) {
+  note_dispatch(HWY_TARGET);
+  const Full d;
+  const std::size_t lanes = hn::Lanes(d);
+  const double turn = rows.bin_omega * rows.tdoa_s;
+  V rotation_re, rotation_im, step_re, step_im;
+  UnitPhasor(d, hn::Mul(hn::Add(hn::Iota(d, 0.0), hn::Set(d, rows.first_bin)), hn::Set(d, turn)),
+             rotation_re, rotation_im);
+  UnitPhasor(d, hn::Set(d, static_cast<double>(lanes) * turn), step_re, step_im);
+  for (std::size_t n = 0; n < rows.count; n += lanes) {
+    const std::size_t count = std::min(lanes, rows.count - n);
+    const V ar = LoadSome(d, rows.a.re + n, count);
+    const V ai = LoadSome(d, rows.a.im + n, count);
+    const V br = LoadSome(d, rows.b.re + n, count);
+    const V bi = LoadSome(d, rows.b.im + n, count);
+    // a b* = (ar br + ai bi) + j (ai br - ar bi); its real part after the steering.
+    const V phasor_re = hn::MulAdd(ar, br, hn::Mul(ai, bi));
+    const V phasor_im = hn::MulSub(ai, br, hn::Mul(ar, bi));
+    const V agreement = hn::Mul(hn::MulSub(phasor_re, rotation_re, hn::Mul(phasor_im, rotation_im)),
+                                LoadKeep(d, rows.keep + n, count));
+    StoreSome(d,
+              hn::MulAdd(LoadSome(d, rows.magnitude + n, count), agreement,
+                         LoadSome(d, rows.power + n, count)),
+              rows.power + n, count);
+    StoreSome(d, hn::Add(LoadSome(d, rows.agreement + n, count), agreement), rows.agreement + n,
+              count);
+    const V next_re = hn::MulSub(rotation_re, step_re, hn::Mul(rotation_im, step_im));
+    rotation_im = hn::MulAdd(rotation_re, step_im, hn::Mul(rotation_im, step_re));
+    rotation_re = next_re;
+  }
+}
 }  // namespace
 }  // namespace dronetrack::doa::simd::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
@@ -260,6 +310,8 @@ HWY_EXPORT(MiddleValue);
 HWY_EXPORT(ChannelSums);
 HWY_EXPORT(LaggedProduct);
 HWY_EXPORT(SteeredBinsKernel);
+HWY_EXPORT(ExponentialAverage);
+HWY_EXPORT(SteeredAgreementKernel);
 void snr_weights(const SnrRows& rows) { HWY_DYNAMIC_DISPATCH(SnrWeights)(rows); }
 double middle_value(const double* values, int count) {
   return HWY_DYNAMIC_DISPATCH(MiddleValue)(values, count);
@@ -269,6 +321,12 @@ float lagged_product(const float* a, int n, int lag) {
   return HWY_DYNAMIC_DISPATCH(LaggedProduct)(a, n, lag);
 }
 void steered_bins(const SteeredBins& job) { HWY_DYNAMIC_DISPATCH(SteeredBinsKernel)(job); }
+void exponential_average(const AverageRows& rows) {
+  HWY_DYNAMIC_DISPATCH(ExponentialAverage)(rows);
+}
+void steered_agreement(const AgreementRows& rows) {
+  HWY_DYNAMIC_DISPATCH(SteeredAgreementKernel)(rows);
+}
 
 }  // namespace dronetrack::doa::simd
 #endif

@@ -224,6 +224,89 @@ TEST(SimdKernels, SteeredBinsOwnerIsTheMostCoherentSource) {
   });
 }
 
+TEST(SimdKernels, ExponentialAverageBlendsTheFreshRow) {
+  std::mt19937 random(31);
+  std::normal_distribution<double> value(0.0, 1.0);
+  constexpr double kKeep = 0.8;
+  for (const std::size_t count : {std::size_t{1}, std::size_t{5}, std::size_t{684}}) {
+    std::vector<double> average(count), fresh(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      average[i] = value(random);
+      fresh[i] = value(random);
+    }
+    on_every_target([&](const std::string& target) {
+      std::vector<double> got = average;
+      got.push_back(-7.0);
+      simd::exponential_average({fresh.data(), got.data(), count, kKeep});
+      for (std::size_t i = 0; i < count; ++i) {
+        const double want = kKeep * average[i] + (1.0 - kKeep) * fresh[i];
+        EXPECT_NEAR(got[i], want, 1e-15 * (std::abs(average[i]) + std::abs(fresh[i])))
+            << target << i;
+      }
+      EXPECT_EQ(got[count], -7.0) << target << ": wrote past the row";
+    });
+  }
+}
+
+// The own-comb re-measure's steered cross-power: Re(a b* e^{j w k tdoa}) per FFT bin k of a run,
+// added where kept; against cos and sin per bin, over a band run long enough (342 bins) for the
+// rotation's error to build up.
+TEST(SimdKernels, SteeredAgreementIsTheSteeredRealPart) {
+  constexpr double kOmega = 2.0 * 3.141592653589793 * 48000.0 / 8192.0;
+  std::mt19937 random(41);
+  std::uniform_real_distribution<double> angle(-3.14159, 3.14159);
+  std::exponential_distribution<double> size(1.0);
+  for (const std::size_t count : {std::size_t{3}, std::size_t{342}}) {
+    for (const double tdoa_s : {0.0, 1.7e-3, -2.3e-3}) {
+      constexpr int kFirst = 267;
+      std::vector<double> ar(count), ai(count), br(count), bi(count), magnitude(count);
+      std::vector<std::uint8_t> keep(count);
+      std::vector<double> power(count + 1), agreement(count + 1);
+      for (std::size_t n = 0; n < count; ++n) {
+        const double a = angle(random), b = angle(random);
+        ar[n] = std::cos(a);
+        ai[n] = std::sin(a);
+        br[n] = std::cos(b);
+        bi[n] = std::sin(b);
+        magnitude[n] = size(random);
+        keep[n] = n % 5 == 2 ? 0 : 1;
+        power[n] = size(random);
+        agreement[n] = angle(random);
+      }
+      power[count] = agreement[count] = -7.0;
+      on_every_target([&](const std::string& target) {
+        std::vector<double> got_power = power, got_agreement = agreement;
+        simd::steered_agreement({count,
+                                 static_cast<double>(kFirst),
+                                 kOmega,
+                                 tdoa_s,
+                                 {ar.data(), ai.data()},
+                                 {br.data(), bi.data()},
+                                 magnitude.data(),
+                                 keep.data(),
+                                 got_power.data(),
+                                 got_agreement.data()});
+        for (std::size_t n = 0; n < count; ++n) {
+          const std::complex<double> phasor =
+              std::complex<double>(ar[n], ai[n]) * std::complex<double>(br[n], -bi[n]);
+          const double turn = kOmega * static_cast<double>(kFirst + static_cast<int>(n)) * tdoa_s;
+          const double want =
+              keep[n] != 0 ? phasor.real() * std::cos(turn) - phasor.imag() * std::sin(turn) : 0.0;
+          EXPECT_NEAR(got_agreement[n], agreement[n] + want, 1e-12) << target << n;
+          EXPECT_NEAR(got_power[n], power[n] + magnitude[n] * want, 1e-12 * (1.0 + magnitude[n]))
+              << target << n;
+          if (keep[n] == 0) {
+            EXPECT_EQ(got_agreement[n], agreement[n]) << target << n;
+            EXPECT_EQ(got_power[n], power[n]) << target << n;
+          }
+        }
+        EXPECT_EQ(got_power[count], -7.0) << target << ": wrote past the row";
+        EXPECT_EQ(got_agreement[count], -7.0) << target << ": wrote past the row";
+      });
+    }
+  }
+}
+
 TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
   std::mt19937 random(17);
   std::uniform_real_distribution<float> sample(0.0F, 2.0F);
