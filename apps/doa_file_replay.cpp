@@ -143,7 +143,9 @@ ReplaySummary replay_doas(const config::SiteConfig& site,
   driver.finish();
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
-  if (site.fusion.likelihood == fusion::DoaLikelihoodKind::outlier_mixture) {
+  // Only an estimate is news: a fixed e is the config's.
+  if (site.fusion.likelihood == fusion::DoaLikelihoodKind::outlier_mixture &&
+      site.fusion.adaptive_outlier_probability) {
     std::string shares;
     for (std::size_t a = 0; a < driver.engine().arrays().size(); ++a)
       shares += (a ? " " : "") + std::to_string(driver.engine().outlier_share(a));

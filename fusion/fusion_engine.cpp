@@ -429,6 +429,8 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(params.student_t_dof >= 1.0, "student_t_dof", "must be >= 1");
   check(params.outlier_probability >= 0.0 && params.outlier_probability < 1.0,
         "outlier_probability", "must be in [0, 1)");
+  check(params.outlier_spread_deg >= 0.0 && params.outlier_spread_deg <= 180.0,
+        "outlier_spread_deg", "must be in [0, 180]");
   check(params.doa_noise_floor_deg >= 0.0, "doa_noise_floor_deg", "must be >= 0");
   check(params.init_pair_window_s > 0.0, "init_pair_window_s", "must be > 0");
   check(params.init_max_range_m > 0.0, "init_max_range_m", "must be > 0");
@@ -493,7 +495,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.ukf_kappa = params.ukf_kappa;
   s.filter_settings.particle_count = params.particle_count;
   s.likelihood.emplace(params.likelihood, params.student_t_dof, params.outlier_probability,
-                       params.gate_probability);
+                       params.gate_probability, params.outlier_spread_deg * kRadPerDeg);
   s.filter_settings.likelihood = *s.likelihood;
   s.filter_settings.imm_jerk_std_mps3 = params.imm_jerk_std_mps3;
   if (params.imm_jerk_std_mps3.size() == 1) {  // one level: a single model at that level
@@ -758,7 +760,8 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     // outlier for this track, which is what e models). A tentative track may be a ghost, whose
     // "inliers" are nobody's.
     if (outlier_share && track.confirmed) {
-      outlier_share->add(likelihood->outlier_density_ratio(innovation.mahalanobis2(z), dimension));
+      outlier_share->add(likelihood->outlier_density_ratio(
+          innovation.mahalanobis2(z), std::log(innovation.covariance.determinant()), dimension));
     }
     // The filter weighs z by the DOA likelihood itself (FilterSettings::likelihood).
     const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));

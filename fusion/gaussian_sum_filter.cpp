@@ -140,6 +140,9 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
   const MeasurementCovariance extra = innovation.noise - noise_;
   if (!valid(innovation.covariance)) return FilterStatus::failed;
   const Eigen::LDLT<MeasurementCovariance> common(innovation.covariance);
+  // A constant for every hypothesis, but the outlier part's density over the Gaussian part's
+  // depends on it when the law spreads its outliers (doa_likelihood.hpp).
+  const double common_log_det = std::log(innovation.covariance.determinant());
   FilterStatus worst = FilterStatus::ok;
   double best_log = -std::numeric_limits<double>::infinity();
   for (int i = 0; i < count_; ++i) {
@@ -167,7 +170,7 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     // Under the settings' DOA likelihood, as the IMM weighs its modes.
     const DoaLikelihood& law = settings_.likelihood;
     log_likelihood_[j] =
-        -0.5 * law.assignment_cost(d2, 0.0, own.dimension(), own.outlier_probability);
+        -0.5 * law.assignment_cost(d2, common_log_det, own.dimension(), own.outlier_probability);
     if (settings_.one_array.own_spread_weights)  // seed 003's eq. 9 as printed
       log_likelihood_[j] =
           -0.5 * law.assignment_cost(residual.dot(own.covariance.ldlt().solve(residual)),

@@ -6,6 +6,8 @@
 # relative to their site are reported as failed (their sites are not copied with it).
 # LIKELIHOODS (default "gaussian outlier_mixture adaptive"): `outlier_mixture` is the fixed e
 # (fusion.adaptive_outlier_probability false), `adaptive` the mixture with e estimated per array.
+# A name may carry more fusion keys after a colon, numbers only: `outlier_mixture:outlier_spread_deg=20`
+# or `adaptive:outlier_probability=0.05,outlier_spread_deg=20`.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bin=$PWD/${BUILD:-build/release}/dronetrack
@@ -13,12 +15,15 @@ for d in ${BUILD:-build/release}/tests/e2e/*/; do
   [[ -f $d/doa.jsonl && -f $d/site.json ]] || continue
   name=$(basename $d)
   for lik in ${LIKELIHOODS:-gaussian outlier_mixture adaptive}; do
-    out=${WORK:-build/likelihood-compare}/$name/$lik; mkdir -p $out
+    out=${WORK:-build/likelihood-compare}/$name/${lik//[:=,]/_}; mkdir -p $out
     python3 - "$d/site.json" "$out/site.json" "$lik" <<'PY'
 import json,sys,os
 s=json.load(open(sys.argv[1])); f=s.setdefault("fusion",{})
-f["likelihood"]="outlier_mixture" if sys.argv[3]=="adaptive" else sys.argv[3]
-f["adaptive_outlier_probability"]=sys.argv[3]=="adaptive"
+kind,_,extra=sys.argv[3].partition(":")
+f["likelihood"]="outlier_mixture" if kind=="adaptive" else kind
+f["adaptive_outlier_probability"]=kind=="adaptive"
+for kv in filter(None,extra.split(",")):
+    k,v=kv.split("="); f[k]=float(v)
 base=os.path.dirname(os.path.abspath(sys.argv[1]))
 # keep recording paths resolvable
 for a in s.get("arrays",[]):
