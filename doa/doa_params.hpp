@@ -136,8 +136,10 @@ struct DoaParams {
   // docs/doa.md stage 7d, measured: with robust_regression, each source the node tracks and a
   // frame has not found yet is measured from its track's lags (the fringe it was on) before the
   // free SRP looks, so a drone whose own bins are only its rotor's lines is not taken one
-  // carrier fringe off (the mixed site's hovering drone 11 deg low at N1).
-  bool follow_source_tracks = true;
+  // carrier fringe off (the mixed site's hovering drone 11 deg low at N1). Off by default: the
+  // drones' DOA coverage rises on every multi-source scene, but the perimeter's fused tracks
+  // gain false-track time (0 -> 2.1 %) and the far low-SNR pass 0.10 m of RMSE.
+  bool follow_source_tracks = false;
 
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
   // horizon are learned from their constant TDOAs and their band bins dropped before the
