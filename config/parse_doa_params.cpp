@@ -132,6 +132,8 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.ground_height_m =
       section.number("ground_height_m", params.ground_height_m, -10000.0, 10000.0);
   params.own_comb_bins = section.boolean("own_comb_bins", params.own_comb_bins);
+  params.follow_source_tracks =
+      section.boolean("follow_source_tracks", params.follow_source_tracks);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

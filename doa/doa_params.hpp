@@ -133,6 +133,14 @@ struct DoaParams {
   // frames turn multi-source through strays loses 1-2 % (far low-SNR pass 3.03 -> 3.08 m).
   bool own_comb_bins = true;
 
+  // docs/doa.md stage 7d, measured: with robust_regression, each source the node tracks and a
+  // frame has not found yet is measured from its track's lags (the fringe it was on) before the
+  // free SRP looks, so a drone whose own bins are only its rotor's lines is not taken one
+  // carrier fringe off (the mixed site's hovering drone 11 deg low at N1). Off by default: the
+  // drones' DOA coverage rises on every multi-source scene, but the perimeter's fused tracks
+  // gain false-track time (0 -> 2.1 %) and the far low-SNR pass 0.10 m of RMSE.
+  bool follow_source_tracks = false;
+
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
   // horizon are learned from their constant TDOAs and their band bins dropped before the
   // inverse FFTs, so a drone next to a loud ground source is still found.

@@ -29,7 +29,9 @@ struct NodeDiagnostics {
   std::int64_t rejected_blocks = 0;  // blocks with the wrong channel count or no data
   std::int64_t below_horizon_rejected = 0;  // sources below min_elevation_deg (not reported)
   std::int64_t static_look_sources = 0;     // sources the static look added (doa.static_look)
-  int static_sources_nulled = 0;            // ground sources whose bins are dropped (static_null)
+  std::int64_t followed_sources =
+      0;  // sources measured from their tracks' lags (doa.follow_source_tracks)
+  int static_sources_nulled = 0;  // ground sources whose bins are dropped (static_null)
   std::int64_t unposed_doas = 0;  // moving array: DOAs outside the pose track's span (dropped)
 };
 

@@ -83,6 +83,11 @@ struct NodePipeline::Impl {
   bool sources_to_publish(double time_s, bool detecting);
   void find_candidates();
   void find_further_sources();
+  // follow_source_tracks: each tracked source the frame has not found yet, measured from its
+  // track's lags before the free looks (node_follow.cpp).
+  void follow_tracked_sources();
+  bool measure_near(const Eigen::Vector3d& direction_site, std::span<PairTdoa> out,
+                    DoaSolution& solution, double& power) const;
   // The static look (static_look): the held source measured again, or a search on the frames'
   // averaged phasors; adds at most one candidate (none when max_sources are found).
   void find_static_source();
@@ -177,6 +182,11 @@ struct NodePipeline::Impl {
   // by direction; empty for arrays that cannot tell the echo from the source.
   std::vector<GroundEcho> ground_echoes;
   std::unique_ptr<SourceTracks> source_tracks;
+  // follow_tracked_sources()' measurements: the one being made and the best so far.
+  std::array<PairTdoa, kMaxPairs> follow_tdoas{};
+  std::array<PairTdoa, kMaxPairs> best_follow_tdoas{};
+  DoaSolution follow_solution;
+  DoaSolution best_follow_solution;
   std::unique_ptr<ConePeakHistory> cone_peaks;  // rank 1 only
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};

@@ -184,6 +184,7 @@ void NodePipeline::Impl::find_candidates() {
 // buried under the louder one's lobes nor pulled by them.
 void NodePipeline::Impl::find_further_sources() {
   if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
+  if (source_tracks && params.follow_source_tracks) follow_tracked_sources();
   srp->begin_frame(gcc);
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;

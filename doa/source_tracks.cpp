@@ -31,6 +31,11 @@ int SourceTracks::live_tracks() const {
       std::count_if(tracks_.begin(), tracks_.end(), [](const Track& t) { return t.live; }));
 }
 
+double SourceTracks::gate_deg(int slot, double time_s) const {
+  const Track& track = tracks_[static_cast<std::size_t>(slot)];
+  return association_gate_deg_ + max_angular_rate_dps_ * std::max(0.0, time_s - track.last_time_s);
+}
+
 int SourceTracks::update(double time_s, std::span<const SourceObservation> observations,
                          std::span<SourceEstimate> out) {
   const std::size_t observation_count = std::min(observations.size(), observation_taken_.size());
@@ -50,8 +55,7 @@ int SourceTracks::update(double time_s, std::span<const SourceObservation> obser
     for (std::size_t k = 0; k < tracks_.size(); ++k) {
       const Track& track = tracks_[k];
       if (!track.live || track.observation >= 0) continue;
-      const double gate =
-          association_gate_deg_ + max_angular_rate_dps_ * std::max(0.0, time_s - track.last_time_s);
+      const double gate = gate_deg(static_cast<int>(k), time_s);
       const double angle = angle_deg(observations[o].direction_site, track.direction_site);
       if (angle <= gate && (best < 0 || angle < best_angle)) {
         best = static_cast<int>(k);

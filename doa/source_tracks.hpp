@@ -49,6 +49,13 @@ class SourceTracks {
   std::uint32_t generation(int slot) const {
     return tracks_[static_cast<std::size_t>(slot)].generation;
   }
+  // Before update(): whether the slot holds a track, its last direction, and how far from it
+  // an observation at time_s may lie and still be its (the association gate, degrees).
+  bool live(int slot) const { return tracks_[static_cast<std::size_t>(slot)].live; }
+  const Eigen::Vector3d& direction_site(int slot) const {
+    return tracks_[static_cast<std::size_t>(slot)].direction_site;
+  }
+  double gate_deg(int slot, double time_s) const;
 
  private:
   struct Track {

@@ -248,6 +248,20 @@ TEST(SiteConfig, StaticLookSection) {
   expect_problem(site, "doa.static_look.enabled: expected true or false, got a string");
 }
 
+// doa.follow_source_tracks: off by default, on when the site says so, a boolean or a problem.
+TEST(SiteConfig, FollowSourceTracksIsOffUnlessTurnedOn) {
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings())
+                   .doa.follow_source_tracks);
+  json site = two_array_site();
+  site["doa"] = {{"follow_source_tracks", true}};
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_TRUE(parsed.doa.follow_source_tracks);
+  site["doa"]["follow_source_tracks"] = 1;
+  expect_problem(site, "doa.follow_source_tracks: expected true or false, got a number");
+}
+
 TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 1.4}};

@@ -1,0 +1,89 @@
+// NodePipeline's followed sources (follow_source_tracks): before the free SRP looks of a frame,
+// each source the node already tracks and the frame has not found yet is measured from its
+// track's lags on the bins left.
+#include "doa/node_pipeline_impl.hpp"
+
+namespace dronetrack::doa {
+
+// A weaker source whose own bins are only its rotor's lines correlates as fringes one carrier
+// period apart under a wide envelope (its lines span ~2 kHz around ~2.5 kHz), the neighbouring
+// fringes nearly as high as the peak. A free search takes whichever is highest this frame, and
+// its own ground echo lifts the fringe below (docs/doa.md, "D2 at N1"): the mixed site's hovering
+// drone came out 11 deg low in a third of N1's frames, each time a new source. The source
+// tracks know which fringe the source was on a hop ago; each unexplained track is measured
+// from its lags (every pair's nearest correlation maximum, solved), kept when the solution stays
+// within the track's association gate and its steered power clears the SRP look's noise floor,
+// strongest first, each taking its bins before the next.
+void NodePipeline::Impl::follow_tracked_sources() {
+  std::array<bool, kMaxSources> tried{};
+  const int slots = std::min(source_tracks->slot_count(), kMaxSources);
+  const auto pairs = tdoas.size();
+  while (candidate_count < params.max_sources) {
+    const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
+                                                     std::max(1, gcc.kept_bin_count()));
+    int best_slot = -1;
+    double best_power = floor;
+    for (int slot = 0; slot < slots; ++slot) {
+      if (tried[static_cast<std::size_t>(slot)] || !source_tracks->live(slot)) continue;
+      const Eigen::Vector3d& track_direction = source_tracks->direction_site(slot);
+      const std::span<PairTdoa> measured(follow_tdoas.data(), pairs);
+      double power = 0.0;
+      const bool kept =
+          !already_found(track_direction) &&
+          measure_near(track_direction, measured, follow_solution, power) &&
+          follow_solution.direction_site.dot(track_direction) >=
+              std::cos(source_tracks->gate_deg(slot, frame_time_s) * std::numbers::pi / 180.0);
+      if (!kept) {
+        tried[static_cast<std::size_t>(slot)] = true;
+        continue;
+      }
+      if (power <= best_power) continue;
+      best_power = power;
+      best_slot = slot;
+      std::copy(follow_tdoas.begin(), follow_tdoas.begin() + static_cast<std::ptrdiff_t>(pairs),
+                best_follow_tdoas.begin());
+      best_follow_solution = follow_solution;
+    }
+    if (best_slot < 0) return;
+    tried[static_cast<std::size_t>(best_slot)] = true;
+    if (already_found(best_follow_solution.direction_site) || below_horizon(best_follow_solution))
+      continue;
+    Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+    candidate.solution = best_follow_solution;
+    std::copy(best_follow_tdoas.begin(),
+              best_follow_tdoas.begin() + static_cast<std::ptrdiff_t>(pairs),
+              candidate.tdoas.begin());
+    const std::span<const PairTdoa> candidate_tdoas(candidate.tdoas.data(), pairs);
+    candidate.coherence = mean_coherence(candidate_tdoas);
+    candidate.time_offset_s = 0.0;
+    ++candidate_count;
+    ++diagnostics.followed_sources;
+    if (candidate_count < params.max_sources) mask_source(candidate_tdoas);
+  }
+}
+
+// Every pair's correlation maximum nearest the lags of a direction (the fringe the source was
+// on), solved; its power is the mean over pairs of the correlations at the solution's lags.
+bool NodePipeline::Impl::measure_near(const Eigen::Vector3d& direction_site,
+                                      std::span<PairTdoa> out, DoaSolution& solution,
+                                      double& power) const {
+  const Eigen::Vector3d direction_array = solver.array_to_site().transpose() * direction_site;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    GccPeak peak;
+    const bool found = gcc.refine(p, solver.tdoa_for_direction(p, direction_array), peak);
+    out[static_cast<std::size_t>(p)] =
+        found && peak.value > 0.0 ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value),
+                                             peak.value, peak.coherence}
+                                  : PairTdoa{};
+  }
+  solution = solver.solve(out);
+  if (!solution.accepted) return false;
+  const Eigen::Vector3d solved_array = solver.array_to_site().transpose() * solution.direction_site;
+  double sum = 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p)
+    sum += gcc.grid_value(p, solver.tdoa_for_direction(p, solved_array));
+  power = sum / gcc.pair_count();
+  return true;
+}
+
+}  // namespace dronetrack::doa
