@@ -5,20 +5,35 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 jobs="$(nproc)"
+# Each section's wall time, printed as it ends and summed at the exit, so a CI log shows where its
+# budget (45 min) goes.
+section_start=$SECONDS
+section_times=()
+section_done() {
+  section_times+=("$1 $((SECONDS - section_start)) s")
+  echo "ci-time: $1 $((SECONDS - section_start)) s" >&2
+  section_start=$SECONDS
+}
+trap 'echo "ci-time: ${section_times[*]:-none} (total ${SECONDS} s)" >&2' EXIT
 bash scripts/install-deps.sh --tests
 bash scripts/check-style.sh
+section_done "dependencies+style"
 
 echo "== release build + tests" >&2
 cmake --preset release >/dev/null
 cmake --build --preset release -j"$jobs"
+section_done "release-build"
 ctest --preset release -j"$jobs"
+section_done "release-tests"
 
 # The core cross-built for arm64, its unit tests under qemu-user (issue 21).
 bash scripts/arm64-test.sh
+section_done "arm64"
 
 echo "== asan+ubsan build + tests" >&2
 cmake --preset asan >/dev/null
 cmake --build --preset asan -j"$jobs"
+section_done "asan-build"
 # Leaks in third-party singletons (Cyclone, PortAudio) are not ours to fix; ASan still reports
 # every memory error. Browser and benchmark-style tests run once, in the release build, and so do
 # three Monte-Carlo statistics that take 25-120 s each under ASan (10x release: Ceres' autodiff
@@ -33,7 +48,9 @@ asan_statistics+="|TrackFilter.StudentLikelihoodRidesOutImpulsiveDoas"
 asan_statistics+="|SeedFour.ParticleFilterNeedsNoGuessWhereTheEkfNeedsAGoodOne)\$"
 ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --preset asan -j"$jobs" -LE "browser|slow" -E "$asan_statistics"
+section_done "asan-tests"
 
 # libFuzzer harnesses (fuzz/README.md): a clang build plus 20 s per harness, about 3 min on CI.
 echo "== fuzz: ${DRONETRACK_FUZZ_SECONDS:-20} s per harness" >&2
 bash scripts/fuzz.sh "${DRONETRACK_FUZZ_SECONDS:-20}"
+section_done "fuzz"
