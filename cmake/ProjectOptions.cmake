@@ -18,6 +18,8 @@ if(DRONETRACK_FUZZ)
 endif()
 # The sanitizer build is RelWithDebInfo for its stack traces: line tables (-g1) give the same
 # ASan/UBSan traces (file:line, inlined frames included) as full -g, and compile and link faster.
+# The asan preset compiles at -O1 (ASan's documented level for reasonable speed) rather than -O2:
+# fusion/fusion_engine.cpp alone took 129 s at -O2 and 89 s at -O1 under ASan + UBSan.
 if(DRONETRACK_SANITIZE OR DRONETRACK_FUZZ)
   target_compile_options(dronetrack_options INTERFACE ${_dronetrack_fuzz_flags}
     -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
