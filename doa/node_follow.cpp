@@ -10,7 +10,8 @@ namespace dronetrack::doa {
 // fringes nearly as high as the peak. A free search takes whichever is highest this frame, and
 // its own ground echo lifts the fringe below (docs/doa.md, "D2 at N1"): the mixed site's hovering
 // drone came out 11 deg low in a third of N1's frames, each time a new source. The source
-// tracks know which fringe the source was on a hop ago; each unexplained track is measured
+// tracks know which fringe the source was on a hop ago; each unexplained track heard a hop ago
+// (SourceTracks::followable: after a gap the gate reaches the next fringe) is measured
 // from its lags (every pair's nearest correlation maximum, solved), kept when the solution stays
 // within the track's association gate and its steered power clears the SRP look's noise floor,
 // strongest first, each taking its bins before the next.
@@ -24,7 +25,8 @@ void NodePipeline::Impl::follow_tracked_sources() {
     int best_slot = -1;
     double best_power = floor;
     for (int slot = 0; slot < slots; ++slot) {
-      if (tried[static_cast<std::size_t>(slot)] || !source_tracks->live(slot)) continue;
+      if (tried[static_cast<std::size_t>(slot)] || !source_tracks->followable(slot, frame_time_s))
+        continue;
       const Eigen::Vector3d& track_direction = source_tracks->direction_site(slot);
       const std::span<PairTdoa> measured(follow_tdoas.data(), pairs);
       double power = 0.0;

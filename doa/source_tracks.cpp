@@ -20,6 +20,7 @@ SourceTracks::SourceTracks(int pair_count, int max_tracks, const TdoaTrackerSett
       delay_s_(std::max(0, settings.regression_delay_frames) * settings.hop_s),
       max_age_s_((std::max(4, settings.regression_window_frames) + 0.5) * settings.hop_s),
       max_angular_rate_dps_(settings.max_angular_rate_dps),
+      hop_s_(settings.hop_s),
       association_gate_deg_(association_gate_deg) {
   tracks_.reserve(static_cast<std::size_t>(std::max(1, max_tracks)));
   for (int k = 0; k < std::max(1, max_tracks); ++k) tracks_.emplace_back(pair_count, settings);
@@ -34,6 +35,12 @@ int SourceTracks::live_tracks() const {
 double SourceTracks::gate_deg(int slot, double time_s) const {
   const Track& track = tracks_[static_cast<std::size_t>(slot)];
   return association_gate_deg_ + max_angular_rate_dps_ * std::max(0.0, time_s - track.last_time_s);
+}
+
+bool SourceTracks::followable(int slot, double time_s) const {
+  const Track& track = tracks_[static_cast<std::size_t>(slot)];
+  // Half a hop of slack for the frame times' rounding.
+  return track.live && time_s - track.last_time_s <= 1.5 * hop_s_;
 }
 
 int SourceTracks::update(double time_s, std::span<const SourceObservation> observations,

@@ -56,6 +56,14 @@ class SourceTracks {
     return tracks_[static_cast<std::size_t>(slot)].direction_site;
   }
   double gate_deg(int slot, double time_s) const;
+  // Whether the slot's track may be measured from its own lags at time_s (a followed source,
+  // doa.follow_source_tracks): only from an observation one hop old. A source moves a fraction
+  // of a degree in a hop, well inside the fringe it was on; the gate widens by
+  // max_angular_rate_dps every hop unheard (2 + 90 x 0.1 = 11 deg after two), as far as a
+  // lines-only source's neighbouring carrier fringe (~11 deg in elevation on a 0.67 m tetrahedron
+  // at 2.7 kHz), so a follow after a gap can land on the wrong fringe, and a source that faded or
+  // was hidden by a louder one is looked for afresh by the free search instead.
+  bool followable(int slot, double time_s) const;
 
  private:
   struct Track {
@@ -73,6 +81,7 @@ class SourceTracks {
   double delay_s_;
   double max_age_s_;
   double max_angular_rate_dps_;
+  double hop_s_;
   double association_gate_deg_;
   std::vector<Track> tracks_;
   std::vector<char> observation_taken_;

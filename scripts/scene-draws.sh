@@ -5,11 +5,15 @@
 # between draws and with unrelated settings). Per draw: `sim` with the seed, one
 # `replay --doa-out` (the DOAs), then per likelihood `replay --doa-in` on a copy of the site
 # whose fusion section names it (plus --fusion JSON, e.g. '{"imm_turn_mode": false}') and `eval`.
+# --doa JSON is merged into the site's doa section for the node replay (e.g.
+# '{"follow_source_tracks": true}'); its DOAs and tracks are kept apart from the default's.
 # Prints one Markdown row per draw and likelihood: each drone's coverage and RMSE, id switches,
-# non-drone zone entries.
+# non-drone time said `drone`, false-track share, non-drone zone entries. The recordings are kept
+# (another --doa replays them).
 #
 # Usage: scripts/scene-draws.sh [--work DIR] [--scenario FILE] [--seeds "21 22 23"]
 #                               [--likelihoods "gaussian outlier_mixture"] [--fusion JSON]
+#                               [--doa JSON]
 # Defaults: DIR build/scene-draws (kept: a second run reuses its renders and DOAs), the mixed
 # site, seeds 21 (the bundled draw) to 26. A render and its node replay take ~1-4 minutes on
 # the shared machine; a fusion-only replay ~10 s. Needs build/release/dronetrack (or
@@ -21,10 +25,11 @@ scenario=config/scenarios/mixed-site.json
 seeds="21 22 23 24 25 26"
 likelihoods="gaussian outlier_mixture"
 fusion="{}"
+doa="{}"
 # Every option is --NAME VALUE setting the variable NAME.
 while [[ $# -gt 0 ]]; do
   option=${1#--}
-  if [[ $# -lt 2 || " work scenario seeds likelihoods fusion " != *" $option "* ]]; then
+  if [[ $# -lt 2 || " work scenario seeds likelihoods fusion doa " != *" $option "* ]]; then
     echo "scene-draws.sh: bad argument '$1' (see the header for usage)" >&2
     exit 2
   fi
@@ -37,8 +42,8 @@ binary=${DRONETRACK_BINARY:-$PWD/build/release/dronetrack}
 mkdir -p "$work"
 name=$(basename "$scenario" .json)
 
-echo "| draw (seed) | likelihood | coverage / RMSE per drone | id switches | non-drone zone entries |"
-echo "|---|---|---|---|---|"
+echo "| draw (seed) | likelihood | coverage / RMSE per drone | id switches | non-drone said drone | false-track | non-drone zone entries |"
+echo "|---|---|---|---|---|---|---|"
 for seed in $seeds; do
   dir=$work/$name-$seed
   mkdir -p "$dir"
@@ -51,13 +56,22 @@ json.dump(scenario, open(sys.argv[2], "w"), indent=1)
 PY
     "$binary" sim "$dir/scenario.json" --out "$dir" >/dev/null 2>"$dir/sim.log"
   fi
-  if [[ ! -f "$dir/doas.jsonl" ]]; then
-    "$binary" replay "$dir/site.json" --doa-out "$dir/doas.jsonl" --tracks-out /dev/null \
-      2>"$dir/replay.log"
-    rm -f "$dir"/*.wav  # the DOAs are what the fusion-only runs need
+  # The node's settings name the DOAs (and what is made from them): the default's are doas.jsonl.
+  variant=""
+  [[ "$doa" == "{}" ]] || variant=-$(printf '%s' "$doa" | md5sum | cut -c1-8)
+  doas=$dir/doas$variant.jsonl
+  if [[ ! -f "$doas" ]]; then
+    python3 - "$dir/site.json" "$dir/site-node$variant.json" "$doa" <<'PY'
+import json, sys
+site = json.load(open(sys.argv[1]))
+site.setdefault("doa", {}).update(json.loads(sys.argv[3]))
+json.dump(site, open(sys.argv[2], "w"), indent=1)
+PY
+    "$binary" replay "$dir/site-node$variant.json" --doa-out "$doas" --tracks-out /dev/null \
+      2>"$dir/replay$variant.log"
   fi
   for likelihood in $likelihoods; do
-    site=$dir/site-$likelihood.json
+    site=$dir/site-$likelihood$variant.json
     python3 - "$dir/site.json" "$site" "$likelihood" "$fusion" <<'PY'
 import json, sys
 site = json.load(open(sys.argv[1]))
@@ -66,17 +80,18 @@ fusion["likelihood"] = sys.argv[3]
 fusion.update(json.loads(sys.argv[4]))
 json.dump(site, open(sys.argv[2], "w"), indent=1)
 PY
-    "$binary" replay "$site" --doa-in "$dir/doas.jsonl" --tracks-out "$dir/tracks-$likelihood.jsonl" \
-      2>"$dir/replay-$likelihood.log"
-    "$binary" eval --truth "$dir/truth.json" --tracks "$dir/tracks-$likelihood.jsonl" \
-      --json "$dir/eval-$likelihood.json" >/dev/null
-    python3 - "$dir/eval-$likelihood.json" "$seed" "$likelihood" <<'PY'
+    "$binary" replay "$site" --doa-in "$doas" --tracks-out "$dir/tracks-$likelihood$variant.jsonl" \
+      2>"$dir/replay-$likelihood$variant.log"
+    "$binary" eval --truth "$dir/truth.json" --tracks "$dir/tracks-$likelihood$variant.jsonl" \
+      --json "$dir/eval-$likelihood$variant.json" >/dev/null
+    python3 - "$dir/eval-$likelihood$variant.json" "$seed" "$likelihood" <<'PY'
 import json, sys
 report = json.load(open(sys.argv[1]))
 drones = "; ".join(f'{s["id"]} {100 * s["coverage"]:.1f} % / {s["position"]["rmse_3d_m"]:.2f} m'
                    for s in report["sources"])
 switches = sum(s["id_switches"] for s in report["sources"])
 print(f'| {sys.argv[2]} | {sys.argv[3]} | {drones} | {switches} | '
+      f'{report["non_drone_as_drone_time_s"]:.1f} s | {100 * report["false_track_fraction"]:.2f} % | '
       f'{report["non_drone_zone_entries"]} |')
 PY
   done

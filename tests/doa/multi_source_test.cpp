@@ -117,6 +117,34 @@ TEST(SourceTracks, AnUnheardSourceIsDroppedAfterItsWindow) {
   EXPECT_EQ(tracks.live_tracks(), 0);
 }
 
+// A followed source (doa.follow_source_tracks) is measured only from an observation one hop old.
+// On the perimeter scene a drone hidden for a few frames beside the other (within 3-4 deg at N4)
+// was then followed with a gate of 2 + 90 deg/s x 0.15-0.45 s and landed one carrier fringe
+// (11 deg) off in 173 of 340 wrong follows; those DOAs made a false track (docs/doa.md stage 7d).
+TEST(SourceTracks, ATrackIsFollowedOnlyFromAnObservationOneHopOld) {
+  TdoaTrackerSettings settings;
+  settings.hop_s = 0.05;
+  settings.regression_window_frames = 13;
+  SourceTracks tracks(3, 2, settings, 2.0);
+  std::vector<PairTdoa> tdoas(3, PairTdoa{50e-6, 1e-12, 0.5, 0.5});
+  const SourceObservation observation{direction_from_azel_deg(25.0, 11.0), tdoas};
+  std::array<SourceEstimate, 2> estimates{};
+  EXPECT_FALSE(tracks.followable(0, 0.0));  // no track yet
+  for (int frame = 0; frame < 10; ++frame)
+    tracks.update(frame * 0.05, std::span(&observation, 1), estimates);
+  // Heard at 0.45 s: followable at the next frame, within 6.5 deg of where it was.
+  EXPECT_TRUE(tracks.followable(0, 0.50));
+  EXPECT_NEAR(tracks.gate_deg(0, 0.50), 6.5, 1e-9);
+  EXPECT_FALSE(tracks.followable(1, 0.50));  // the other slot holds nothing
+  tracks.update(0.50, std::span<const SourceObservation>(), estimates);  // not heard
+  // Two hops unheard: the gate reaches the neighbouring fringe; the free search looks instead.
+  EXPECT_NEAR(tracks.gate_deg(0, 0.55), 11.0, 1e-9);
+  EXPECT_FALSE(tracks.followable(0, 0.55));
+  EXPECT_EQ(tracks.live_tracks(), 1);  // still a track the free search's finds associate with
+  tracks.update(0.55, std::span(&observation, 1), estimates);  // found again
+  EXPECT_TRUE(tracks.followable(0, 0.60));
+}
+
 // Two broadband sources 25 deg apart, the second 6 dB weaker: the louder one's correlation lobes
 // sit on the weaker one's lags. Measured: with the louder source subtracted from the
 // correlations (CLEAN) the weak one was found in 59 of 77 frames, median 0.88 deg; with its
