@@ -59,12 +59,14 @@ bool GccPhat::prepare(bool weighted) {
   // Scaling by 0 or 1 instead of a branch per bin (phasors and magnitudes are finite). In the
   // same pass, coherence's total: the magnitude-weighted correlation over the same weights, in
   // four partial sums (one would make every bin wait for the previous addition).
+  // The single-precision copy is read by the direct sums alone, at the kept bins alone: a mask
+  // leaves the kept bins' values as they were (times 1), only new weights change them.
   const auto scale_and_sum = [&](bool scale, bool weighted_sum) {
     for (std::size_t p = 0; p < pairs_.size(); ++p)
       magnitude_sums_[p] = simd::scale_and_sum(
-          {reinterpret_cast<double*>(phasors_.data() + p * bins), phasor_floats(p),
-           magnitudes_.data() + p * bins, bin_scales_.data(), bin_keeps_.data(),
-           weighted_sum ? weights_.data() : nullptr, scale, bins});
+          {reinterpret_cast<double*>(phasors_.data() + p * bins),
+           rescale ? phasor_floats(p) : nullptr, magnitudes_.data() + p * bins, bin_scales_.data(),
+           bin_keeps_.data(), weighted_sum ? weights_.data() : nullptr, scale, bins});
   };
   // Dropped bins already zero in the phasors (made under this very mask) need no pass of
   // their own.

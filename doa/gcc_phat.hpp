@@ -275,6 +275,8 @@ class GccPhat {
   std::vector<float> lag_table_;
   // The phasors in single precision for direct_grids(), made with them (pair_products,
   // scale_and_sum): each demoted once, not once per correlation (empty without direct sums).
+  // Only the kept bins' values are read: a dropped bin's may be stale (prepare() rewrites them
+  // only when the weights change; a mask change leaves the kept bins' values as they were).
   std::vector<float> phasor_floats_;
   float* phasor_floats(std::size_t pair) {
     return phasor_floats_.empty()

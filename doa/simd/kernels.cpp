@@ -279,9 +279,7 @@ TaylorSums BandTaylorSums(const TaylorRows& rows) {
       bend = hn::NegMulAdd(hn::Mul(omega2, size), t_re, bend);
       sum3 = hn::MulAdd(hn::Mul(omega2, omega), t_im, sum3);
       sum4 = hn::MulAdd(hn::Mul(omega2, omega2), t_re, sum4);
-      const V next_re = hn::MulSub(rotation_re, step_re, hn::Mul(rotation_im, step_im));
-      rotation_im = hn::MulAdd(rotation_re, step_im, hn::Mul(rotation_im, step_re));
-      rotation_re = next_re;
+      Advance(rotation_re, rotation_im, step_re, step_im);
       omega = hn::Add(omega, omega_step);
     }
   }
@@ -363,9 +361,7 @@ void CombDivide(const CombRows& rows) {
       StoreSome(d, hn::Mul(hn::MulSub(u_im, c_re, hn::Mul(u_re, c_im)), inverse),
                 rows.out.im + index, count);
       index += count;
-      const V next_re = hn::MulSub(echo_re, step_re, hn::Mul(echo_im, step_im));
-      echo_im = hn::MulAdd(echo_re, step_im, hn::Mul(echo_im, step_re));
-      echo_re = next_re;
+      Advance(echo_re, echo_im, step_re, step_im);
     }
   }
 }
@@ -392,8 +388,8 @@ void PhasorRowsKernel(const PhasorRows& rows) {
 }
 
 // Per pair the rotations of `lanes` consecutive bins, advanced by step^lanes; pairs summed in
-// order, then each bin's verdict without a branch (which bins a source owns is a coin toss to
-// the branch predictor).
+// order, then the bins' verdicts as lanes (which bins a source owns is a coin toss to the branch
+// predictor, and a scalar verdict per bin cost as much as the scores).
 int DropOwnedBins(const OwnedBinScan& scan) {
   note_dispatch(HWY_TARGET);
   const Full d;
@@ -401,7 +397,6 @@ int DropOwnedBins(const OwnedBinScan& scan) {
   const int pairs = std::min(scan.pairs, kMaxPairs);
   HWY_ALIGN double start_re[kMaxLanes];
   HWY_ALIGN double start_im[kMaxLanes];
-  HWY_ALIGN double scores[kMaxLanes];
   V rotation_re[kMaxPairs], rotation_im[kMaxPairs], step_re[kMaxPairs], step_im[kMaxPairs];
   for (int p = 0; p < pairs; ++p) {
     const std::complex<double> step =
@@ -410,7 +405,8 @@ int DropOwnedBins(const OwnedBinScan& scan) {
     step_im[p] = hn::Set(d, step.imag());
   }
   const auto* const* phasors = reinterpret_cast<const double* const*>(scan.phasors);
-  int dropped = 0;
+  const V threshold = hn::Set(d, scan.threshold);
+  V dropped = hn::Zero(d);  // counts of whole bins: exact
   std::size_t index = 0;
   for (std::size_t r = 0; r < scan.run_count; ++r) {
     const BandRun& run = scan.runs[r];
@@ -434,26 +430,20 @@ int DropOwnedBins(const OwnedBinScan& scan) {
         V w_re, w_im;
         LoadSomePairs(d, phasors[p] + 2 * index, count, w_re, w_im);
         score = hn::Add(score, hn::MulSub(w_re, rotation_re[p], hn::Mul(w_im, rotation_im[p])));
-        const V next_re =
-            hn::MulSub(rotation_re[p], step_re[p], hn::Mul(rotation_im[p], step_im[p]));
-        rotation_im[p] =
-            hn::MulAdd(rotation_re[p], step_im[p], hn::Mul(rotation_im[p], step_re[p]));
-        rotation_re[p] = next_re;
+        Advance(rotation_re[p], rotation_im[p], step_re[p], step_im[p]);
       }
-      hn::Store(score, d, scores);
-      for (std::size_t l = 0; l < count; ++l) {
-        const std::size_t bin = index + l;
-        // Phases decide: a weighted correlation left its weights on the phasors.
-        const double scale = scan.scales != nullptr ? scan.scales[bin] : 1.0;
-        const int owned = scores[l] >= scan.threshold * scale ? 1 : 0;
-        const int was_kept = scan.keep[bin] != 0 ? 1 : 0;
-        dropped += was_kept & owned;
-        scan.keep[bin] = static_cast<std::uint8_t>(was_kept & (1 - owned));
-      }
+      // Phases decide: a weighted correlation left its weights on the phasors.
+      const V limit = scan.scales != nullptr
+                          ? hn::Mul(threshold, LoadSome(d, scan.scales + index, count))
+                          : threshold;
+      const V kept = LoadKeep(d, scan.keep + index, count);
+      const V left = hn::IfThenZeroElse(hn::Ge(score, limit), kept);
+      dropped = hn::Add(dropped, hn::Sub(kept, left));
+      StoreKeep(d, left, scan.keep + index, count);
       index += count;
     }
   }
-  return dropped;
+  return static_cast<int>(SumLanes(d, dropped) + 0.5);
 }
 
 // A whole vector of floats per channel and step (LoadInterleaved4 on the target's full float

@@ -93,7 +93,8 @@ double scale_and_sum(const ScaleRows& rows);
 
 // Every pair's lag grid summed directly over the kept bins, in single precision:
 // R(+-m) = norm sum_k (Re W_k cos(w_k m step) -+ Im W_k sin(w_k m step)), lags 0..half_span.
-// The phasors in single precision come from pair_products and scale_and_sum, which make them.
+// The phasors in single precision come from pair_products and scale_and_sum, which make them;
+// only the kept bins' are read.
 struct GridJob {
   const float* phasor_floats;  // pair p's band, (re, im) interleaved, at 2 p pair_stride
   std::size_t pair_stride;

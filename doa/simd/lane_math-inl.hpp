@@ -75,6 +75,24 @@ HWY_INLINE void UnitPhasor(D d, V phase_rad, V& re, V& im) {
   im = hn::Mul(hn::Set(d, 2.0), hn::Mul(sine, cosine));
 }
 
+// The steering recurrence the band kernels share: lane l starts at e^{j phase_l} and every step
+// (a vector of bins) turns it by e^{j step_rad}; a product per step instead of a cos and a sin
+// per bin (the error after a band's hundred steps per lane is ~1e-14).
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void StartRotation(D d, V phase_rad, double step_rad, V& re, V& im, V& step_re,
+                              V& step_im) {
+  UnitPhasor(d, phase_rad, re, im);
+  UnitPhasor(d, hn::Set(d, step_rad), step_re, step_im);
+}
+
+// (re, im) turned by one step: the complex product (re + j im) (step_re + j step_im).
+template <class V>
+HWY_INLINE void Advance(V& re, V& im, V step_re, V step_im) {
+  const V next_re = hn::MulSub(re, step_re, hn::Mul(im, step_im));
+  im = hn::MulAdd(re, step_im, hn::Mul(im, step_re));
+  re = next_re;
+}
+
 // `count` (at most a vector) doubles from `source`, zeros after them.
 template <class D, class V = hn::Vec<D>>
 HWY_INLINE V LoadSome(D d, const double* source, std::size_t count) {
@@ -146,6 +164,21 @@ HWY_INLINE V LoadKeep(D d, const std::uint8_t* keep, std::size_t count) {
   HWY_ALIGN double row[kMaxLanes] = {};
   for (std::size_t l = 0; l < count; ++l) row[l] = keep[l];
   return hn::Load(d, row);
+}
+
+// The first `count` lanes of v (each 0 or 1) to `keep` as bytes: LoadKeep's inverse.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void StoreKeep(D d, V v, std::uint8_t* keep, std::size_t count) {
+  const hn::Rebind<std::uint8_t, D> bytes;
+  const hn::Rebind<std::int32_t, D> words;
+  const auto narrow = hn::DemoteTo(bytes, hn::DemoteTo(words, v));
+  if (count == hn::Lanes(d)) {
+    hn::StoreU(narrow, bytes, keep);
+    return;
+  }
+  HWY_ALIGN std::uint8_t row[kMaxLanes];
+  hn::Store(narrow, bytes, row);
+  std::memcpy(keep, row, count);
 }
 
 template <class D, class V = hn::Vec<D>>

@@ -195,13 +195,13 @@ void SteeredBinsKernel(const SteeredBins& job) {
       const double delay = job.delays_s[static_cast<std::size_t>(s) * job.delay_stride +
                                         static_cast<std::size_t>(m)];
       const std::size_t at = static_cast<std::size_t>(s * mics + m) * lanes;
-      V re, im;
-      UnitPhasor(d, hn::Mul(first_omega, hn::Set(d, delay)), re, im);
+      V re, im, turn_re, turn_im;
+      StartRotation(d, hn::Mul(first_omega, hn::Set(d, delay)),
+                    static_cast<double>(lanes) * job.bin_omega * delay, re, im, turn_re, turn_im);
       hn::Store(re, d, rotation_re + at);
       hn::Store(im, d, rotation_im + at);
-      UnitPhasor(d, hn::Set(d, static_cast<double>(lanes) * job.bin_omega * delay), re, im);
-      hn::Store(re, d, step_re + at);
-      hn::Store(im, d, step_im + at);
+      hn::Store(turn_re, d, step_re + at);
+      hn::Store(turn_im, d, step_im + at);
     }
   }
   const auto bins = static_cast<std::size_t>(job.bins);
@@ -224,14 +224,13 @@ void SteeredBinsKernel(const SteeredBins& job) {
       V sum_re = zero, sum_im = zero;
       for (int m = 0; m < mics; ++m) {
         const std::size_t at = static_cast<std::size_t>(s * mics + m) * lanes;
-        const V r_re = hn::Load(d, rotation_re + at);
-        const V r_im = hn::Load(d, rotation_im + at);
+        V r_re = hn::Load(d, rotation_re + at);
+        V r_im = hn::Load(d, rotation_im + at);
         sum_re = hn::Add(sum_re, hn::MulSub(x_re[m], r_re, hn::Mul(x_im[m], r_im)));
         sum_im = hn::Add(sum_im, hn::MulAdd(x_re[m], r_im, hn::Mul(x_im[m], r_re)));
-        const V s_re = hn::Load(d, step_re + at);
-        const V s_im = hn::Load(d, step_im + at);
-        hn::Store(hn::MulSub(r_re, s_re, hn::Mul(r_im, s_im)), d, rotation_re + at);
-        hn::Store(hn::MulAdd(r_re, s_im, hn::Mul(r_im, s_re)), d, rotation_im + at);
+        Advance(r_re, r_im, hn::Load(d, step_re + at), hn::Load(d, step_im + at));
+        hn::Store(r_re, d, rotation_re + at);
+        hn::Store(r_im, d, rotation_im + at);
       }
       const V coherent = hn::MulAdd(sum_re, sum_re, hn::Mul(sum_im, sum_im));
       const auto wins = hn::And(live, hn::Ge(coherent, hn::Mul(hn::Mul(best, mic_count), energy)));
@@ -273,9 +272,8 @@ void SteeredAgreementKernel(const AgreementRows& rows) {
   const std::size_t lanes = hn::Lanes(d);
   const double turn = rows.bin_omega * rows.tdoa_s;
   V rotation_re, rotation_im, step_re, step_im;
-  UnitPhasor(d, hn::Mul(hn::Add(hn::Iota(d, 0.0), hn::Set(d, rows.first_bin)), hn::Set(d, turn)),
-             rotation_re, rotation_im);
-  UnitPhasor(d, hn::Set(d, static_cast<double>(lanes) * turn), step_re, step_im);
+  StartRotation(d, hn::Mul(hn::Add(hn::Iota(d, 0.0), hn::Set(d, rows.first_bin)), hn::Set(d, turn)),
+                static_cast<double>(lanes) * turn, rotation_re, rotation_im, step_re, step_im);
   for (std::size_t n = 0; n < rows.count; n += lanes) {
     const std::size_t count = std::min(lanes, rows.count - n);
     const V ar = LoadSome(d, rows.a.re + n, count);
@@ -293,9 +291,7 @@ void SteeredAgreementKernel(const AgreementRows& rows) {
               rows.power + n, count);
     StoreSome(d, hn::Add(LoadSome(d, rows.agreement + n, count), agreement), rows.agreement + n,
               count);
-    const V next_re = hn::MulSub(rotation_re, step_re, hn::Mul(rotation_im, step_im));
-    rotation_im = hn::MulAdd(rotation_re, step_im, hn::Mul(rotation_im, step_re));
-    rotation_re = next_re;
+    Advance(rotation_re, rotation_im, step_re, step_im);
   }
 }
 }  // namespace

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -304,6 +305,70 @@ TEST(SimdKernels, SteeredAgreementIsTheSteeredRealPart) {
         EXPECT_EQ(got_agreement[count], -7.0) << target << ": wrote past the row";
       });
     }
+  }
+}
+
+// A source's bins (phasors e^{-j w_k tau_p} on every pair) are cleared and counted, others kept,
+// bins already dropped stay dropped and uncounted; two runs of lengths that leave partial
+// vectors on every width, with and without per-bin scales; nothing past the band is written.
+TEST(SimdKernels, DropOwnedBinsClearsTheSourcesBins) {
+  constexpr double kOmega = 2.0 * 3.141592653589793 * 48000.0 / 8192.0;
+  constexpr int kPairs = 3;
+  const std::array<BandRun, 2> runs{BandRun{101, 143}, BandRun{150, 186}};
+  const std::size_t bins = 43 + 37;
+  const std::array<double, kPairs> taus{1.1e-3, -0.4e-3, 2.3e-3};
+  std::mt19937 random(43);
+  std::uniform_real_distribution<double> angle(-3.14159, 3.14159);
+  std::uniform_real_distribution<double> share(0.2, 1.0);
+  std::vector<std::vector<std::complex<double>>> phasors(kPairs,
+                                                         std::vector<std::complex<double>>(bins));
+  std::vector<int> fft_bins;
+  for (const BandRun& run : runs)
+    for (int k = run.first_bin; k <= run.last_bin; ++k) fft_bins.push_back(k);
+  std::vector<double> scales(bins);
+  std::vector<std::uint8_t> keep(bins + 1, 1);
+  keep[bins] = 7;
+  for (std::size_t n = 0; n < bins; ++n) {
+    const bool owned = n % 3 != 1;
+    for (int p = 0; p < kPairs; ++p)
+      phasors[static_cast<std::size_t>(p)][n] =
+          owned ? std::polar(1.0, -kOmega * fft_bins[n] * taus[static_cast<std::size_t>(p)])
+                : std::polar(1.0, angle(random));
+    scales[n] = share(random);
+    keep[n] = n % 7 == 3 ? 0 : 1;
+  }
+  const std::array<const std::complex<double>*, kPairs> rows{phasors[0].data(), phasors[1].data(),
+                                                             phasors[2].data()};
+  const double threshold = 0.5 * kPairs;
+  for (const bool scaled : {false, true}) {
+    std::vector<std::uint8_t> want = keep;
+    int want_dropped = 0;
+    std::vector<bool> decided(bins, true);
+    for (std::size_t n = 0; n < bins; ++n) {
+      double score = 0.0;
+      for (int p = 0; p < kPairs; ++p)
+        score += (phasors[static_cast<std::size_t>(p)][n] *
+                  std::polar(1.0, kOmega * fft_bins[n] * taus[static_cast<std::size_t>(p)]))
+                     .real();
+      const double limit = threshold * (scaled ? scales[n] : 1.0);
+      decided[n] = std::abs(score - limit) > 1e-9;  // the recurrence's rounding cannot flip it
+      if (score >= limit && keep[n] != 0) {
+        want[n] = 0;
+        ++want_dropped;
+      }
+    }
+    ASSERT_GT(want_dropped, 20);  // the source's bins, most of them
+    ASSERT_LT(want_dropped, 60);  // not the others
+    on_every_target([&](const std::string& target) {
+      std::vector<std::uint8_t> got = keep;
+      const int dropped =
+          simd::drop_owned_bins({runs.data(), runs.size(), kOmega, rows.data(), taus.data(), kPairs,
+                                 scaled ? scales.data() : nullptr, threshold, got.data()});
+      EXPECT_EQ(dropped, want_dropped) << target;
+      for (std::size_t n = 0; n < bins; ++n)
+        if (decided[n]) EXPECT_EQ(got[n], want[n]) << target << " bin " << n;
+      EXPECT_EQ(got[bins], 7) << target << ": wrote past the band";
+    });
   }
 }
 
