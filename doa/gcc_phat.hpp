@@ -158,6 +158,11 @@ class GccPhat {
   void cross_power_from(std::span<const std::complex<double>> given_phasors,
                         std::span<const std::uint8_t> keep);
 
+  // Turns one bin's phasor of one pair to the direction of `cross_power` (its magnitude, the
+  // bin's weight, kept; a dropped bin stays 0): for a cross-power corrected after
+  // cross_power() (subtract_neighbour_cross_power()). The next correlation or refinement sees it.
+  void redirect_phasor(int pair, int band_index, std::complex<double> cross_power);
+
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }
   const PairCorrelation& pair(int pair) const { return results_[static_cast<std::size_t>(pair)]; }
