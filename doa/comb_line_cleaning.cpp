@@ -21,7 +21,7 @@ constexpr double kMinResidualShare = 1e-3;
 int subtract_neighbour_cross_power(GccPhat& gcc, const GccPhat::UnitsView& units,
                                    std::span<const std::uint8_t> on_line, int first_fft_bin) {
   const std::span<const std::uint8_t> keep = std::as_const(gcc).bin_keep();
-  const std::span<const double> powers = gcc.band_powers();
+  const std::span<const double> levels = gcc.band_levels();
   const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
   const auto line_at = [&](int fft_bin) {
     const auto bin = static_cast<std::size_t>(fft_bin - first_fft_bin);
@@ -35,11 +35,11 @@ int subtract_neighbour_cross_power(GccPhat& gcc, const GccPhat::UnitsView& units
     const std::span<const double> ii = units.imag_row(spec.mic_i);
     const std::span<const double> rj = units.real_row(spec.mic_j);
     const std::span<const double> ij = units.imag_row(spec.mic_j);
-    const double* power_i = powers.data() + static_cast<std::size_t>(spec.mic_i) * bins;
-    const double* power_j = powers.data() + static_cast<std::size_t>(spec.mic_j) * bins;
+    const double* level_i = levels.data() + static_cast<std::size_t>(spec.mic_i) * bins;
+    const double* level_j = levels.data() + static_cast<std::size_t>(spec.mic_j) * bins;
     // G_ij = |X_i| |X_j| u_i u_j* at band index b.
     const auto cross = [&](std::size_t b) {
-      return std::sqrt(power_i[b] * power_j[b]) *
+      return level_i[b] * level_j[b] *
              std::complex<double>(ri[b] * rj[b] + ii[b] * ij[b], ii[b] * rj[b] - ri[b] * ij[b]);
     };
     std::size_t run_start = 0;
@@ -50,29 +50,29 @@ int subtract_neighbour_cross_power(GccPhat& gcc, const GccPhat::UnitsView& units
         if (keep[index] == 0 || !line_at(run.first_bin + offset)) continue;
         // The mirrored pairs inside the run with both bins off the lines.
         std::array<int, kSide> distances{};
-        std::array<double, 2 * kSide> levels{};
+        std::array<double, 2 * kSide> neighbour_levels{};
         int usable = 0;
         for (int d = kLineNeighbourFirst; d <= kLineNeighbourBins; ++d) {
           if (offset - d < 0 || offset + d >= run_bins) break;
           if (line_at(run.first_bin + offset - d) || line_at(run.first_bin + offset + d)) continue;
           const std::size_t below = index - static_cast<std::size_t>(d);
           const std::size_t above = index + static_cast<std::size_t>(d);
-          levels[static_cast<std::size_t>(2 * usable)] = std::sqrt(power_i[below] * power_j[below]);
-          levels[static_cast<std::size_t>(2 * usable + 1)] =
-              std::sqrt(power_i[above] * power_j[above]);
+          neighbour_levels[static_cast<std::size_t>(2 * usable)] = level_i[below] * level_j[below];
+          neighbour_levels[static_cast<std::size_t>(2 * usable + 1)] =
+              level_i[above] * level_j[above];
           distances[static_cast<std::size_t>(usable)] = d;
           ++usable;
         }
         if (usable == 0) continue;
-        std::array<double, 2 * kSide> sorted = levels;
+        std::array<double, 2 * kSide> sorted = neighbour_levels;
         const auto middle = sorted.begin() + usable;
         std::nth_element(sorted.begin(), middle, sorted.begin() + 2 * usable);
         const double spike = kTonalSpike * *middle;
         std::complex<double> sum{};
         int taken = 0;
         for (int n = 0; n < usable; ++n) {
-          if (levels[static_cast<std::size_t>(2 * n)] > spike ||
-              levels[static_cast<std::size_t>(2 * n + 1)] > spike)
+          if (neighbour_levels[static_cast<std::size_t>(2 * n)] > spike ||
+              neighbour_levels[static_cast<std::size_t>(2 * n + 1)] > spike)
             continue;
           const auto d = static_cast<std::size_t>(distances[static_cast<std::size_t>(n)]);
           sum += cross(index - d) + cross(index + d);
@@ -81,7 +81,8 @@ int subtract_neighbour_cross_power(GccPhat& gcc, const GccPhat::UnitsView& units
         if (taken == 0) continue;
         const std::complex<double> line = cross(index);
         const std::complex<double> residual = line - sum / static_cast<double>(taken);
-        if (std::abs(residual) <= kMinResidualShare * std::abs(line)) continue;
+        if (std::norm(residual) <= kMinResidualShare * kMinResidualShare * std::norm(line))
+          continue;
         gcc.redirect_phasor(p, static_cast<int>(index), residual);
         ++corrected;
       }

@@ -141,6 +141,9 @@ class GccPhat {
   // 0..unit_channels() - 1): the frame's in-band powers, for stages that would otherwise read
   // the spectra again (BinSnrWeight, the node's in-band level).
   std::span<const double> band_powers() const { return powers_; }
+  // whiten()'s |X| of every mic over the band bins, as band_powers() (a cross-power's level
+  // |X_i| |X_j| without a square root per bin).
+  std::span<const double> band_levels() const { return levels_; }
   int unit_channels() const { return unit_channels_; }
   std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
   std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
