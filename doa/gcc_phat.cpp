@@ -229,6 +229,21 @@ void GccPhat::cross_power_from(std::span<const std::complex<double>> given_phaso
   pair_phasors(units(), true, false, given_phasors.data());
 }
 
+void GccPhat::redirect_phasor(int pair, int band_index, std::complex<double> cross_power) {
+  const std::size_t at = static_cast<std::size_t>(pair) * static_cast<std::size_t>(band_bins_) +
+                         static_cast<std::size_t>(band_index);
+  // Squared norms and one root (std::abs on a complex is a hypot: slower, and not needed here).
+  const double length2 = std::norm(cross_power);
+  if (!(length2 > 0.0)) return;
+  const std::complex<double> phasor = std::sqrt(std::norm(phasors_[at]) / length2) * cross_power;
+  phasors_[at] = phasor;
+  if (float* floats = phasor_floats(static_cast<std::size_t>(pair)); floats != nullptr) {
+    floats[2 * static_cast<std::size_t>(band_index)] = static_cast<float>(phasor.real());
+    floats[2 * static_cast<std::size_t>(band_index) + 1] = static_cast<float>(phasor.imag());
+  }
+  refined_index_[static_cast<std::size_t>(pair)] = -1;
+}
+
 void GccPhat::process(const MultichannelFft& spectra) {
   whiten(spectra);
   correlate();

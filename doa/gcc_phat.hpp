@@ -141,6 +141,9 @@ class GccPhat {
   // 0..unit_channels() - 1): the frame's in-band powers, for stages that would otherwise read
   // the spectra again (BinSnrWeight, the node's in-band level).
   std::span<const double> band_powers() const { return powers_; }
+  // whiten()'s |X| of every mic over the band bins, as band_powers() (a cross-power's level
+  // |X_i| |X_j| without a square root per bin).
+  std::span<const double> band_levels() const { return levels_; }
   int unit_channels() const { return unit_channels_; }
   std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
   std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
@@ -157,6 +160,11 @@ class GccPhat {
   // magnitudes and which bins are live stay the frame's.
   void cross_power_from(std::span<const std::complex<double>> given_phasors,
                         std::span<const std::uint8_t> keep);
+
+  // Turns one bin's phasor of one pair to the direction of `cross_power` (its magnitude, the
+  // bin's weight, kept; a dropped bin stays 0): for a cross-power corrected after
+  // cross_power() (subtract_neighbour_cross_power()). The next correlation or refinement sees it.
+  void redirect_phasor(int pair, int band_index, std::complex<double> cross_power);
 
   int pair_count() const { return static_cast<int>(pairs_.size()); }
   const MicPairSpec& pair_spec(int pair) const { return pairs_[static_cast<std::size_t>(pair)]; }

@@ -5,6 +5,7 @@
 
 #include <numeric>
 
+#include "doa/comb_line_cleaning.hpp"
 #include "doa/simd/kernels.hpp"
 
 namespace dronetrack::doa {
@@ -390,7 +391,9 @@ bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& unit
 // generator's 50 Hz comb, a car's tyres) that pull its peaks towards theirs (docs/doa.md, "Own
 // comb bins"). Kept: its lines, and the bins between them whose phasors agree with it on average
 // over the pairs as SourceBinMask judges a source's own bin (a lone drone keeps its broadband
-// and loses nothing). No comb (a broadband source): nothing dropped.
+// and loses nothing). The lines still hold the other sources' broadband, whose cross-power the
+// neighbouring off-line bins estimate: it is taken out of each line's phase
+// (subtract_neighbour_cross_power). No comb (a broadband source): nothing dropped.
 bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& units) {
   const Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::fill(comb_power.begin(), comb_power.end(), 0.0);
@@ -436,6 +439,7 @@ bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& uni
       if (comb_lines[bin] == 0 && comb_agreement[bin] < own_bin_agreement) keep[index] = 0;
     }
   }
+  subtract_neighbour_cross_power(gcc, units, comb_lines, comb_first_bin);
   return true;
 }
 
