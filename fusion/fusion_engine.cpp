@@ -64,6 +64,8 @@ constexpr std::size_t kMaxPendingSeeds = 256;
 // widest IMM jerk level lasting kManoeuvreSpanS, widen the track by that manoeuvre's process noise.
 constexpr double kManoeuvreRunGapS = 0.2;
 constexpr double kManoeuvreSpanS = 0.5;
+// Impulsive DOA errors (alpha-stable, a few degrees' scale) land mostly within this of the source.
+constexpr double kBesideAngleRad = 20.0 * std::numbers::pi / 180.0;
 
 void check(bool ok, const char* parameter, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("fusion.") + parameter + ": " + what);
@@ -192,6 +194,9 @@ struct Track {
   int origin_array = -1;                                                   // its one array
   MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
   int branches_left = -1;  // a Gaussian sum's locus branches (mirror sides) with weight left
+  // DOAs it took (tentative) in frames that held no more DOAs than the confirmed tracks their
+  // array hears: the slot of a confirmed track's DOA, which an outlier had taken.
+  int crowded_updates = 0;
   // Manoeuvre onset: per array (bit set: valid), the last DOA beyond the gate that no track took
   // but a manoeuvre could explain, as its residual from the prediction, its R and its time.
   std::uint64_t unexplained_arrays = 0;
@@ -773,6 +778,27 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       doa_confirmed[static_cast<std::size_t>(track_to_doa[t])] = 1;
   }
   weak_claimant.assign(static_cast<std::size_t>(doa_count), -1);
+  int confirmed_heard = 0;  // confirmed tracks this array hears
+  for (const Track& track : tracks) {
+    if (track.confirmed && time_s - track.heard_by_array_s[array] <= kContributionMemoryS)
+      ++confirmed_heard;
+  }
+  const bool crowded = doa_count <= confirmed_heard;
+  // A confirmed track this array hears that got no DOA from this frame, within kBesideAngleRad
+  // of `direction`: an impulsive error of its source (reflection, gust) lands around it.
+  const auto beside_missed_track = [&](const Eigen::Vector3d& direction) {
+    for (int t = 0; t < track_count; ++t) {
+      const Track& other = tracks[t];
+      if (!other.confirmed || track_to_doa[t] >= 0 || !other.innovation_ok ||
+          time_s - other.heard_by_array_s[array] > kContributionMemoryS)
+        continue;
+      const Measurement& azel = other.innovation.predicted;
+      const Eigen::Vector3d predicted =
+          doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg);
+      if (predicted.dot(direction) >= std::cos(kBesideAngleRad)) return true;
+    }
+    return false;
+  };
   for (int t = 0; t < track_count; ++t) {
     Track& track = tracks[t];
     track.hits_by_array[array] <<= 1;
@@ -808,6 +834,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     if (held_by_one_array(track)) weak_claimant[j] = track.id;
     if (status == FilterStatus::failed) continue;
     record_update(track, array, m, time_s);
+    if (crowded && !track.confirmed && beside_missed_track(m.direction)) ++track.crowded_updates;
     if (track.one_array) {
       if (log::level() <= log::Level::debug) log_branches(track, time_s);
       hand_over(track);
@@ -1475,7 +1502,9 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
     int arrays_heard = 0;
     int arrays_repeating = 0;  // arrays that updated it at confirm_hits distinct times
     int hits = 0;
+    int updates = 0;
     for (std::size_t a = 0; a < arrays.size(); ++a) {
+      updates += track.updates_by_array[a];
       if (track.heard_by_array_s[a] != kNeverS) ++arrays_heard;
       if (track.updates_by_array[a] >= params.confirm_hits) ++arrays_repeating;
       hits += std::popcount(track.hits_by_array[a] & window_mask);
@@ -1496,7 +1525,11 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
     const double altitude_std_m = std::sqrt(std::max(
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
-    if (supported && above_ground && hits >= params.confirm_hits &&
+    // Outlier-born (issue 17): most of its DOAs came in frames whose arrays had none to spare
+    // beyond the confirmed tracks they hear. An impulsive outlier takes the place of a confirmed
+    // track's DOA; a second source adds a DOA to the frame.
+    const bool displacing = 2 * track.crowded_updates > updates;
+    if (supported && above_ground && hits >= params.confirm_hits && !displacing &&
         !explained_by_other_tracks(track) && !beneath_another_track(track) &&
         !spectra_disagree(track)) {
       track.confirmed = true;
