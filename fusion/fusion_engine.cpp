@@ -57,6 +57,15 @@ constexpr double kContributionMemoryS = 1.0;
 // 0.05 s): every array that heard that moment can then vote between the pairings.
 constexpr double kInitiationDelayS = 0.06;
 constexpr std::size_t kMaxPendingSeeds = 256;
+// Manoeuvre onset (issue 17): a DOA beyond a track's gate is an outlier or the track falling
+// behind a manoeuvre. Outliers are independent from frame to frame; a manoeuvre makes the
+// array's next DOA agree with this one. Two consecutive such DOAs of one array (no more than
+// kManoeuvreRunGapS apart) that agree with each other, within the reach of a manoeuvre of the
+// widest IMM jerk level lasting kManoeuvreSpanS, widen the track by that manoeuvre's process noise.
+constexpr double kManoeuvreRunGapS = 0.2;
+constexpr double kManoeuvreSpanS = 0.5;
+// Impulsive DOA errors (alpha-stable, a few degrees' scale) land mostly within this of the source.
+constexpr double kBesideAngleRad = 20.0 * std::numbers::pi / 180.0;
 
 void check(bool ok, const char* parameter, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("fusion.") + parameter + ": " + what);
@@ -185,6 +194,15 @@ struct Track {
   int origin_array = -1;                                                   // its one array
   MeasurementCovariance origin_noise = MeasurementCovariance::Identity();  // of its first DOA
   int branches_left = -1;  // a Gaussian sum's locus branches (mirror sides) with weight left
+  // DOAs it took (tentative) in frames that held no more DOAs than the confirmed tracks their
+  // array hears: the slot of a confirmed track's DOA, which an outlier had taken.
+  int crowded_updates = 0;
+  // Manoeuvre onset: per array (bit set: valid), the last DOA beyond the gate that no track took
+  // but a manoeuvre could explain, as its residual from the prediction, its R and its time.
+  std::uint64_t unexplained_arrays = 0;
+  std::array<double, kMaxArrays> unexplained_s{};
+  std::array<Measurement, kMaxArrays> unexplained_residual{};
+  std::array<MeasurementCovariance, kMaxArrays> unexplained_noise{};
 };
 
 // A one-array Gaussian-sum track whose count of live branches (the locus's mirror sides) changed:
@@ -234,7 +252,8 @@ struct FusionEngine::Impl {
   std::vector<double> cost;
   std::vector<int> track_to_doa;
   std::vector<char> doa_taken;
-  std::vector<int> weak_claimant;  // per DOA of the frame: RecentDoa::weak_claimant_id
+  std::vector<char> doa_confirmed;  // taken by a confirmed track
+  std::vector<int> weak_claimant;   // per DOA of the frame: RecentDoa::weak_claimant_id
   std::vector<Ray> rays;
   // Issue 16: per array, the swap check against tracks the other arrays fix; its references
   // (directions to those tracks, reused) and the swaps named not yet taken.
@@ -390,6 +409,22 @@ struct FusionEngine::Impl {
   // meet on the vertical line through the source, below it. A track there, under a confirmed
   // track, is that mixture: not confirmed.
   bool beneath_another_track(const Track& track) const;
+  // The widest IMM jerk level's process noise over kManoeuvreSpanS, and its position variance.
+  StateCovariance manoeuvre_noise = StateCovariance::Zero();
+  double manoeuvre_position_variance_m2 = 0.0;
+  // A track the frame gave no DOA: the frame's nearest DOA that no track took, beyond the gate,
+  // against that array's previous one (kManoeuvreRunGapS); when both agree, the track is widened
+  // by manoeuvre_noise and the DOA offered again. Returns the DOA's index when it was taken.
+  int follow_manoeuvre(Track& track, int array, std::size_t begin, int doa_count, double time_s);
+  // The bookkeeping of a DOA a track took.
+  void record_update(Track& track, int array, const doa::DoaMeasurement& m, double time_s) {
+    track.hits_by_array[array] |= 1u;
+    track.last_update_s = time_s;
+    track.heard_by_array_s[array] = time_s;
+    ++track.updates_by_array[array];
+    track.acoustic_by_array[array].add(m.acoustic);
+    classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+  }
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;
     if (status == FilterStatus::failed) ++counters.filter_failures;
@@ -523,6 +558,14 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.one_array_settings.one_array.max_speed_mps = params.init_max_speed_mps;
   for (const auto& model : s.models) s.last_centre_m.push_back(model.centre_m);
   s.floor_variance_rad2 = std::pow(params.doa_noise_floor_deg * kRadPerDeg, 2);
+  {
+    double widest_jerk = params.jerk_noise_std_mps3;
+    for (double level : params.imm_jerk_std_mps3) widest_jerk = std::max(widest_jerk, level);
+    ConstantJerkModel manoeuvre;
+    manoeuvre.jerk_variance_m2ps6 = widest_jerk * widest_jerk;
+    s.manoeuvre_noise = manoeuvre.process_noise(kManoeuvreSpanS);
+    s.manoeuvre_position_variance_m2 = s.manoeuvre_noise(0, 0);
+  }
   s.last_fed_time_by_array.assign(s.arrays.size(), kNeverS);
   s.last_fed_sources_by_array.assign(s.arrays.size(), 0);
   s.recent.resize(s.arrays.size());
@@ -729,7 +772,33 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   assignment.solve(cost, track_count, doa_count, track_to_doa);
 
   doa_taken.assign(static_cast<std::size_t>(doa_count), 0);
+  doa_confirmed.assign(static_cast<std::size_t>(doa_count), 0);
+  for (int t = 0; t < track_count; ++t) {
+    if (tracks[t].confirmed && track_to_doa[t] >= 0)
+      doa_confirmed[static_cast<std::size_t>(track_to_doa[t])] = 1;
+  }
   weak_claimant.assign(static_cast<std::size_t>(doa_count), -1);
+  int confirmed_heard = 0;  // confirmed tracks this array hears
+  for (const Track& track : tracks) {
+    if (track.confirmed && time_s - track.heard_by_array_s[array] <= kContributionMemoryS)
+      ++confirmed_heard;
+  }
+  const bool crowded = doa_count <= confirmed_heard;
+  // A confirmed track this array hears that got no DOA from this frame, within kBesideAngleRad
+  // of `direction`: an impulsive error of its source (reflection, gust) lands around it.
+  const auto beside_missed_track = [&](const Eigen::Vector3d& direction) {
+    for (int t = 0; t < track_count; ++t) {
+      const Track& other = tracks[t];
+      if (!other.confirmed || track_to_doa[t] >= 0 || !other.innovation_ok ||
+          time_s - other.heard_by_array_s[array] > kContributionMemoryS)
+        continue;
+      const Measurement& azel = other.innovation.predicted;
+      const Eigen::Vector3d predicted =
+          doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg);
+      if (predicted.dot(direction) >= std::cos(kBesideAngleRad)) return true;
+    }
+    return false;
+  };
   for (int t = 0; t < track_count; ++t) {
     Track& track = tracks[t];
     track.hits_by_array[array] <<= 1;
@@ -742,12 +811,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
                                track.one_array ? track.origin_noise : floor_of(m, 1.0), m, model,
                                time_s)) {
       doa_taken[j] = 1;
-      track.hits_by_array[array] |= 1u;
-      track.last_update_s = time_s;
-      track.heard_by_array_s[array] = time_s;
-      ++track.updates_by_array[array];
-      track.acoustic_by_array[array].add(m.acoustic);
-      classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+      record_update(track, array, m, time_s);
       continue;
     }
     Innovation innovation = track.innovation;
@@ -769,16 +833,25 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
     if (held_by_one_array(track)) weak_claimant[j] = track.id;
     if (status == FilterStatus::failed) continue;
-    track.hits_by_array[array] |= 1u;
-    track.last_update_s = time_s;
-    track.heard_by_array_s[array] = time_s;
-    ++track.updates_by_array[array];
-    track.acoustic_by_array[array].add(m.acoustic);
-    classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+    record_update(track, array, m, time_s);
+    if (crowded && !track.confirmed && beside_missed_track(m.direction)) ++track.crowded_updates;
     if (track.one_array) {
       if (log::level() <= log::Level::debug) log_branches(track, time_s);
       hand_over(track);
     }
+  }
+
+  for (int t = 0; t < track_count; ++t) {
+    const std::uint64_t bit = std::uint64_t{1} << array;
+    Track& track = tracks[t];
+    if (track_to_doa[t] >= 0 || !track.confirmed || track.one_array || !track.innovation_ok ||
+        dimension != 2) {
+      track.unexplained_arrays &= ~bit;
+      continue;
+    }
+    const int j = follow_manoeuvre(track, array, begin, doa_count, time_s);
+    if (j >= 0)
+      doa_taken[static_cast<std::size_t>(j)] = doa_confirmed[static_cast<std::size_t>(j)] = 1;
   }
 
   if (outlier_share) outlier_share->refresh();
@@ -805,6 +878,81 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       pending_single_seeds.push_back({array, sequence, time_s});
   }
   initiate_pending();
+}
+
+int FusionEngine::Impl::follow_manoeuvre(Track& track, int array, std::size_t begin, int doa_count,
+                                         double time_s) {
+  const std::uint64_t bit = std::uint64_t{1} << array;
+  int nearest = -1;
+  double nearest_d2 = std::numeric_limits<double>::infinity();
+  Measurement residual = Measurement::Zero();
+  MeasurementCovariance covariance = MeasurementCovariance::Identity();
+  for (int j = 0; j < doa_count; ++j) {
+    const doa::DoaMeasurement& m = queue[begin + static_cast<std::size_t>(j)];
+    // A DOA a tentative track took is no evidence against a manoeuvre: where the confirmed track
+    // falls behind, a young track along the array's ray (an outlier pair's) gates it first.
+    if (doa_confirmed[static_cast<std::size_t>(j)] != 0 || m.ambiguity != doa::DoaAmbiguity::none)
+      continue;
+    Innovation candidate = track.innovation;
+    candidate.covariance += track.inflation * own_noise(m);
+    const Measurement r = candidate.residual(measured(m));
+    const double d2 = r.dot(candidate.covariance.ldlt().solve(r));
+    if (d2 < nearest_d2) {
+      nearest = j;
+      nearest_d2 = d2;
+      residual = r;
+      covariance = candidate.covariance;
+    }
+  }
+  // Within the gate yet untaken: refused by the filter, nothing to judge.
+  if (nearest < 0 || nearest_d2 <= likelihood->gate_d2(2)) {
+    track.unexplained_arrays &= ~bit;
+    return -1;
+  }
+  // Within a manoeuvre's reach: the position spread it builds, seen from the array (an azimuth
+  // step is 1 / cos(elevation) wider).
+  const Eigen::Vector3d centre = frame_model.centre_m;
+  const double range_m = std::max((position_of(track.filter->mean()) - centre).norm(), 1.0);
+  const double reach_rad2 = manoeuvre_position_variance_m2 / (range_m * range_m);
+  const double cos_elevation = std::max(std::cos(track.innovation.predicted(1)), 0.05);
+  MeasurementCovariance reach = covariance;
+  reach(0, 0) += reach_rad2 / (cos_elevation * cos_elevation);
+  reach(1, 1) += reach_rad2;
+  if (residual.dot(reach.ldlt().solve(residual)) > likelihood->gate_d2(2)) {
+    track.unexplained_arrays &= ~bit;
+    return -1;
+  }
+  const doa::DoaMeasurement& m = queue[begin + static_cast<std::size_t>(nearest)];
+  const MeasurementCovariance noise = noise_of(m);
+  const auto a = static_cast<std::size_t>(array);
+  bool agrees = false;
+  if ((track.unexplained_arrays & bit) != 0 &&
+      time_s - track.unexplained_s[a] <= kManoeuvreRunGapS) {
+    const Measurement step = residual - track.unexplained_residual[a];
+    agrees =
+        step.dot((noise + track.unexplained_noise[a]).ldlt().solve(step)) <= likelihood->gate_d2(2);
+  }
+  track.unexplained_arrays |= bit;
+  track.unexplained_s[a] = time_s;
+  track.unexplained_residual[a] = residual;
+  track.unexplained_noise[a] = noise;
+  if (!agrees || !track.filter->add_process_noise(manoeuvre_noise)) return -1;
+  ++counters.manoeuvres_followed;
+  track.unexplained_arrays &= ~bit;
+  const FilterStatus status =
+      track.filter->innovation(frame_model, floor_of(m, track.inflation), track.innovation);
+  note(status);
+  if (status == FilterStatus::failed) return -1;
+  Innovation innovation = track.innovation;
+  innovation.covariance += track.inflation * own_noise(m);
+  innovation.noise = track.inflation * noise;
+  const Measurement z = measured(m);
+  if (innovation.mahalanobis2(z) > likelihood->gate_d2(2)) return -1;
+  const FilterStatus update_status = track.filter->update(innovation, z);
+  note(update_status);
+  if (update_status == FilterStatus::failed) return -1;
+  record_update(track, array, m, time_s);
+  return nearest;
 }
 
 void FusionEngine::Impl::check_mirror(int array, std::size_t begin, std::size_t end,
@@ -1354,7 +1502,9 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
     int arrays_heard = 0;
     int arrays_repeating = 0;  // arrays that updated it at confirm_hits distinct times
     int hits = 0;
+    int updates = 0;
     for (std::size_t a = 0; a < arrays.size(); ++a) {
+      updates += track.updates_by_array[a];
       if (track.heard_by_array_s[a] != kNeverS) ++arrays_heard;
       if (track.updates_by_array[a] >= params.confirm_hits) ++arrays_repeating;
       hits += std::popcount(track.hits_by_array[a] & window_mask);
@@ -1375,7 +1525,11 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
     const double altitude_std_m = std::sqrt(std::max(
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     const bool above_ground = altitude_m + altitude_std_m >= params.ground_altitude_m;
-    if (supported && above_ground && hits >= params.confirm_hits &&
+    // Outlier-born (issue 17): most of its DOAs came in frames whose arrays had none to spare
+    // beyond the confirmed tracks they hear. An impulsive outlier takes the place of a confirmed
+    // track's DOA; a second source adds a DOA to the frame.
+    const bool displacing = 2 * track.crowded_updates > updates;
+    if (supported && above_ground && hits >= params.confirm_hits && !displacing &&
         !explained_by_other_tracks(track) && !beneath_another_track(track) &&
         !spectra_disagree(track)) {
       track.confirmed = true;

@@ -37,6 +37,7 @@ struct FusionCounters {
   std::int64_t below_ground_rejected = 0;  // candidate points under the ground (echo images)
   std::int64_t filter_repairs = 0;         // covariances repaired (eigenvalue clamp)
   std::int64_t filter_failures = 0;        // updates refused as non-finite/unrepairable
+  std::int64_t manoeuvres_followed = 0;    // tracks widened by the manoeuvre onset test
 };
 
 class FusionEngine {

@@ -98,6 +98,11 @@ class GaussianFilter : public TrackFilter {
   }
   const StateVector& mean() const override { return mean_; }
   const StateCovariance& covariance() const override { return covariance_; }
+  bool add_process_noise(const StateCovariance& extra) override {
+    covariance_ += extra;
+    symmetrise(covariance_);
+    return true;
+  }
 
  protected:
   // The known source plane (issue 15), when the settings carry one: a pseudo-measurement.
@@ -678,6 +683,12 @@ class InteractingFilter final : public TrackFilter {
 
   const StateVector& mean() const override { return mean_; }
   const StateCovariance& covariance() const override { return covariance_; }
+  bool add_process_noise(const StateCovariance& extra) override {
+    bool any = false;
+    for (auto& model : models_) any = model->add_process_noise(extra) || any;
+    combine();
+    return any;
+  }
   int mode_count() const override { return static_cast<int>(models_.size()); }
   double mode_probability(int mode) const override {
     return probability_[static_cast<std::size_t>(mode)];

@@ -109,6 +109,9 @@ class TrackFilter {
                                          const MeasurementPeaks& /*peaks*/) {
     return update(innovation, z);
   }
+  // Widens the state's covariance by `extra` (a manoeuvre the motion model did not expect: the
+  // tracker's manoeuvre onset test), in every mode of an IMM. False when this filter cannot.
+  virtual bool add_process_noise(const StateCovariance& /*extra*/) { return false; }
   // Probability of each motion mode (one entry for a single-model filter).
   virtual int mode_count() const { return 1; }
   virtual double mode_probability(int /*mode*/) const { return 1.0; }

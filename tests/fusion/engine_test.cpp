@@ -38,6 +38,8 @@ struct RunResult {
 using Audibility = std::function<bool(int array, int drone, double time_s, std::mt19937_64&)>;
 // What array `array`'s node says of source `source`'s spectrum (the DOA line's `acoustic`).
 using Spectrum = std::function<doa::AcousticFeatures(int array, int source)>;
+// Turns a DOA into an outlier, or leaves it.
+using Corrupt = std::function<void(doa::DoaMeasurement&, std::mt19937_64&)>;
 
 // Drives the engine as the replay does: every array reports each drone every hop_s (the DOA
 // order within a frame shuffled), add -> advance_to -> tracks_at at 10 Hz. With `heard`, only
@@ -45,7 +47,7 @@ using Spectrum = std::function<doa::AcousticFeatures(int array, int source)>;
 RunResult run(const FusionParams& params, const std::vector<doa::ArrayGeometry>& arrays,
               const std::vector<Trajectory>& drones, double duration_s, DoaNoise noise,
               std::uint64_t seed = 1, const Audibility& heard = nullptr,
-              const Spectrum& spectrum = nullptr) {
+              const Spectrum& spectrum = nullptr, const Corrupt& corrupt = nullptr) {
   FusionEngine engine(params, arrays, kSpeed);
   std::mt19937_64 random(seed);
   RunResult result;
@@ -65,6 +67,7 @@ RunResult run(const FusionParams& params, const std::vector<doa::ArrayGeometry>&
                                     noise, random);
         m.source_index = static_cast<int>(k);
         if (spectrum) m.acoustic = spectrum(static_cast<int>(a), order[k]);
+        if (corrupt) corrupt(m, random);
         EXPECT_EQ(engine.add(m), DoaVerdict::accepted);
       }
     }
@@ -483,6 +486,109 @@ TEST(FusionEngine, TwoArraySiteConfirmsOnlyWhenBothArraysKeepAgreeing) {
   }
   EXPECT_FALSE(confirmed_early);
   EXPECT_TRUE(confirmed_late);
+}
+
+// Issue 17, seed002's outlier draw 2: two arrays 20 m apart, a drone flying -y at 5 m/s that
+// turns through 90 degrees onto +x (a 3 m arc, 0.94 s), a third of the DOAs impulsive outliers
+// (Cauchy, 5 degrees, in azimuth and elevation). On the straight the track is sharp (0.1-0.2 m);
+// in the turn the DOAs leave its gate. Outliers are independent from frame to frame, the turn
+// makes each array's next DOA agree with the last: that run widens the track (manoeuvre onset),
+// which then follows the turn under one id and stays honest. Before: the turn's DOAs fell
+// beyond the gate, the track coasted straight on and was lost.
+Eigen::Vector3d corner_path(double t) {
+  constexpr double speed = 5.0;
+  constexpr double radius = 3.0;
+  constexpr double turn_at_s = 10.0;
+  const double turn_s = M_PI / 2.0 * radius / speed;
+  const Eigen::Vector3d corner(-6.0, 10.0, 18.0);  // the turn's start
+  if (t < turn_at_s) return corner + Eigen::Vector3d(0.0, speed * (turn_at_s - t), 0.0);
+  if (t < turn_at_s + turn_s) {
+    const double angle = speed / radius * (t - turn_at_s);
+    return corner + Eigen::Vector3d(radius * (1.0 - std::cos(angle)), -radius * std::sin(angle), 0);
+  }
+  return corner + Eigen::Vector3d(radius + speed * (t - turn_at_s - turn_s), -radius, 0.0);
+}
+
+// The corner seen by seed 002's two arrays, 30 % of the DOAs impulsive outliers.
+RunResult run_corner_with_outliers(std::uint64_t seed, int& outliers) {
+  const std::vector<doa::ArrayGeometry> arrays{testing::tetrahedron("A1", {0, 0, 1.5}),
+                                               testing::tetrahedron("A2", {20, 0, 1.5})};
+  const Corrupt corrupt = [&outliers](doa::DoaMeasurement& m, std::mt19937_64& random) {
+    if (std::bernoulli_distribution(0.3)(random) == false) return;
+    ++outliers;
+    std::cauchy_distribution<double> impulse(0.0, 5.0);
+    const Measurement azel = azel_of(m.direction) * 180.0 / M_PI;
+    m.direction = doa::direction_from_azel_deg(azel(0) + impulse(random),
+                                               std::clamp(azel(1) + impulse(random), -89.0, 89.0));
+  };
+  return run(FusionParams{}, arrays, {corner_path}, 16.0, {0.1, true}, seed, nullptr, nullptr,
+             corrupt);
+}
+
+TEST(FusionEngine, ManoeuvreUnderImpulsiveOutliersIsFollowed) {
+  const Trajectory drone = corner_path;
+  int outliers = 0;
+  for (std::uint64_t seed : {1, 3, 4, 6}) {
+    const RunResult result = run_corner_with_outliers(seed, outliers);
+    // Per tick the confirmed track nearest the drone (outlier-born tracks elsewhere are another
+    // matter: the drone's own track must hold it).
+    std::set<int> ids;
+    double worst_turn_m = 0.0;
+    double nees_sum = 0.0;
+    int nees_count = 0;
+    for (std::size_t i = 0; i < result.reports.size(); ++i) {
+      const double t = result.times[i];
+      if (t <= 3.0) continue;
+      const TrackReport* nearest = nullptr;
+      for (const TrackReport& track : result.reports[i]) {
+        if (track.status == TrackStatus::tentative) continue;
+        if (nearest == nullptr ||
+            (track.position_m - drone(t)).norm() < (nearest->position_m - drone(t)).norm())
+          nearest = &track;
+      }
+      ASSERT_NE(nearest, nullptr) << "seed " << seed << " t " << t;
+      const Eigen::Vector3d error = nearest->position_m - drone(t);
+      ids.insert(nearest->id);
+      EXPECT_LT(error.norm(), 5.0) << "seed " << seed << " t " << t << " id " << nearest->id;
+      if (t >= 9.5 && t <= 12.5) worst_turn_m = std::max(worst_turn_m, error.norm());
+      const Eigen::Matrix3d position_covariance = nearest->covariance.topLeftCorner<3, 3>();
+      nees_sum += error.dot(position_covariance.ldlt().solve(error));
+      ++nees_count;
+    }
+    const double mean_nees = nees_sum / std::max(nees_count, 1);
+    std::printf(
+        "    seed %d: worst error in the turn %.2f m, position NEES %.2f, %lld manoeuvres\n",
+        static_cast<int>(seed), worst_turn_m, mean_nees,
+        static_cast<long long>(result.counters.manoeuvres_followed));
+    EXPECT_EQ(ids.size(), 1u) << "seed " << seed;
+    EXPECT_LT(worst_turn_m, 2.0) << "seed " << seed;
+    // 3 position states: honest is 3; a track that coasts past the turn is in the hundreds.
+    EXPECT_LT(mean_nees, 3.0 * 3.0) << "seed " << seed;
+    EXPECT_GT(mean_nees, 3.0 * 0.1) << "seed " << seed;
+  }
+  EXPECT_GT(outliers, 4 * 150);
+}
+
+// Pairs of outliers of the two arrays start tracks, and outliers then keep feeding them: on this
+// scene 2 of 6 draws had such a track confirmed 13-35 m from the drone for seconds (seeds 1 and
+// 3). Their DOAs came in frames that held no DOA beyond the drone's own, within 20 degrees of its
+// track, which got none: the drone's DOA displaced by an outlier. A second source adds a DOA to
+// the frame instead. Such a tentative track is not confirmed.
+TEST(FusionEngine, OutlierBornTrackBesideAConfirmedOneIsNotConfirmed) {
+  int outliers = 0;
+  for (std::uint64_t seed : {1, 2, 3}) {
+    const RunResult result = run_corner_with_outliers(seed, outliers);
+    int false_ticks = 0;
+    for (std::size_t i = 0; i < result.reports.size(); ++i) {
+      for (const TrackReport& track : result.reports[i]) {
+        if (track.status != TrackStatus::tentative &&
+            (track.position_m - corner_path(result.times[i])).norm() > 10.0)
+          ++false_ticks;
+      }
+    }
+    EXPECT_EQ(false_ticks, 0) << "seed " << seed;
+    EXPECT_GT(result.counters.tracks_started, 1) << "seed " << seed;  // outliers did start some
+  }
 }
 
 // The mixed site's car (issue 14): N4 hears a drone from the start, N2 only a car on the ground,
