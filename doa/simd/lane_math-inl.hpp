@@ -7,6 +7,7 @@
 #define DRONETRACK_DOA_SIMD_LANE_MATH_INL_
 #endif
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -178,7 +179,9 @@ HWY_INLINE void StoreKeep(D d, V v, std::uint8_t* keep, std::size_t count) {
   }
   HWY_ALIGN std::uint8_t row[kMaxLanes];
   hn::Store(narrow, bytes, row);
-  std::memcpy(keep, row, count);
+  // count < Lanes(d) <= kMaxLanes; the bound says so to GCC, which cannot see it on one-lane
+  // targets (-Wstringop-overread).
+  std::memcpy(keep, row, std::min(count, sizeof row));
 }
 
 template <class D, class V = hn::Vec<D>>

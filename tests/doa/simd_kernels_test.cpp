@@ -365,8 +365,11 @@ TEST(SimdKernels, DropOwnedBinsClearsTheSourcesBins) {
           simd::drop_owned_bins({runs.data(), runs.size(), kOmega, rows.data(), taus.data(), kPairs,
                                  scaled ? scales.data() : nullptr, threshold, got.data()});
       EXPECT_EQ(dropped, want_dropped) << target;
-      for (std::size_t n = 0; n < bins; ++n)
-        if (decided[n]) EXPECT_EQ(got[n], want[n]) << target << " bin " << n;
+      for (std::size_t n = 0; n < bins; ++n) {
+        if (decided[n]) {
+          EXPECT_EQ(got[n], want[n]) << target << " bin " << n;
+        }
+      }
       EXPECT_EQ(got[bins], 7) << target << ": wrote past the band";
     });
   }
