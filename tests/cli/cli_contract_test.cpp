@@ -429,7 +429,9 @@ TEST_F(CliContract, RecordingTruncatedMidRunFailsAndMarksPartial) {
 TEST_F(CliContract, SigintDuringSimWritesNothing) {
   RunOptions options;
   options.signal = SIGINT;
-  options.signal_after = 500ms;
+  // Once sim has made its output directory: its handlers are in place (main installs them
+  // first) and the render is under way. A fixed delay raced the process's start under ASan.
+  options.signal_when = [this] { return fs::exists(dir_ / "scene"); };
   const Outcome outcome = run(
       {"sim", std::string(DRONETRACK_SOURCE_DIR) + "/config/scenarios/perimeter-two-drones.json",
        "--out", (dir_ / "scene").string()},
