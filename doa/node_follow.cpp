@@ -50,6 +50,11 @@ void NodePipeline::Impl::follow_tracked_sources() {
     tried[static_cast<std::size_t>(best_slot)] = true;
     if (already_found(best_follow_solution.direction_site) || below_horizon(best_follow_solution))
       continue;
+    if (fringe_of_found(std::span<const PairTdoa>(best_follow_tdoas.data(), pairs),
+                        best_follow_solution.direction_site)) {
+      ++diagnostics.fringes_not_followed;
+      continue;
+    }
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     candidate.solution = best_follow_solution;
     std::copy(best_follow_tdoas.begin(),
@@ -62,6 +67,53 @@ void NodePipeline::Impl::follow_tracked_sources() {
     ++diagnostics.followed_sources;
     if (candidate_count < params.max_sources) mask_source(candidate_tdoas);
   }
+}
+
+// The louder source's lines stay in the frame's bins, and a track that once took one of its
+// carrier fringes (a free look's or a stray's) measures that fringe again every hop: the
+// mixed site's N4 published DOAs 4-6 deg off D1 carrying a 151 Hz comb of 4-5 lines (D1's is
+// 148 Hz with 18) and crossed them with another array's rays into a ghost said `drone`. On the
+// frame's bins (before any source's are dropped) the steered spectrum of a direction on the
+// louder source's fringe holds the lines near its carrier in phase and no comb of its own;
+// a second drone there shows its own spacing (docs/doa.md, stage 7d).
+bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> follow_tdoas,
+                                         const Eigen::Vector3d& follow_direction_site) {
+  if (!own_comb) return false;
+  const GccPhat::UnitsView units = gcc.units();
+  const std::span<const std::uint8_t> frame_bins(frame_mask);
+  const Eigen::Matrix3d site_to_array = solver.array_to_site().transpose();
+  std::array<double, kMaxPairs> follow_lags{};
+  std::array<double, kMaxPairs> found_lags{};
+  const auto pairs = static_cast<std::size_t>(gcc.pair_count());
+  const Eigen::Vector3d follow_array = site_to_array * follow_direction_site;
+  for (std::size_t p = 0; p < pairs; ++p)
+    follow_lags[p] = solver.tdoa_for_direction(static_cast<int>(p), follow_array);
+  HarmonicComb follow_comb;
+  bool follow_comb_measured = false;
+  for (int s = 0; s < candidate_count; ++s) {
+    const Candidate& found = candidates[static_cast<std::size_t>(s)];
+    int used_pairs = 0;
+    const HarmonicComb found_comb = steered_comb(
+        std::span<const PairTdoa>(found.tdoas.data(), pairs), units, frame_bins, used_pairs);
+    if (own_comb->mark_lines(found_comb, comb_lines) < node_detail::kMinOwnCombLines) continue;
+    const double carrier_hz =
+        comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
+    const Eigen::Vector3d found_array = site_to_array * found.solution.direction_site;
+    for (std::size_t p = 0; p < pairs; ++p)
+      found_lags[p] = solver.tdoa_for_direction(static_cast<int>(p), found_array);
+    if (!within_one_carrier_fringe(std::span<const double>(found_lags.data(), pairs),
+                                   std::span<const double>(follow_lags.data(), pairs), carrier_hz))
+      continue;
+    if (!follow_comb_measured) {
+      follow_comb = steered_comb(follow_tdoas, units, frame_bins, used_pairs);
+      follow_comb.harmonic_count = own_comb->mark_lines(follow_comb, comb_lines);
+      follow_comb_measured = true;
+    }
+    if (comb_is_the_sources(found_comb, follow_comb, node_detail::kMinOwnCombLines,
+                            0.5 * own_comb->bin_hz()))
+      return true;
+  }
+  return false;
 }
 
 // Every pair's correlation maximum nearest the lags of a direction (the fringe the source was

@@ -31,6 +31,8 @@ struct NodeDiagnostics {
   std::int64_t static_look_sources = 0;     // sources the static look added (doa.static_look)
   std::int64_t followed_sources =
       0;  // sources measured from their tracks' lags (doa.follow_source_tracks)
+  // Followed directions left out as a found comb source's carrier fringe (fringe_of_found()).
+  std::int64_t fringes_not_followed = 0;
   int static_sources_nulled = 0;  // ground sources whose bins are dropped (static_null)
   std::int64_t unposed_doas = 0;  // moving array: DOAs outside the pose track's span (dropped)
 };

@@ -16,6 +16,7 @@
 #include "doa/acoustic_features.hpp"
 #include "doa/array_health.hpp"
 #include "doa/bin_snr_weight.hpp"
+#include "doa/carrier_fringe.hpp"
 #include "doa/channel_health.hpp"
 #include "doa/cone_peaks.hpp"
 #include "doa/detection_gate.hpp"
@@ -88,6 +89,10 @@ struct NodePipeline::Impl {
   void follow_tracked_sources();
   bool measure_near(const Eigen::Vector3d& direction_site, std::span<PairTdoa> out,
                     DoaSolution& solution, double& power) const;
+  // A followed direction within one carrier fringe of a comb source found this frame that shows
+  // that source's comb, or none: the source again, not a second one (carrier_fringe.hpp).
+  bool fringe_of_found(std::span<const PairTdoa> follow_tdoas,
+                       const Eigen::Vector3d& follow_direction_site);
   // The static look (static_look): the held source measured again, or a search on the frames'
   // averaged phasors; adds at most one candidate (none when max_sources are found).
   void find_static_source();
@@ -111,6 +116,10 @@ struct NodePipeline::Impl {
   // Drops the kept bins off the source's own harmonic comb; false (nothing dropped) when it
   // shows no comb.
   bool keep_own_comb(int source, const GccPhat::UnitsView& units);
+  // The comb of a source's steered cross-power over the bins `keep` holds (into comb_power and
+  // comb_agreement); pairs: how many pairs carry a lag.
+  HarmonicComb steered_comb(std::span<const PairTdoa> source_tdoas, const GccPhat::UnitsView& units,
+                            std::span<const std::uint8_t> keep, int& pairs);
   // The mask as it stands (static null, sources below the horizon): what every later look of
   // this frame starts from.
   void keep_frame_mask();

@@ -396,13 +396,32 @@ bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& unit
 // (subtract_neighbour_cross_power). No comb (a broadband source): nothing dropped.
 bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& units) {
   const Candidate& candidate = candidates[static_cast<std::size_t>(source)];
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  int pairs = 0;
+  const HarmonicComb comb = steered_comb(
+      std::span<const PairTdoa>(candidate.tdoas.data(), tdoas.size()), units, keep, pairs);
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
+  const double own_bin_agreement = node_detail::kOwnBinAgreement * pairs;
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band()) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      const auto bin = static_cast<std::size_t>(k - comb_first_bin);
+      if (comb_lines[bin] == 0 && comb_agreement[bin] < own_bin_agreement) keep[index] = 0;
+    }
+  }
+  subtract_neighbour_cross_power(gcc, units, comb_lines, comb_first_bin);
+  return true;
+}
+
+HarmonicComb NodePipeline::Impl::steered_comb(std::span<const PairTdoa> source_tdoas,
+                                              const GccPhat::UnitsView& units,
+                                              std::span<const std::uint8_t> keep, int& pairs) {
   std::fill(comb_power.begin(), comb_power.end(), 0.0);
   std::fill(comb_agreement.begin(), comb_agreement.end(), 0.0);
-  int pairs = 0;
-  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  pairs = 0;
   const double omega = gcc.bin_omega_rad_per_s();
   for (int p = 0; p < gcc.pair_count(); ++p) {
-    const PairTdoa& tdoa = candidate.tdoas[static_cast<std::size_t>(p)];
+    const PairTdoa& tdoa = source_tdoas[static_cast<std::size_t>(p)];
     if (!(tdoa.variance_s2 > 0.0)) continue;
     ++pairs;
     const MicPairSpec& spec = gcc.pair_spec(p);
@@ -429,18 +448,7 @@ bool NodePipeline::Impl::keep_own_comb(int source, const GccPhat::UnitsView& uni
     }
   }
   for (double& power : comb_power) power = std::max(power, 0.0);
-  const HarmonicComb comb = own_comb->analyse(comb_power);
-  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
-  const double own_bin_agreement = node_detail::kOwnBinAgreement * pairs;
-  std::size_t index = 0;
-  for (const BandRun& run : gcc.band()) {
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      const auto bin = static_cast<std::size_t>(k - comb_first_bin);
-      if (comb_lines[bin] == 0 && comb_agreement[bin] < own_bin_agreement) keep[index] = 0;
-    }
-  }
-  subtract_neighbour_cross_power(gcc, units, comb_lines, comb_first_bin);
-  return true;
+  return own_comb->analyse(comb_power);
 }
 
 // Every source's ground reflection, found on its own bins (the others' dropped), divided out of
