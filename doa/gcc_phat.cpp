@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "doa/doa_measurement.hpp"
 #include "doa/fftw_lock.hpp"
 #include "doa/gcc_phat_internal.hpp"
 #include "doa/simd/dispatch.hpp"
@@ -227,6 +228,36 @@ void GccPhat::cross_power_from(std::span<const std::complex<double>> given_phaso
   std::fill(refined_index_.begin(), refined_index_.end(), -1);
   if (keep.data() != keep_.data()) std::copy(keep.begin(), keep.end(), keep_.begin());
   pair_phasors(units(), true, false, given_phasors.data());
+}
+
+void GccPhat::cross_power_from(std::span<const std::complex<double>> given_phasors,
+                               std::span<const std::uint8_t> keep, const BinOwners& owners) {
+  static_assert(BinOwners::kMaxTerms <= simd::kMaxLookTerms);
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
+  if (keep.data() != keep_.data()) std::copy(keep.begin(), keep.end(), keep_.begin());
+  for (double& w : weights_) w = std::clamp(w, kMinWeight, 1.0);
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  std::array<const double*, kMaxPairs> given{}, level_i{}, level_j{};
+  std::array<double*, kMaxPairs> out{}, magnitudes{};
+  std::array<float*, kMaxPairs> floats{};
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
+    given[p] = reinterpret_cast<const double*>(given_phasors.data() + p * bins);
+    level_i[p] = levels_.data() + static_cast<std::size_t>(pairs_[p].mic_i) * bins;
+    level_j[p] = levels_.data() + static_cast<std::size_t>(pairs_[p].mic_j) * bins;
+    out[p] = reinterpret_cast<double*>(phasors_.data() + p * bins);
+    floats[p] = phasor_floats(p);
+    magnitudes[p] = magnitudes_.data() + p * bins;
+  }
+  simd::look_phasors({runs_.data(), runs_.size(), bin_omega_, pair_count(), given.data(),
+                      level_i.data(), level_j.data(), kSilentBin, keep_.data(), weights_.data(),
+                      owners.pairs.data(), owners.taus_s.data(), owners.starts.data(),
+                      owners.sources, owners.thresholds.data(), out.data(), floats.data(),
+                      magnitudes.data(), magnitude_sums_.data()});
+  // The phasors carry the final mask and the weights, with their sums: prepare() only sums.
+  weights_applied_ = true;
+  sums_weighted_ = true;
+  prepared_ = false;
+  std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
 }
 
 void GccPhat::redirect_phasor(int pair, int band_index, std::complex<double> cross_power) {

@@ -62,6 +62,19 @@ struct PairCorrelation {
   int peak_count = 0;
 };
 
+// Found sources whose bins a look on given phasors drops as it makes them (cross_power_from();
+// SourceBinMask::add_owner() fills it): source s owns a bin when the sum over its terms (a pair
+// and its TDOA) of Re(W_p e^{j w_k tau_p}) reaches thresholds[s].
+struct BinOwners {
+  static constexpr int kMaxTerms = 32;
+  static constexpr int kMaxSources = 8;
+  std::array<int, kMaxTerms> pairs{};
+  std::array<double, kMaxTerms> taus_s{};
+  std::array<int, kMaxSources + 1> starts{};  // source s's terms [starts[s], starts[s + 1])
+  std::array<double, kMaxSources> thresholds{};
+  int sources = 0;
+};
+
 class GccPhat {
  public:
   GccPhat(int fft_size, int frame_length, double sample_rate_hz,
@@ -160,6 +173,12 @@ class GccPhat {
   // magnitudes and which bins are live stay the frame's.
   void cross_power_from(std::span<const std::complex<double>> given_phasors,
                         std::span<const std::uint8_t> keep);
+  // The same, then the owners' bins dropped from `keep` (SourceBinMask::drop() on the
+  // normalised phasors, one source after another) and the phasors weighted (bin_weight(), as a
+  // weighted correlate() would scale them), in one pass: the same phasors, magnitudes and mask
+  // as cross_power_from(), the drops and the weighted correlate()'s scaling make, bit for bit.
+  void cross_power_from(std::span<const std::complex<double>> given_phasors,
+                        std::span<const std::uint8_t> keep, const BinOwners& owners);
 
   // Turns one bin's phasor of one pair to the direction of `cross_power` (its magnitude, the
   // bin's weight, kept; a dropped bin stays 0): for a cross-power corrected after

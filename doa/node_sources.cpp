@@ -289,8 +289,15 @@ bool NodePipeline::Impl::follow_static_source() {
 // Up to max_looks SRP looks on the averaged phasors: a look that lands on a direction the own
 // looks explain, or that is not static, has its lobe taken out before the next.
 bool NodePipeline::Impl::search_static_source() {
-  static_look->load_average(gcc, frame_mask);
-  for (int s = 0; s < candidate_count; ++s)
+  // The found sources' bins dropped as the average is loaded (one pass), else one by one.
+  BinOwners owners;
+  bool fused = true;
+  for (int s = 0; s < candidate_count && fused; ++s)
+    fused = bin_mask.add_owner(
+        owners, {candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()});
+  if (fused) static_look->load_average(gcc, frame_mask, owners);
+  if (!fused) static_look->load_average(gcc, frame_mask);
+  for (int s = 0; s < candidate_count && !fused; ++s)
     bin_mask.drop(gcc, std::span<const PairTdoa>(
                            candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
   gcc.correlate(false);

@@ -33,4 +33,21 @@ int SourceBinMask::drop(GccPhat& gcc, std::span<const PairTdoa> tdoas) {
                                 gcc.bin_keep().data()});
 }
 
+bool SourceBinMask::add_owner(BinOwners& owners, std::span<const PairTdoa> tdoas) const {
+  if (owners.sources >= BinOwners::kMaxSources) return false;
+  const int first = owners.starts[static_cast<std::size_t>(owners.sources)];
+  int terms = first;
+  for (std::size_t p = 0; p < tdoas.size() && p < kMaxPairs; ++p) {
+    if (!(tdoas[p].variance_s2 > 0.0)) continue;
+    if (terms >= BinOwners::kMaxTerms) return false;
+    owners.pairs[static_cast<std::size_t>(terms)] = static_cast<int>(p);
+    owners.taus_s[static_cast<std::size_t>(terms++)] = tdoas[p].tdoa_s;
+  }
+  // drop() leaves the mask alone for a source without a measured pair: no terms, no source.
+  if (terms == first) return true;
+  owners.thresholds[static_cast<std::size_t>(owners.sources)] = threshold_ * (terms - first);
+  owners.starts[static_cast<std::size_t>(++owners.sources)] = terms;
+  return true;
+}
+
 }  // namespace dronetrack::doa

@@ -23,6 +23,9 @@ class SourceBinMask {
   // Clears, in gcc.bin_keep(), the bins the source with these TDOAs dominates (after
   // GccPhat::whiten(), before correlate()); returns how many it cleared.
   int drop(GccPhat& gcc, std::span<const PairTdoa> tdoas);
+  // The same test for a look that drops as it makes its phasors (GccPhat::cross_power_from()):
+  // this source's terms appended to `owners`; false (owners unchanged) when they do not fit.
+  bool add_owner(BinOwners& owners, std::span<const PairTdoa> tdoas) const;
 
  private:
   double threshold_;

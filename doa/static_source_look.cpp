@@ -42,6 +42,11 @@ void StaticSourceLook::load_average(GccPhat& gcc, std::span<const std::uint8_t> 
   gcc.cross_power_from(average_, keep);
 }
 
+void StaticSourceLook::load_average(GccPhat& gcc, std::span<const std::uint8_t> keep,
+                                    const BinOwners& owners) const {
+  gcc.cross_power_from(average_, keep, owners);
+}
+
 void StaticSourceLook::note_found(double time_s, std::span<const Eigen::Vector3d> directions_site) {
   for (const Eigen::Vector3d& direction : directions_site) {
     found_[next_found_] = {time_s, direction};

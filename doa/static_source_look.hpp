@@ -52,6 +52,10 @@ class StaticSourceLook {
   void accumulate(const GccPhat& gcc);
   // The averaged phasors (unit length) into gcc under `keep`, unweighted; correlate next.
   void load_average(GccPhat& gcc, std::span<const std::uint8_t> keep) const;
+  // The same with the found sources' bins dropped and the phasors weighted as they are made
+  // (GccPhat::cross_power_from() with owners): correlate next.
+  void load_average(GccPhat& gcc, std::span<const std::uint8_t> keep,
+                    const BinOwners& owners) const;
   // The frame's own looks' sources (site frame), every frame before the look: a look within
   // `separation_cosine` of one found within own_look_memory_s is theirs (explained()).
   void note_found(double time_s, std::span<const Eigen::Vector3d> directions_site);

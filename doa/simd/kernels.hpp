@@ -184,6 +184,39 @@ struct OwnedBinScan {
 };
 int drop_owned_bins(const OwnedBinScan& scan);
 
+// ---- static look ----
+
+// The static look's pairs from phasors averaged over frames, in one pass: per pair the given
+// phasor normalised to unit length (0 stays 0) where the bin is live (|X_i| |X_j| above
+// `silent_level`, keep 1); then each found source's bins dropped from `keep` (the sum over its
+// terms of Re(W_p e^{j w_k tau}) at or above its threshold, as drop_owned_bins unscaled); then
+// the phasors times keep x weight and the magnitudes |X_i| |X_j| times keep, with their
+// weighted sums. Source s's terms are [source_starts[s], source_starts[s + 1]), at most
+// kMaxLookTerms in all.
+struct LookRows {
+  const BandRun* runs;
+  std::size_t run_count;
+  double bin_omega;
+  int pairs;
+  const double* const* given;  // per pair, (re, im) interleaved over the band
+  const double* const* level_i;
+  const double* const* level_j;
+  double silent_level;
+  std::uint8_t* keep;     // in: the mask; out: minus the sources' bins
+  const double* weights;  // within (0, 1]
+  const int* term_pairs;
+  const double* term_taus;
+  const int* source_starts;  // sources + 1 entries
+  int sources;
+  const double* thresholds;  // per source
+  double* const* out;        // per pair, (re, im) interleaved
+  float* const* out_floats;  // per pair, null or `out` again in single precision
+  double* const* magnitudes;
+  double* magnitude_sums;  // per pair
+};
+inline constexpr int kMaxLookTerms = 32;
+void look_phasors(const LookRows& rows);
+
 // ---- framer ----
 
 // Four interleaved channels' `count` frames into each channel's run (channel c at

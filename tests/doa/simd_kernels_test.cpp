@@ -375,6 +375,131 @@ TEST(SimdKernels, DropOwnedBinsClearsTheSourcesBins) {
   }
 }
 
+// The static look's one pass against the four it stands for, on the same target: pair_products
+// of the averaged phasors under the mask, drop_owned_bins per found source (one on every pair,
+// one on two of three), kept_sums' weight scales and scale_and_sum. Phasors (double and
+// single), magnitudes and keep bytes bit for bit; the magnitude sums to rounding (two band runs
+// of lengths that leave partial vectors: the fused pass's lanes restart at each run).
+TEST(SimdKernels, LookPhasorsIsTheFourPassesInOne) {
+  constexpr double kOmega = 2.0 * 3.141592653589793 * 48000.0 / 8192.0;
+  constexpr int kPairs = 3;
+  const std::array<BandRun, 2> runs{BandRun{101, 143}, BandRun{150, 186}};
+  const std::size_t bins = 43 + 37;
+  const std::array<std::array<int, 2>, kPairs> mics{{{0, 1}, {0, 2}, {1, 2}}};
+  const std::array<double, kPairs> taus_a{1.1e-3, -0.4e-3, -1.5e-3};
+  const std::array<double, kPairs> taus_b{-0.7e-3, 0.9e-3, 1.6e-3};
+  std::mt19937 random(29);
+  std::uniform_real_distribution<double> angle(-3.14159, 3.14159);
+  std::uniform_real_distribution<double> share(0.01, 1.0);
+  std::vector<double> levels(3 * bins);
+  for (double& level : levels) level = share(random);
+  for (std::size_t n = 5; n < bins; n += 17) levels[n] = 0.0;  // mic 0 silent: no phase
+  std::vector<std::vector<double>> given(kPairs, std::vector<double>(2 * bins));
+  std::vector<double> weights(bins);
+  std::vector<std::uint8_t> mask(bins + 1, 1);
+  mask[bins] = 7;
+  std::vector<double> omega2(bins);
+  std::size_t at = 0;
+  for (const BandRun& run : runs) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++at) {
+      omega2[at] = (k * kOmega) * (k * kOmega);
+      weights[at] = share(random);
+      mask[at] = at % 7 == 3 ? 0 : 1;
+      for (int p = 0; p < kPairs; ++p) {
+        // A's bins, B's bins, noise; averaged phasors are shorter than 1, some 0.
+        const double phase = at % 3 == 0   ? -kOmega * k * taus_a[static_cast<std::size_t>(p)]
+                             : at % 3 == 1 ? -kOmega * k * taus_b[static_cast<std::size_t>(p)]
+                                           : angle(random);
+        const std::complex<double> value =
+            at % 11 == 4 ? std::complex<double>{} : std::polar(share(random), phase);
+        given[static_cast<std::size_t>(p)][2 * at] = value.real();
+        given[static_cast<std::size_t>(p)][2 * at + 1] = value.imag();
+      }
+    }
+  }
+  const std::array<int, 5> term_pairs{0, 1, 2, 0, 2};
+  const std::array<double, 5> term_taus{taus_a[0], taus_a[1], taus_a[2], taus_b[0], taus_b[2]};
+  const std::array<int, 3> starts{0, 3, 5};
+  const std::array<double, 2> thresholds{0.5 * 3, 0.5 * 2};
+  on_every_target([&](const std::string& target) {
+    // The four passes.
+    std::vector<std::vector<double>> out(kPairs, std::vector<double>(2 * bins));
+    std::vector<std::vector<float>> floats(kPairs, std::vector<float>(2 * bins));
+    std::vector<std::vector<double>> magnitudes(kPairs, std::vector<double>(bins));
+    std::vector<std::uint8_t> keep = mask;
+    std::array<double, kPairs> sums{};
+    for (std::size_t p = 0; p < kPairs; ++p) {
+      const double* level_i = levels.data() + static_cast<std::size_t>(mics[p][0]) * bins;
+      const double* level_j = levels.data() + static_cast<std::size_t>(mics[p][1]) * bins;
+      simd::pair_products({{level_i, level_i},
+                           {level_j, level_j},
+                           level_i,
+                           level_j,
+                           keep.data(),
+                           nullptr,
+                           bins,
+                           1e-30,
+                           given[p].data(),
+                           out[p].data(),
+                           floats[p].data(),
+                           magnitudes[p].data()});
+    }
+    const auto* rows = reinterpret_cast<const std::complex<double>*>(out[0].data());
+    const std::array<const std::complex<double>*, 3> rows_a{
+        rows, reinterpret_cast<const std::complex<double>*>(out[1].data()),
+        reinterpret_cast<const std::complex<double>*>(out[2].data())};
+    const std::array<const std::complex<double>*, 2> rows_b{rows_a[0], rows_a[2]};
+    const int dropped_a =
+        simd::drop_owned_bins({runs.data(), runs.size(), kOmega, rows_a.data(), term_taus.data(), 3,
+                               nullptr, thresholds[0], keep.data()});
+    const std::array<double, 2> b_taus{term_taus[3], term_taus[4]};
+    const int dropped_b =
+        simd::drop_owned_bins({runs.data(), runs.size(), kOmega, rows_b.data(), b_taus.data(), 2,
+                               nullptr, thresholds[1], keep.data()});
+    ASSERT_GT(dropped_a, 10) << target;  // not vacuous: both sources own bins
+    ASSERT_GT(dropped_b, 10) << target;
+    std::vector<double> scales(bins), keeps(bins);
+    simd::kept_sums({keep.data(), weights.data(), omega2.data(), bins, true, simd::Rescale::weight,
+                     scales.data(), keeps.data()});
+    for (std::size_t p = 0; p < kPairs; ++p)
+      sums[p] = simd::scale_and_sum({out[p].data(), floats[p].data(), magnitudes[p].data(),
+                                     scales.data(), keeps.data(), weights.data(), true, bins});
+    // The one pass.
+    std::vector<std::vector<double>> fused(kPairs, std::vector<double>(2 * bins + 2, 9.0));
+    std::vector<std::vector<float>> fused_floats(kPairs, std::vector<float>(2 * bins));
+    std::vector<std::vector<double>> fused_magnitudes(kPairs, std::vector<double>(bins));
+    std::vector<std::uint8_t> fused_keep = mask;
+    std::array<double, kPairs> fused_sums{};
+    std::array<const double*, kPairs> given_rows{}, level_i{}, level_j{};
+    std::array<double*, kPairs> out_rows{}, magnitude_rows{};
+    std::array<float*, kPairs> float_rows{};
+    for (std::size_t p = 0; p < kPairs; ++p) {
+      given_rows[p] = given[p].data();
+      level_i[p] = levels.data() + static_cast<std::size_t>(mics[p][0]) * bins;
+      level_j[p] = levels.data() + static_cast<std::size_t>(mics[p][1]) * bins;
+      out_rows[p] = fused[p].data();
+      float_rows[p] = fused_floats[p].data();
+      magnitude_rows[p] = fused_magnitudes[p].data();
+    }
+    simd::look_phasors({runs.data(), runs.size(), kOmega, kPairs, given_rows.data(), level_i.data(),
+                        level_j.data(), 1e-30, fused_keep.data(), weights.data(), term_pairs.data(),
+                        term_taus.data(), starts.data(), 2, thresholds.data(), out_rows.data(),
+                        float_rows.data(), magnitude_rows.data(), fused_sums.data()});
+    EXPECT_EQ(fused_keep, keep) << target;
+    EXPECT_EQ(fused_keep[bins], 7) << target << ": wrote past the band";
+    for (std::size_t p = 0; p < kPairs; ++p) {
+      for (std::size_t n = 0; n < 2 * bins; ++n) {
+        EXPECT_EQ(fused[p][n], out[p][n]) << target << " pair " << p << " value " << n;
+        EXPECT_EQ(fused_floats[p][n], floats[p][n]) << target << " pair " << p;
+      }
+      EXPECT_EQ(fused[p][2 * bins], 9.0) << target << ": wrote past the band";
+      EXPECT_EQ(fused_magnitudes[p], magnitudes[p]) << target << " pair " << p;
+      EXPECT_NEAR(fused_sums[p], sums[p], 1e-12 * sums[p]) << target << " pair " << p;
+      EXPECT_GT(sums[p], 1.0) << target;  // live bins are left
+    }
+  });
+}
+
 TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
   std::mt19937 random(17);
   std::uniform_real_distribution<float> sample(0.0F, 2.0F);
