@@ -389,7 +389,6 @@ struct FusionEngine::Impl {
   // at one, none at another, or combs whose spacings no Doppler shift between the arrays
   // explains): the rays of two sources that cross, each source heard by one of the arrays.
   bool spectra_disagree(const Track& track) const;
-  double sound_speed_mps = 343.0;
   // A position spread beyond max_position_std_m is a lost track, except along the ray of an array
   // that still hears it: one static array's bearings give no range, so a hovering drone only that
   // array hears keeps a spread along its ray that grows for as long as no second array hears it
@@ -517,7 +516,6 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   }
   Impl& s = *impl_;
   s.params = params;
-  s.sound_speed_mps = speed_of_sound_mps;
   s.arrays = std::move(arrays);
   for (const auto& array : s.arrays) {
     s.models.push_back(
@@ -1472,8 +1470,10 @@ bool FusionEngine::Impl::spectra_disagree(const Track& track) const {
   constexpr double kNoCombShare = 0.25;
   // Two arrays hear one source's comb spacing shifted by its Doppler towards each, at most
   // 2 v / c apart, plus the detector's own spread (a few %). The detector takes the smallest
-  // spacing that correlates nearly as well as the best, so it does not report a multiple.
-  const double tolerance = 2.0 * params.init_max_speed_mps / sound_speed_mps + 0.05;
+  // spacing that correlates nearly as well as the best, so it does not report a multiple. Every
+  // array's model carries the site's one speed of sound.
+  const double tolerance =
+      2.0 * params.init_max_speed_mps / models.front().speed_of_sound_mps + 0.05;
   bool comb_heard = false;
   bool no_comb_heard = false;
   double lowest_hz = std::numeric_limits<double>::infinity();
