@@ -184,6 +184,9 @@ struct Track {
   std::array<int, kMaxArrays> updates_by_array{};  // DOAs taken from each array
   Innovation innovation;                           // of the current frame
   bool innovation_ok = false;
+  // The innovation's prediction as a unit vector (an azel frame's): where the sound now arriving
+  // left the track, seen from the frame's array.
+  Eigen::Vector3d predicted_direction = Eigen::Vector3d::UnitX();
   double inflation = 1.0;  // of this frame's DOA covariance (correlated errors)
   TrackEvidence evidence;  // drone or not
   std::array<AcousticTally, kMaxArrays> acoustic_by_array{};
@@ -238,6 +241,7 @@ struct FusionEngine::Impl {
   // Per array, the outlier mixture's e (adaptive_outlier_probability; else empty).
   std::vector<OutlierShareEstimate> outlier_shares;
   double floor_variance_rad2 = 0.0;
+  const double beside_cosine = std::cos(kBesideAngleRad);
 
   std::vector<doa::DoaMeasurement> queue;  // sorted by (time, array, source)
   double fed_time_s = kNeverS;             // newest time handed to the tracker
@@ -754,6 +758,9 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     note(status);
     track.innovation_ok = status != FilterStatus::failed;
     if (!track.innovation_ok) continue;
+    const Measurement& azel = track.innovation.predicted;
+    track.predicted_direction =
+        doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg);
     for (int j = 0; j < doa_count; ++j) {
       const doa::DoaMeasurement& m = queue[begin + j];
       if (m.ambiguity != frame_ambiguity) continue;
@@ -790,10 +797,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       if (!other.confirmed || track_to_doa[t] >= 0 || !other.innovation_ok ||
           time_s - other.heard_by_array_s[array] > kContributionMemoryS)
         continue;
-      const Measurement& azel = other.innovation.predicted;
-      const Eigen::Vector3d predicted =
-          doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg);
-      if (predicted.dot(direction) >= std::cos(kBesideAngleRad)) return true;
+      if (other.predicted_direction.dot(direction) >= beside_cosine) return true;
     }
     return false;
   };
@@ -980,9 +984,7 @@ void FusionEngine::Impl::check_mirror(int array, std::size_t begin, std::size_t 
     const double across_m2 =
         0.5 * (position_covariance.trace() - ray.dot(position_covariance * ray));
     if (!(std::sqrt(std::max(across_m2, 0.0)) <= max_angle_rad * range_m)) continue;
-    // The innovation's prediction: where the sound now arriving left the track.
-    const Measurement& azel = track.innovation.predicted;
-    references.push_back(doa::direction_from_azel_deg(azel(0) / kRadPerDeg, azel(1) / kRadPerDeg));
+    references.push_back(track.predicted_direction);
   }
   if (references.empty()) return;
   const doa::PoseStamp& pose = queue[begin].pose;
