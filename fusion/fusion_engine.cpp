@@ -467,8 +467,6 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   check(params.student_t_dof >= 1.0, "student_t_dof", "must be >= 1");
   check(params.outlier_probability >= 0.0 && params.outlier_probability < 1.0,
         "outlier_probability", "must be in [0, 1)");
-  check(params.outlier_spread_deg >= 0.0 && params.outlier_spread_deg <= 180.0,
-        "outlier_spread_deg", "must be in [0, 180]");
   check(params.doa_noise_floor_deg >= 0.0, "doa_noise_floor_deg", "must be >= 0");
   check(params.init_pair_window_s > 0.0, "init_pair_window_s", "must be > 0");
   check(params.init_max_range_m > 0.0, "init_max_range_m", "must be > 0");
@@ -532,7 +530,7 @@ FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeo
   s.filter_settings.ukf_kappa = params.ukf_kappa;
   s.filter_settings.particle_count = params.particle_count;
   s.likelihood.emplace(params.likelihood, params.student_t_dof, params.outlier_probability,
-                       params.gate_probability, params.outlier_spread_deg * kRadPerDeg);
+                       params.gate_probability);
   s.filter_settings.likelihood = *s.likelihood;
   s.filter_settings.imm_jerk_std_mps3 = params.imm_jerk_std_mps3;
   if (params.imm_jerk_std_mps3.size() == 1) {  // one level: a single model at that level
