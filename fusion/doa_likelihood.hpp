@@ -64,7 +64,7 @@ class DoaLikelihood {
   // (2 pi)^(p/2) sqrt(det S) / V exp(d^2 / 2): (2 / gamma) exp(d^2 / 2) for a direction,
   // sqrt(2 pi) / (2 sqrt gamma) exp(d^2 / 2) for a cone, whatever S. One gated DOA's whole say on
   // e (outlier_share.hpp): its likelihood is proportional to 1 - e + e g.
-  double outlier_density_ratio(double d2, double /*log_det_covariance*/, int dimension) const {
+  double outlier_density_ratio(double d2, int dimension) const {
     return ratio_per_odds(dimension) * std::exp(0.5 * d2);
   }
 

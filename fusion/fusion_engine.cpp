@@ -254,6 +254,7 @@ struct FusionEngine::Impl {
   // Per-frame workspace, reused.
   Assignment assignment;
   std::vector<double> cost;
+  std::vector<double> distance2;  // per (track, DOA) as cost: the gate's d^2, kept for e
   std::vector<int> track_to_doa;
   std::vector<char> doa_taken;
   std::vector<char> doa_confirmed;  // taken by a confirmed track
@@ -746,6 +747,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
   // vague track does not steal DOAs from a sharp one.
   const auto track_count = static_cast<int>(tracks.size());
   cost.assign(static_cast<std::size_t>(track_count) * doa_count, kForbidden);
+  distance2.assign(cost.size(), std::numeric_limits<double>::infinity());
   for (int t = 0; t < track_count; ++t) {
     Track& track = tracks[t];
     track.filter->predict(time_s - track.time_s);
@@ -765,6 +767,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
       Innovation candidate = track.innovation;
       candidate.covariance += track.inflation * own_noise(m);
       const double d2 = candidate.mahalanobis2(measured(m));
+      distance2[static_cast<std::size_t>(t) * doa_count + j] = d2;
       if (d2 <= likelihood->gate_d2(dimension)) {
         cost[static_cast<std::size_t>(t) * doa_count + j] = likelihood->assignment_cost(
             d2, std::log(candidate.covariance.determinant()), dimension, share);
@@ -825,7 +828,7 @@ void FusionEngine::Impl::process_frame(std::size_t begin, std::size_t end) {
     // "inliers" are nobody's.
     if (outlier_share && track.confirmed) {
       outlier_share->add(likelihood->outlier_density_ratio(
-          innovation.mahalanobis2(z), std::log(innovation.covariance.determinant()), dimension));
+          distance2[static_cast<std::size_t>(t) * doa_count + j], dimension));
     }
     // The filter weighs z by the DOA likelihood itself (FilterSettings::likelihood).
     const FilterStatus status = track.filter->update_with_peaks(innovation, z, peaks_of(m));

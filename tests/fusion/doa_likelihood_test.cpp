@@ -70,6 +70,9 @@ TEST(DoaLikelihood, MixtureInlierProbabilityIsBayes) {
       const double outlier = e / (M_PI * gamma * r);
       EXPECT_NEAR(mixture.weigh(innovation, z), inlier / (inlier + outlier), 1e-12);
       EXPECT_EQ(innovation.noise, MeasurementCovariance::Identity() * r);  // R untouched
+      // The adaptive e's g: the uniform part over the Gaussian part, per unit of the odds.
+      EXPECT_NEAR(mixture.outlier_density_ratio(d2, 2) * e / (1.0 - e), outlier / inlier,
+                  1e-9 * outlier / inlier);
       // Twice the negative log of the same density, up to a constant.
       EXPECT_NEAR(
           mixture.assignment_cost(d2, std::log(r * r)) - mixture.assignment_cost(0.0, 0.0),

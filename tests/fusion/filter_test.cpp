@@ -218,8 +218,7 @@ Consistency run_monte_carlo(FilterKind kind, int runs, int steps, const Impulses
       if (impulses.adaptive) innovation.outlier_probability = share.share();
       const double d2 = innovation.mahalanobis2(z);
       if (impulses.adaptive && d2 <= settings.likelihood.gate_d2()) {
-        share.add(settings.likelihood.outlier_density_ratio(
-            d2, std::log(innovation.covariance.determinant()), 2));
+        share.add(settings.likelihood.outlier_density_ratio(d2, 2));
         share.refresh();
       }
       if (step >= steps / 2 && !outlier) {
