@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "fusion/state.hpp"
 #include "scene.hpp"
 
 namespace dronetrack::fusion {
