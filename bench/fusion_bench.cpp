@@ -64,8 +64,7 @@ void filter_update(benchmark::State& state, FilterKind kind, int imm = 0,
       innovation.outlier_probability = share.share();
       const double d2 = innovation.mahalanobis2(z);
       if (d2 <= settings.likelihood.gate_d2()) {
-        share.add(settings.likelihood.outlier_density_ratio(
-            d2, std::log(innovation.covariance.determinant()), 2));
+        share.add(settings.likelihood.outlier_density_ratio(d2, 2));
         share.refresh();
       }
     }

@@ -66,8 +66,6 @@ void parse_fusion_params(ObjectReader& section, fusion::FusionParams& params) {
   params.student_t_dof = section.number("student_t_dof", params.student_t_dof, 1.0, 100.0);
   params.outlier_probability =
       section.number("outlier_probability", params.outlier_probability, 0.0, 0.9);
-  params.outlier_spread_deg =
-      section.number("outlier_spread_deg", params.outlier_spread_deg, 0.0, 180.0);
   params.adaptive_outlier_probability =
       section.boolean("adaptive_outlier_probability", params.adaptive_outlier_probability);
   // A window under 50 DOAs cannot tell e = 0 from e = 0.1 (docs/fusion.md "Estimating e").

@@ -31,21 +31,6 @@ BinSnrWeight::BinSnrWeight(std::vector<BandRun> runs, double hop_s, double noise
   noise_ = power_;
 }
 
-void BinSnrWeight::update(const MultichannelFft& spectra, std::span<double> weights) {
-  std::fill(power_.begin(), power_.end(), 0.0);
-  const double per_channel = 1.0 / spectra.channels();
-  for (int c = 0; c < spectra.channels(); ++c) {
-    const std::complex<double>* x = spectra.spectrum(c);
-    std::size_t index = 0;
-    for (const BandRun& run : runs_) {
-      for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-        power_[index] += per_channel * std::norm(x[k]);
-      }
-    }
-  }
-  weigh(weights);
-}
-
 void BinSnrWeight::update(std::span<const double> channel_powers, int channels,
                           std::span<double> weights) {
   std::fill(power_.begin(), power_.end(), 0.0);

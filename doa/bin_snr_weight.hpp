@@ -22,11 +22,10 @@ class BinSnrWeight {
   // `noise_rise_db_per_s`: how fast a bin's noise estimate may follow a louder background.
   BinSnrWeight(std::vector<BandRun> runs, double hop_s, double noise_rise_db_per_s, double floor);
 
-  // One frame's channel spectra in, one weight in [0, 1] per band bin out (GccPhat order).
-  // Non-finite spectra leave the estimates alone and give weight 1 (plain PHAT).
-  void update(const MultichannelFft& spectra, std::span<double> weights);
-  // The same from each channel's |X|^2 over the band bins (channel c's row at c * band bins;
-  // GccPhat::band_powers()): no pass over the spectra of its own.
+  // One frame's |X|^2 of each channel over the band bins in (channel c's row at c * band bins;
+  // GccPhat::band_powers(), so no pass over the spectra of its own), one weight in [0, 1] per
+  // band bin out (GccPhat order). Non-finite powers leave the estimates alone and give weight 1
+  // (plain PHAT).
   void update(std::span<const double> channel_powers, int channels, std::span<double> weights);
 
  private:

@@ -7,16 +7,15 @@
 #include <stdexcept>
 #include <string>
 
-#include "doa/simd/kernels.hpp"
-
 namespace dronetrack::doa {
 
 namespace {
 
 constexpr double kFloorDbfs = -120.0;
-// Raised problems one scan() can hold: a block of up to (kEventsPerProblem - 1) x rewarn_s
-// raises each problem of each channel at most kEventsPerProblem times. Beyond that (blocks of
-// minutes) the extra events are dropped; the counters and flags still hold the problem.
+// Raised problems events() can hold between clear_events() calls: a block of up to
+// (kEventsPerProblem - 1) x rewarn_s raises each problem of each channel at most kEventsPerProblem
+// times. Beyond that (blocks of minutes) the extra events are dropped; the counters and flags still
+// hold the problem.
 constexpr std::size_t kEventsPerProblem = 4;
 
 double to_dbfs(double amplitude) {
@@ -65,9 +64,6 @@ ChannelHealth::ChannelHealth(int channels, double sample_rate_hz,
   counters_.assign(n, ChannelHealthCounters{});
   states_.assign(n, {});
   events_.reserve(n * kHealthProblemCount * kEventsPerProblem);
-  run_sums_.assign(n, 0.0F);
-  run_squares_.assign(n, 0.0F);
-  run_peaks_.assign(n, 0.0F);
 }
 
 std::int64_t ChannelHealth::non_finite_samples() const {
@@ -82,78 +78,11 @@ std::int64_t ChannelHealth::clipped_samples() const {
   return total;
 }
 
-void ChannelHealth::scan(const AudioBlockView& block) {
-  events_.clear();
-  if (block.channels != channels_ || block.frames == 0 || block.interleaved == nullptr) return;
-  std::size_t done = 0;
-  while (done < block.frames) {
-    const std::int64_t first_sample = block.first_sample + static_cast<std::int64_t>(done);
-    if (filled_ == 0) stretch_first_sample_ = first_sample;
-    const auto count = static_cast<std::size_t>(std::min<std::int64_t>(
-        static_cast<std::int64_t>(block.frames - done), stretch_frames_ - filled_));
-    accumulate(block.interleaved + done * static_cast<std::size_t>(channels_), count, first_sample);
-    done += count;
-    filled_ += static_cast<std::int64_t>(count);
-    next_sample_ = first_sample + static_cast<std::int64_t>(count);
-    if (filled_ == stretch_frames_) judge(filled_);
-  }
-}
-
 void ChannelHealth::finish() {
   events_.clear();
   if (filled_ > 0 &&
       static_cast<double>(filled_) >= settings_.min_last_stretch_s * sample_rate_hz_) {
     judge(filled_);
-  }
-}
-
-namespace {
-
-// The fast pass over the interleaved run: per channel a sum, a sum of squares and a peak, in
-// float (a run's worth; the stretch adds them up in double), by the SIMD layer's kernel. A
-// non-finite sample makes its channel's sum of squares non-finite, so a channel whose sums are
-// finite and whose peak is under the clip level needs no per-sample test; a float square
-// overflows only beyond 1.8e19, which sends that channel to the exact per-sample path too.
-void sum_run(int channels, const float* interleaved, std::size_t frames, float* sums,
-             float* squares, float* peaks) {
-  if (channels <= simd::kMaxInterleavedChannels) {
-    simd::channel_sums({interleaved, frames, channels, sums, squares, peaks});
-    return;
-  }
-  // More channels than a node has mics: channel by channel.
-  for (int c = 0; c < channels; ++c) {
-    float sum = 0.0F, square = 0.0F, peak = 0.0F;
-    for (std::size_t n = 0; n < frames; ++n) {
-      const float value =
-          interleaved[n * static_cast<std::size_t>(channels) + static_cast<std::size_t>(c)];
-      sum += value;
-      square += value * value;
-      peak = std::max(peak, std::fabs(value));
-    }
-    sums[c] = sum;
-    squares[c] = square;
-    peaks[c] = peak;
-  }
-}
-
-}  // namespace
-
-// Runs of at most kRunFrames: float sums over a run lose nothing that matters (relative
-// error ~kRunFrames x 6e-8); each run's per-channel sums go to buffers sized at construction.
-void ChannelHealth::accumulate(const float* interleaved, std::size_t frames,
-                               std::int64_t first_sample) {
-  constexpr std::size_t kRunFrames = 4096;
-  const auto stride = static_cast<std::size_t>(channels_);
-  for (std::size_t done = 0; done < frames; done += kRunFrames) {
-    const std::size_t count = std::min(kRunFrames, frames - done);
-    const float* run = interleaved + done * stride;
-    const std::int64_t run_first = first_sample + static_cast<std::int64_t>(done);
-    sum_run(channels_, run, count, run_sums_.data(), run_squares_.data(), run_peaks_.data());
-    for (int c = 0; c < channels_; ++c) {
-      const auto index = static_cast<std::size_t>(c);
-      add_channel_run(c, run, count, run_first, run_sums_[index], run_squares_[index],
-                      run_peaks_[index]);
-    }
   }
 }
 

@@ -6,12 +6,11 @@
 // rewarn_s. Plain logic: no I/O, no logging (the node adapter, apps/array_node, words and logs
 // the events). Channel c is mic c of the array (0-based, after any channel map).
 //
-// Cost: one pass over each block (per channel: a sum, a sum of squares and a peak, the channels
-// of a frame in one vector); only a channel whose block holds a non-finite or clipped sample is
-// walked again sample by sample. ~2.3 us per 0.05 s hop of 4 channels at 48 kHz (doa_bench
-// BM_ChannelHealth). In the node that pass is the framer's (observe()): the block is read once
-// for both, and a hop read cold from memory costs the same whether it is summed or not.
-// Everything is sized in the constructor; scan() and observe() allocate nothing.
+// Cost: the counting rides on the framer's one pass over each block (Framer::push with this as
+// its observer: per channel a sum, a sum of squares and a peak, observe()), so the block is read
+// once for both; only a channel whose run holds a non-finite or clipped sample is walked again
+// sample by sample (doa_bench BM_ChannelHealth minus BM_Framer).
+// Everything is sized in the constructor; observe() allocates nothing.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -84,14 +83,12 @@ class ChannelHealth {
   // Throws std::invalid_argument naming the bad parameter.
   ChannelHealth(int channels, double sample_rate_hz, const ChannelHealthSettings& settings = {});
 
-  // Counts one block and judges every stretch it completes. A block with another channel
-  // count or no data is ignored. events() then holds the problems this call raised.
-  void scan(const AudioBlockView& block);
-  // The same counting on a run another pass has already summed (Framer::push with this as its
-  // observer: the node's one pass over its samples): each channel's sum, squares and peak of the
-  // run as they came, the samples themselves for a channel that needs the per-sample path. A
-  // run holds at most run_limit() frames (the rest of the current stretch). events() then holds
-  // the problems raised since clear_events().
+  // Counts one run the framer's pass has summed (Framer::push with this as its observer: the
+  // node's one pass over its samples) and judges the stretch it completes: each channel's sum,
+  // squares and peak of the run as they came, the samples themselves for a channel that needs
+  // the per-sample path. A run holds at most run_limit() frames (the rest of the current
+  // stretch); a run with another channel count or no data is ignored. events() then holds the
+  // problems raised since clear_events().
   void observe(const ChannelRun& run);
   std::size_t run_limit() const { return static_cast<std::size_t>(stretch_frames_ - filled_); }
   void clear_events() { events_.clear(); }
@@ -131,7 +128,6 @@ class ChannelHealth {
     double last_raised_s = -1e300;
   };
 
-  void accumulate(const float* interleaved, std::size_t frames, std::int64_t first_sample);
   void add_channel_run(int channel, const float* interleaved, std::size_t frames,
                        std::int64_t first_sample, double sum, double squares, double peak);
   void accumulate_slowly(int channel, const float* interleaved, std::size_t frames,
@@ -151,9 +147,6 @@ class ChannelHealth {
   std::vector<ChannelHealthCounters> counters_;
   std::vector<std::array<ProblemState, kHealthProblemCount>> states_;
   std::vector<HealthEvent> events_;  // capacity fixed at construction
-  std::vector<float> run_sums_;      // per channel, of the run being summed
-  std::vector<float> run_squares_;
-  std::vector<float> run_peaks_;
 };
 
 }  // namespace dronetrack::doa

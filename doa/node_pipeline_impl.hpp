@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
@@ -106,13 +107,19 @@ struct NodePipeline::Impl {
   void null_own_look();
   bool below_horizon(const DoaSolution& solution);
   bool already_found(const Eigen::Vector3d& direction_site) const;
+  // Whether a source's re-measure may narrow it to its own comb's lines (own_comb_bins): not
+  // the static look's, whose direction was found on averaged phasors and is tested against all
+  // the frame's bins, not only those that agree with it.
+  enum class CombLines : std::uint8_t { allowed, not_allowed };
   // near_known_lags: the peaks moved by a small correction only (the ground echo's, well under
   // a grid step): Newton from the known lags, no lag grids.
-  bool remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false);
+  bool remeasure(int source, const GccPhat::UnitsView& units, bool near_known_lags = false,
+                 CombLines comb_permission = CombLines::allowed);
   void remove_ground_echoes();
   // weighted: the phasors made with the SNR weights on (for a weighted correlation next).
   // Returns whether only the source's own comb lines are kept (keep_own_comb()).
-  bool only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false);
+  bool only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted = false,
+                    CombLines comb_permission = CombLines::allowed);
   // Drops the kept bins off the source's own harmonic comb; false (nothing dropped) when it
   // shows no comb.
   bool keep_own_comb(int source, const GccPhat::UnitsView& units);
@@ -170,9 +177,6 @@ struct NodePipeline::Impl {
   // own_comb_bins: the comb of each source's steered cross-power (FFT bins comb_first_bin..).
   std::unique_ptr<HarmonicCombDetector> own_comb;
   int comb_first_bin = 0;
-  // False during the static look's own re-measures: a direction found on averaged phasors is
-  // tested against all the frame's bins, not only those that agree with it.
-  bool comb_allowed = true;
   std::vector<double> comb_power;
   std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
   std::vector<std::uint8_t> comb_lines;

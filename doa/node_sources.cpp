@@ -267,9 +267,7 @@ bool NodePipeline::Impl::follow_static_source() {
     candidate.tdoas[p] = {solver.tdoa_for_direction(static_cast<int>(p), held_array), 1.0, 0.0,
                           0.0};
   ++candidate_count;
-  comb_allowed = false;
-  bool kept = remeasure(index, gcc.units());
-  comb_allowed = true;
+  bool kept = remeasure(index, gcc.units(), false, CombLines::not_allowed);
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -332,9 +330,7 @@ bool NodePipeline::Impl::add_static_source(const Eigen::Vector3d& look_direction
   const int index = candidate_count++;
   // Measured again on the frame's own phasors, the other sources' bins dropped: the frame's
   // measurement may have moved it onto a found source.
-  comb_allowed = false;
-  bool kept = remeasure(index, gcc.units());
-  comb_allowed = true;
+  bool kept = remeasure(index, gcc.units(), false, CombLines::not_allowed);
   for (int s = 0; kept && s < index; ++s)
     kept = candidate.solution.direction_site.dot(
                candidates[static_cast<std::size_t>(s)].solution.direction_site) < separation_cosine;
@@ -382,13 +378,15 @@ void NodePipeline::Impl::keep_frame_mask() {
 }
 
 // The frame's cross-power again from `units`, minus every other candidate's bins.
-bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted) {
+bool NodePipeline::Impl::only_bins_of(int source, const GccPhat::UnitsView& units, bool weighted,
+                                      CombLines comb_permission) {
   gcc.cross_power(units, frame_mask, weighted);
   for (int s = 0; s < candidate_count; ++s)
     if (s != source)
       bin_mask.drop(gcc, std::span<const PairTdoa>(
                              candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
-  return own_comb && comb_allowed && candidate_count > 1 && keep_own_comb(source, units);
+  return own_comb && comb_permission == CombLines::allowed && candidate_count > 1 &&
+         keep_own_comb(source, units);
 }
 
 // The source's spectrum is its steered cross-power, bin by bin: sum over pairs of
@@ -509,11 +507,11 @@ void NodePipeline::Impl::remove_ground_echo(int source, GroundEcho& echo) {
 // look made for another (SRP): measured again without the others' bins (their lobes no longer
 // pull its peaks), near its own TDOAs.
 bool NodePipeline::Impl::remeasure(int source, const GccPhat::UnitsView& units,
-                                   bool near_known_lags) {
+                                   bool near_known_lags, CombLines comb_permission) {
   // On its comb's lines alone a source's correlation is a correction of the one on all its
   // bins, not a new search: fewer bins leave neighbouring carrier lobes nearly as high, so the
   // peak is refined from the known lags only.
-  near_known_lags = only_bins_of(source, units, true) || near_known_lags;
+  near_known_lags = only_bins_of(source, units, true, comb_permission) || near_known_lags;
   if (!near_known_lags) gcc.correlate(false);
   Candidate& candidate = candidates[static_cast<std::size_t>(source)];
   std::array<PairTdoa, kMaxPairs> remeasured{};

@@ -46,12 +46,8 @@ double student_t_square_quantile(double probability, double dof) {
 DoaLikelihood::DoaLikelihood() : DoaLikelihood(DoaLikelihoodKind::gaussian, 10.0, 0.0, 0.999) {}
 
 DoaLikelihood::DoaLikelihood(DoaLikelihoodKind kind, double student_t_dof,
-                             double outlier_probability, double gate_probability,
-                             double outlier_spread_rad)
-    : kind_(kind),
-      dof_(student_t_dof),
-      outlier_probability_(outlier_probability),
-      spread_rad_(outlier_spread_rad) {
+                             double outlier_probability, double gate_probability)
+    : kind_(kind), dof_(student_t_dof), outlier_probability_(outlier_probability) {
   if (!(gate_probability > 0.0 && gate_probability < 1.0))
     throw std::invalid_argument("gate_probability must be in (0, 1)");
   if (kind_ == DoaLikelihoodKind::student_t && !(dof_ >= 1.0))
@@ -59,8 +55,6 @@ DoaLikelihood::DoaLikelihood(DoaLikelihoodKind kind, double student_t_dof,
   if (kind_ == DoaLikelihoodKind::outlier_mixture &&
       !(outlier_probability_ >= 0.0 && outlier_probability_ < 1.0))
     throw std::invalid_argument("outlier_probability must be in [0, 1)");
-  if (!(spread_rad_ >= 0.0 && spread_rad_ <= std::numbers::pi))
-    throw std::invalid_argument("outlier spread must be in [0, pi]");
   if (kind_ == DoaLikelihoodKind::student_t) {
     // P(d^2 / 2 <= x) = 1 - (1 + 2 x / dof)^(-dof / 2) for F(2, dof).
     gate_d2_ = dof_ * (std::pow(1.0 - gate_probability, -2.0 / dof_) - 1.0);
@@ -72,21 +66,6 @@ DoaLikelihood::DoaLikelihood(DoaLikelihoodKind kind, double student_t_dof,
   // (2 pi) / (pi gamma) for an ellipse; sqrt(2 pi) / (2 sqrt(gamma)) for an interval.
   ratio_per_odds_ = 2.0 / gate_d2_;
   ratio_per_odds_1d_ = std::sqrt(2.0 * std::numbers::pi) / (2.0 * std::sqrt(gate_d2_1d_));
-  sqrt_cap_area_ = std::sqrt(2.0 * std::numbers::pi * (1.0 - std::cos(spread_rad_)));
-  spread_interval_rad_ = 2.0 * spread_rad_;
-}
-
-double DoaLikelihood::ratio_per_odds(int dimension, double log_det_covariance) const {
-  if (spread_rad_ == 0.0) return dimension == 1 ? ratio_per_odds_1d_ : ratio_per_odds_;
-  // sqrt det S: the Gaussian part's peak is 1 / ((2 pi)^(p/2) sqrt det S).
-  const double root_det = std::exp(0.5 * log_det_covariance);
-  if (dimension == 1) {  // the gate's interval 2 sqrt(gamma S) plus the spread's
-    return std::sqrt(2.0 * std::numbers::pi) * root_det /
-           (2.0 * std::sqrt(gate_d2_1d_) * root_det + spread_interval_rad_);
-  }
-  const double sqrt_gate_area = std::sqrt(std::numbers::pi * gate_d2_ * root_det);
-  const double side = sqrt_cap_area_ + sqrt_gate_area;
-  return 2.0 * std::numbers::pi * root_det / (side * side);
 }
 
 double DoaLikelihood::inlier_probability(double d2, double kappa) {
@@ -105,7 +84,7 @@ double DoaLikelihood::assignment_cost(double d2, double log_det_covariance, int 
     case DoaLikelihoodKind::outlier_mixture: {
       // -2 ln(exp(-d^2 / 2) + kappa) = d^2 - 2 ln(1 + kappa exp(d^2 / 2)): the Gaussian's cost
       // near the prediction, flattening towards the gate.
-      const double kappa = outlier_ratio(dimension, log_det_covariance, outlier_probability);
+      const double kappa = outlier_ratio(dimension, outlier_probability);
       if (kappa > 0.0)
         return d2 - 2.0 * std::log1p(kappa * std::exp(0.5 * d2)) + log_det_covariance;
       break;
@@ -118,10 +97,9 @@ double DoaLikelihood::weigh(Innovation& innovation, const Measurement& z) const 
   if (kind_ == DoaLikelihoodKind::gaussian) return 1.0;
   const Measurement residual = innovation.residual(z);
   if (kind_ == DoaLikelihoodKind::outlier_mixture) {
-    const double log_det = spread_rad_ == 0.0 ? 0.0 : std::log(innovation.covariance.determinant());
     return inlier_probability(
         residual.dot(innovation.covariance.ldlt().solve(residual)),
-        outlier_ratio(innovation.dimension(), log_det, innovation.outlier_probability));
+        outlier_ratio(innovation.dimension(), innovation.outlier_probability));
   }
   const MeasurementCovariance state_part = innovation.covariance - innovation.noise;
   const MeasurementCovariance noise = innovation.noise;
@@ -184,8 +162,7 @@ double DoaLikelihood::particle_floor(const Innovation& innovation) const {
       const double det_covariance = innovation.covariance.determinant();
       if (!(det_covariance > 0.0)) return 0.0;
       const std::optional<double> share = innovation.outlier_probability;
-      return (1.0 - share.value_or(outlier_probability_)) *
-             outlier_ratio(dimension, std::log(det_covariance), share) *
+      return (1.0 - share.value_or(outlier_probability_)) * outlier_ratio(dimension, share) *
              std::sqrt(det_noise / det_covariance);
     }
   }

@@ -4,20 +4,14 @@
 // heavy tails: a reflection, a gust, a second source captured for one frame. Three choices
 // (`fusion.likelihood`, docs/fusion.md "Impulsive DOA errors"):
 //   outlier_mixture  (default) (1 - e) N(nu; 0, S) + e / V: a DOA is the track's with probability
-//                    1 - e, otherwise uniform over the gate's ellipse d^2 <= gamma (area V_g),
-//                    grown by outlier_spread (a cap of that half-angle, area A, around the
-//                    source: where a reflection, a gust or another source throws a DOA; the
-//                    source itself is anywhere in the gate): V = (sqrt A + sqrt V_g)^2, the
-//                    area of the two discs' sum. A = 0 (the default) is the gate alone. The
+//                    1 - e, otherwise uniform over the gate's ellipse d^2 <= gamma (area V). The
 //                    gate is the Gaussian part's chi-square quantile at gate_probability, so gate
 //                    and likelihood agree: beyond it a DOA can only be the uniform part, whose
 //                    density does not depend on the state, so dropping it is exact. Inside it the
 //                    update is the mixture posterior's first two moments (a one-measurement PDA):
 //                    the Kalman correction times the inlier probability beta(d^2), the covariance
-//                    widened by the spread between "inlier" and "outlier". With A = 0 beta depends
-//                    on d^2 alone (V grows with sqrt det S as the Gaussian's peak falls); with
-//                    A > 0 a sharp track (V_g << A) takes its DOAs at beta ~ 1 up to the gate
-//                    and a vague one (V_g >> A) discounts them as the gate alone would.
+//                    widened by the spread between "inlier" and "outlier". beta depends on d^2
+//                    alone (V grows with sqrt det S as the Gaussian's peak falls).
 //   student_t        a multivariate Student-t of `dof` degrees of freedom: its own gate quantile
 //                    (d^2 / p follows F(p, dof)), twice its negative log-likelihood as the cost,
 //                    and the Gaussian update with R divided by w = (dof + p) / (dof + d^2),
@@ -38,9 +32,8 @@ namespace dronetrack::fusion {
 class DoaLikelihood {
  public:
   DoaLikelihood();  // gaussian, gate 0.999
-  // outlier_spread_rad: the cap's half-angle (outlier_mixture; 0: the gate alone), [0, pi].
   DoaLikelihood(DoaLikelihoodKind kind, double student_t_dof, double outlier_probability,
-                double gate_probability, double outlier_spread_rad = 0.0);
+                double gate_probability);
 
   DoaLikelihoodKind kind() const { return kind_; }
   // Squared Mahalanobis distance beyond which a DOA of `dimension` (1 or 2) is not this track's.
@@ -68,24 +61,25 @@ class DoaLikelihood {
   // The configured e (outlier_mixture): the adaptive estimate's prior mean.
   double outlier_probability() const { return outlier_probability_; }
   // The uniform part's density over the Gaussian part's at d^2, per unit of the odds e / (1 - e):
-  // (2 pi)^(p/2) sqrt(det S) / V exp(d^2 / 2); without a spread (2 / gamma) exp(d^2 / 2) for a
-  // direction, sqrt(2 pi) / (2 sqrt gamma) exp(d^2 / 2) for a cone, whatever S. One gated DOA's
-  // whole say on e (outlier_share.hpp): its likelihood is proportional to 1 - e + e g.
-  double outlier_density_ratio(double d2, double log_det_covariance, int dimension) const {
-    return ratio_per_odds(dimension, log_det_covariance) * std::exp(0.5 * d2);
+  // (2 pi)^(p/2) sqrt(det S) / V exp(d^2 / 2): (2 / gamma) exp(d^2 / 2) for a direction,
+  // sqrt(2 pi) / (2 sqrt gamma) exp(d^2 / 2) for a cone, whatever S. One gated DOA's whole say on
+  // e (outlier_share.hpp): its likelihood is proportional to 1 - e + e g.
+  double outlier_density_ratio(double d2, int dimension) const {
+    return ratio_per_odds(dimension) * std::exp(0.5 * d2);
   }
-  double outlier_spread_rad() const { return spread_rad_; }
 
  private:
   // Inlier probability at d^2: exp(-d^2 / 2) / (exp(-d^2 / 2) + kappa).
   static double inlier_probability(double d2, double kappa);
-  // kappa / odds for an innovation covariance S (ln det S; a cone's pad counts 1).
-  double ratio_per_odds(int dimension, double log_det_covariance) const;
+  // kappa / odds: the same for every S (the uniform part's density and the Gaussian's peak both
+  // scale with 1 / sqrt(det S)).
+  double ratio_per_odds(int dimension) const {
+    return dimension == 1 ? ratio_per_odds_1d_ : ratio_per_odds_;
+  }
   // kappa at the given e, or at the configured one.
-  double outlier_ratio(int dimension, double log_det_covariance,
-                       std::optional<double> outlier_probability) const {
+  double outlier_ratio(int dimension, std::optional<double> outlier_probability) const {
     const double e = outlier_probability.value_or(outlier_probability_);
-    return e / (1.0 - e) * ratio_per_odds(dimension, log_det_covariance);
+    return e / (1.0 - e) * ratio_per_odds(dimension);
   }
 
   DoaLikelihoodKind kind_ = DoaLikelihoodKind::gaussian;
@@ -93,16 +87,11 @@ class DoaLikelihood {
   double outlier_probability_ = 0.0;
   double gate_d2_ = 0.0;
   double gate_d2_1d_ = 0.0;
-  // Without a spread kappa = e / (1 - e) * (2 pi)^(p/2) / (c_p gamma^(p/2)), c_2 = pi, c_1 = 2:
+  // kappa = e / (1 - e) * (2 pi)^(p/2) / (c_p gamma^(p/2)), c_2 = pi, c_1 = 2:
   // the uniform part's density over the Gaussian part's peak (both scale with 1 / sqrt(det S),
   // which cancels).
   double ratio_per_odds_ = 0.0;  // kappa / odds: 2 / gamma, sqrt(2 pi) / (2 sqrt gamma)
   double ratio_per_odds_1d_ = 0.0;
-  // The spread: its half-angle, sqrt of its cap's area (a direction), its interval's length (a
-  // cone's angle: 2 * half-angle).
-  double spread_rad_ = 0.0;
-  double sqrt_cap_area_ = 0.0;
-  double spread_interval_rad_ = 0.0;
 };
 
 }  // namespace dronetrack::fusion

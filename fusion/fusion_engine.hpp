@@ -7,20 +7,11 @@
 
 #include "doa/array_geometry.hpp"
 #include "doa/doa_measurement.hpp"
+#include "fusion/doa_admission.hpp"
 #include "fusion/fusion_params.hpp"
 #include "fusion/track_report.hpp"
 
 namespace dronetrack::fusion {
-
-enum class DoaVerdict : std::uint8_t {
-  accepted = 0,   // queued for the tracker
-  non_finite,     // NaN/Inf in time, direction or covariance
-  unknown_array,  // array id/index not in the site
-  too_late,       // older than what the tracker has already processed
-  duplicate,      // same array, same time, same source index as one already queued
-  bad_direction,  // not a unit vector, or covariance not positive definite
-};
-const char* to_string(DoaVerdict verdict);
 
 struct FusionCounters {
   std::int64_t accepted = 0;

@@ -103,11 +103,6 @@ struct FusionParams {
   // likelihood = outlier_mixture: prior probability that a gated DOA is not the track's but
   // uniform over the gate (docs/fusion.md "Impulsive DOA errors").
   double outlier_probability = 0.1;
-  // likelihood = outlier_mixture: the half-angle of the cap over which an outlier lands around the
-  // source (a reflection, a gust, another source), added to the gate's ellipse: a sharp track then
-  // takes a DOA near its gate at almost full gain, a vague one discounts it as with the gate alone
-  // (0). Per unit of azimuth x elevation (docs/fusion.md "Where the outliers land").
-  double outlier_spread_deg = 0.0;
   // likelihood = outlier_mixture: e estimated per array from its DOAs gated to confirmed tracks
   // (outlier_share.hpp), the maximum of its posterior over the array's last outlier_window_doas
   // such DOAs with a Beta prior of mean outlier_probability worth outlier_prior_doas DOAs

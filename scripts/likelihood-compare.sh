@@ -6,8 +6,8 @@
 # relative to their site are reported as failed (their sites are not copied with it).
 # LIKELIHOODS (default "gaussian outlier_mixture adaptive"): `outlier_mixture` is the fixed e
 # (fusion.adaptive_outlier_probability false), `adaptive` the mixture with e estimated per array.
-# A name may carry more fusion keys after a colon, numbers only: `outlier_mixture:outlier_spread_deg=20`
-# or `adaptive:outlier_probability=0.05,outlier_spread_deg=20`.
+# A name may carry more fusion keys after a colon, numbers only: `outlier_mixture:outlier_probability=0.05`
+# or `adaptive:outlier_probability=0.05,outlier_window_doas=200`.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bin=$PWD/${BUILD:-build/release}/dronetrack

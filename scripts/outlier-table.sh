@@ -10,7 +10,7 @@
 #                                 [--fusion '{"outlier_probability": 0.05}'] [--outlier-seeds "1 2"]
 # Likelihood `outlier_mixture` is the fixed e (fusion.adaptive_outlier_probability false),
 # `adaptive` the mixture with e estimated per array; a likelihood may carry more numeric fusion
-# keys after a colon (`outlier_mixture:outlier_spread_deg=20,outlier_probability=0.05`); --fusion merges more fusion keys into each
+# keys after a colon (`outlier_mixture:outlier_probability=0.05,gate_probability=0.99`); --fusion merges more fusion keys into each
 # site (the row names the likelihood only: keep one --fusion per --work directory).
 # Defaults: DIR build/outlier-table (kept: a second run reuses its scenes and DOAs), the scenes
 # seed002-rectangle and perimeter-two-drones, filters ukf ukf_seed002 ekf particle, likelihoods

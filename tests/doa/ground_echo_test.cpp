@@ -80,7 +80,7 @@ EchoResult follow_echo(const ArrayGeometry& geometry, const testing::Recording& 
   framer.push(recording.view(0, recording.frames()), [&](const FrameView& frame) {
     fft.process(frame);
     gcc.whiten(fft);
-    weights.update(fft, gcc.bin_weight());
+    weights.update(gcc.band_powers(), gcc.unit_channels(), gcc.bin_weight());
     // The SNR weights need a second to learn the noise: until then few bins stand out.
     if (frame.first_sample < static_cast<std::int64_t>(kRate)) return;
     ++result.frames;

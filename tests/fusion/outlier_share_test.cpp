@@ -25,7 +25,7 @@ void feed(OutlierShareEstimate& estimate, const DoaLikelihood& law, double share
       do d2 = -2.0 * std::log1p(-uniform(random));  // chi-square, 2 dof
       while (d2 > gate);
     }
-    estimate.add(law.outlier_density_ratio(d2, 0.0, 2));
+    estimate.add(law.outlier_density_ratio(d2, 2));
     estimate.refresh();  // as the tracker does after each frame
   }
 }

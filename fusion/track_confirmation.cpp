@@ -1,0 +1,141 @@
+#include "fusion/track_confirmation.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+
+#include <Eigen/Cholesky>
+
+#include "fusion/triangulation.hpp"
+
+namespace dronetrack::fusion {
+
+int recent_arrays(const Track& track, std::size_t array_count) {
+  int count = 0;
+  for (std::size_t a = 0; a < array_count; ++a)
+    if (track.last_update_s - track.heard_by_array_s[a] <= kContributionMemoryS) ++count;
+  return count;
+}
+
+bool held_by_one_array(const Track& track, std::size_t array_count, int confirm_hits) {
+  if (track.confirmed || track.one_array) return false;
+  int holding = 0;
+  for (std::size_t a = 0; a < array_count; ++a) {
+    if (track.updates_by_array[a] >= confirm_hits) {
+      ++holding;
+    } else if (track.updates_by_array[a] > 1) {
+      return false;  // a second array did update it after its birth
+    }
+  }
+  return holding == 1;
+}
+
+TrackConfirmation::TrackConfirmation(const FusionParams& params, double floor_variance_rad2,
+                                     double gate_chi2, double speed_of_sound_mps)
+    : params_(params),
+      floor_variance_rad2_(floor_variance_rad2),
+      gate_chi2_(gate_chi2),
+      speed_of_sound_mps_(speed_of_sound_mps) {}
+
+bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> tracks,
+                                    std::span<const Eigen::Vector3d> centres_m) const {
+  const std::uint32_t window_mask =
+      params_.confirm_window >= 32 ? ~0u : ((1u << params_.confirm_window) - 1u);
+  const int min_arrays =
+      std::min<int>(params_.confirm_min_arrays, static_cast<int>(centres_m.size()));
+  int arrays_heard = 0;
+  int arrays_repeating = 0;  // arrays that updated it at confirm_hits distinct times
+  int hits = 0;
+  int updates = 0;
+  for (std::size_t a = 0; a < centres_m.size(); ++a) {
+    updates += track.updates_by_array[a];
+    if (track.heard_by_array_s[a] != kNeverS) ++arrays_heard;
+    if (track.updates_by_array[a] >= params_.confirm_hits) ++arrays_repeating;
+    hits += std::popcount(track.hits_by_array[a] & window_mask);
+  }
+  // Ghost rejection (confirm_min_arrays): a crossing of two drones' rays is consistent with the
+  // two arrays that made it at one moment, rarely with a third. A drone only two arrays can hear
+  // (the others masked by a louder drone) gives the same evidence by continuity in time: two
+  // rays in 3-D are skew unless they meet at the drone, so a ghost does not keep taking DOAs of
+  // both arrays while the drones move. Both arrays must have updated it confirm_hits times.
+  // The initiating pair agrees by construction, so two distinct arrays are no evidence: on a
+  // two-array site (min_arrays clamped to 2) continuity decides, not the pair's first fix.
+  // A one-array track (issue 15) has only continuity: its array updated it confirm_hits times.
+  const bool supported = (arrays_heard >= min_arrays && (arrays_heard > 2 || min_arrays <= 1)) ||
+                         arrays_repeating >= 2 || (track.one_array && arrays_repeating >= 1);
+  // Nor is a track under the ground by more than its own uncertainty: where two drones' rays
+  // (or a drone's and its ground image's) cross low, a ghost starts near the ground and sinks.
+  const double altitude_m = track.filter->mean()(StateBlock::position + 2);
+  const double altitude_std_m = std::sqrt(std::max(
+      track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
+  const bool above_ground = altitude_m + altitude_std_m >= params_.ground_altitude_m;
+  // Outlier-born (issue 17): most of its DOAs came in frames whose arrays had none to spare
+  // beyond the confirmed tracks they hear. An impulsive outlier takes the place of a confirmed
+  // track's DOA; a second source adds a DOA to the frame.
+  const bool displacing = 2 * track.crowded_updates > updates;
+  return supported && above_ground && hits >= params_.confirm_hits && !displacing &&
+         !explained_by_other_tracks(track, tracks, centres_m) &&
+         !beneath_another_track(track, tracks) &&
+         !spectra_disagree(
+             std::span<const AcousticTally>(track.acoustic_by_array.data(), centres_m.size()),
+             params_.confirm_hits, params_.init_max_speed_mps, speed_of_sound_mps_);
+}
+
+bool TrackConfirmation::explained_by_other_tracks(
+    const Track& track, std::span<const Track> tracks,
+    std::span<const Eigen::Vector3d> centres_m) const {
+  const Eigen::Vector3d position = position_of(track.filter->mean());
+  const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+  const int support = recent_arrays(track, centres_m.size());
+  int supporting = 0;
+  for (std::size_t a = 0; a < centres_m.size(); ++a) {
+    if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
+    ++supporting;
+    const Eigen::Vector3d to_track = position - centres_m[a];
+    const double range_m = std::max(to_track.norm(), 1.0);
+    bool explained = false;
+    for (const Track& other : tracks) {
+      // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost
+      // and the drone whose ray it shares explain each other from that array; the drone also
+      // has the arrays the ghost lacks).
+      if (&other == &track ||
+          !(other.confirmed || recent_arrays(other, centres_m.size()) > support))
+        continue;
+      const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[a];
+      const double other_range_m = std::max(to_other.norm(), 1.0);
+      const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
+      const double angle_rad =
+          std::acos(std::clamp(to_track.dot(to_other) / (range_m * other_range_m), -1.0, 1.0));
+      const double variance_rad2 = floor_variance_rad2_ + spread_m2 / (range_m * range_m) +
+                                   other_spread_m2 / (other_range_m * other_range_m);
+      if (angle_rad * angle_rad <= gate_chi2_ * variance_rad2) {
+        explained = true;
+        break;
+      }
+    }
+    if (!explained) return false;
+  }
+  return supporting > 0;
+}
+
+bool TrackConfirmation::beneath_another_track(const Track& track,
+                                              std::span<const Track> tracks) const {
+  const Eigen::Vector3d position = position_of(track.filter->mean());
+  const Eigen::Matrix3d covariance = track.filter->covariance().topLeftCorner<3, 3>();
+  for (const Track& other : tracks) {
+    if (&other == &track || !other.confirmed) continue;
+    const Eigen::Vector3d above = position_of(other.filter->mean());
+    const double height_m = above.z() - params_.ground_altitude_m;
+    if (!(position.z() < above.z()) || !(position.z() - params_.ground_altitude_m > -height_m))
+      continue;
+    const Eigen::Vector2d offset = (position - above).head<2>();
+    const Eigen::Matrix2d spread = covariance.topLeftCorner<2, 2>() +
+                                   other.filter->covariance().topLeftCorner<2, 2>() +
+                                   Eigen::Matrix2d::Identity();  // 1 m: the echo's own blur
+    if (offset.dot(spread.ldlt().solve(offset)) <= chi_square_quantile(0.999, 2)) return true;
+  }
+  return false;
+}
+
+}  // namespace dronetrack::fusion

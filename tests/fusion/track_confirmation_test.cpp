@@ -1,0 +1,101 @@
+// The confirmation rules on their own, on tracks placed at known positions.
+#include "fusion/track_confirmation.hpp"
+
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace dronetrack::fusion {
+namespace {
+
+Track track_at(const Eigen::Vector3d& position_m, double position_std_m, bool confirmed) {
+  Track track;
+  track.filter = make_track_filter(FilterKind::ukf, FilterSettings{});
+  StateVector mean = StateVector::Zero();
+  mean.segment<3>(StateBlock::position) = position_m;
+  StateCovariance covariance = StateCovariance::Identity();
+  covariance.topLeftCorner<3, 3>() *= position_std_m * position_std_m;
+  track.filter->initialise(mean, covariance);
+  track.confirmed = confirmed;
+  track.heard_by_array_s.fill(kNeverS);
+  return track;
+}
+
+// Echo: DOAs mixing a source with its ground image meet on the vertical line below it.
+TEST(TrackConfirmation, ATrackUnderAConfirmedOneIsItsEcho) {
+  FusionParams params;
+  params.ground_altitude_m = 0.0;
+  const TrackConfirmation rules(params, 1e-6, 13.8, 343.0);
+  std::vector<Track> tracks;
+  tracks.push_back(track_at({100, 50, 40}, 0.5, true));
+  tracks.push_back(track_at({100.5, 50, 12}, 0.5, false));  // below it
+  tracks.push_back(track_at({130, 50, 12}, 0.5, false));    // 30 m aside
+  tracks.push_back(track_at({100, 50, 60}, 0.5, false));    // above it
+  EXPECT_TRUE(rules.beneath_another_track(tracks[1], tracks));
+  EXPECT_FALSE(rules.beneath_another_track(tracks[2], tracks));
+  EXPECT_FALSE(rules.beneath_another_track(tracks[3], tracks));
+  tracks[0].confirmed = false;  // only a confirmed track has echoes
+  EXPECT_FALSE(rules.beneath_another_track(tracks[1], tracks));
+}
+
+// Ghost: a tentative track on the rays, from both arrays hearing it, of a confirmed track.
+TEST(TrackConfirmation, ATrackAlongAConfirmedTracksRaysIsExplained) {
+  const FusionParams params;
+  const TrackConfirmation rules(params, 1e-6, 13.8, 343.0);
+  const std::vector<Eigen::Vector3d> centres{{0, 0, 2}, {100, 0, 2}};
+  std::vector<Track> tracks;
+  tracks.push_back(track_at({50, 60, 30}, 0.5, true));
+  // On array 0's ray to the confirmed track, 1.5 times as far.
+  const Eigen::Vector3d on_ray = centres[0] + 1.5 * (Eigen::Vector3d(50, 60, 30) - centres[0]);
+  tracks.push_back(track_at(on_ray, 0.5, false));
+  Track& ghost = tracks[1];
+  ghost.last_update_s = 10.0;
+  ghost.heard_by_array_s[0] = 10.0;
+  EXPECT_TRUE(rules.explained_by_other_tracks(ghost, tracks, centres));
+  // Array 1 also hears it, and from there it is off the confirmed track's ray.
+  ghost.heard_by_array_s[1] = 10.0;
+  EXPECT_FALSE(rules.explained_by_other_tracks(ghost, tracks, centres));
+}
+
+TEST(TrackConfirmation, HeldByOneArrayOnlyWhileNoSecondArrayUpdatedIt) {
+  Track track = track_at({0, 50, 20}, 1.0, false);
+  track.updates_by_array[0] = 5;
+  track.updates_by_array[1] = 1;  // its birth pair
+  EXPECT_TRUE(held_by_one_array(track, 2, 5));
+  track.updates_by_array[1] = 2;
+  EXPECT_FALSE(held_by_one_array(track, 2, 5));
+  track.updates_by_array[1] = 1;
+  track.confirmed = true;
+  EXPECT_FALSE(held_by_one_array(track, 2, 5));
+}
+
+doa::AcousticFeatures comb(double fundamental_hz) {
+  doa::AcousticFeatures features;
+  features.valid = true;
+  features.fundamental_hz = fundamental_hz;
+  return features;
+}
+
+// One source, one spectrum: a comb at one array and none at another, or spacings further apart
+// than the Doppler shift allows (2 v / c + 5 %: 2 * 30 / 343 + 0.05 = 22.5 %), are two sources.
+TEST(SpectrumAgreement, TwoArraysHearingDifferentSpectraDisagree) {
+  std::vector<AcousticTally> tallies(2);
+  for (int k = 0; k < 8; ++k) tallies[0].add(comb(120.0));
+  for (int k = 0; k < 8; ++k) tallies[1].add(comb(140.0));  // +16.7 %: Doppler explains it
+  EXPECT_FALSE(spectra_disagree(tallies, 5, 30.0, 343.0));
+  tallies[1] = {};
+  for (int k = 0; k < 8; ++k) tallies[1].add(comb(160.0));  // +33 %
+  EXPECT_TRUE(spectra_disagree(tallies, 5, 30.0, 343.0));
+  tallies[1] = {};
+  for (int k = 0; k < 8; ++k) tallies[1].add(comb(0.0));  // analysed, no comb
+  EXPECT_TRUE(spectra_disagree(tallies, 5, 30.0, 343.0));
+  // Too few analysed DOAs at the second array to say anything.
+  EXPECT_FALSE(spectra_disagree(tallies, 10, 30.0, 343.0));
+  // Features the node could not compute are no vote.
+  AcousticTally none;
+  none.add(doa::AcousticFeatures{});
+  EXPECT_EQ(none.analysed, 0);
+}
+
+}  // namespace
+}  // namespace dronetrack::fusion
