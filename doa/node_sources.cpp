@@ -163,6 +163,7 @@ void NodePipeline::Impl::find_candidates() {
   Candidate& primary = candidates[0];
   primary.solution = solver.solve(tdoas);
   const bool primary_below_horizon = primary.solution.accepted && below_horizon(primary.solution);
+  trace_look(LookKind::primary, primary.solution, false);
   if (primary_below_horizon && null_wanted) null_observe();
   if (primary_below_horizon) mask_source(tdoas);
   if (primary.solution.accepted && !primary_below_horizon) {
@@ -173,11 +174,14 @@ void NodePipeline::Impl::find_candidates() {
   }
   keep_frame_mask();
   if (srp) find_further_sources();
+  const int before_static_look = candidate_count;
   if (static_look) find_static_source();
+  trace_added(LookKind::static_look, before_static_look);
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
   if (!ground_echoes.empty()) remove_ground_echoes();
+  trace_candidates();
 }
 
 // Each source found takes its bins out of the correlations before the next look: what is left is
@@ -185,8 +189,11 @@ void NodePipeline::Impl::find_candidates() {
 // buried under the louder one's lobes nor pulled by them.
 void NodePipeline::Impl::find_further_sources() {
   if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
+  const int before_follow = candidate_count;
   if (source_tracks && params.follow_source_tracks) follow_tracked_sources();
+  trace_added(LookKind::followed, before_follow);
   srp->begin_frame(gcc);
+  bool under_floor = false;
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
        ++look) {
@@ -195,13 +202,15 @@ void NodePipeline::Impl::find_further_sources() {
     const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
                                                      std::max(1, gcc.kept_bin_count()));
     SrpPeak peak;
-    if (!srp->strongest(peak, floor)) break;
+    under_floor = !srp->strongest(peak, floor);
+    if (under_floor) break;
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
     candidate.solution = solver.solve(candidate_tdoas);
     const bool duplicate =
         !candidate.solution.accepted || already_found(candidate.solution.direction_site);
+    trace_look(LookKind::free, candidate.solution, duplicate, &peak.direction_array);
     if (!duplicate && below_horizon(candidate.solution)) {
       mask_source(candidate_tdoas);
       srp->begin_frame(gcc);
@@ -219,6 +228,7 @@ void NodePipeline::Impl::find_further_sources() {
       srp->begin_frame(gcc);
     }
   }
+  trace_search_end(under_floor);
   if (candidate_count >= 2) remeasure(0, gcc.units());
 }
 
