@@ -76,7 +76,7 @@ void NodePipeline::Impl::follow_tracked_sources() {
 // frame's bins (before any source's are dropped) the steered spectrum of a direction on the
 // louder source's fringe holds the lines near its carrier in phase and no comb of its own;
 // a second drone there shows its own spacing (docs/doa.md, stage 7d).
-bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> follow_tdoas,
+bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> followed_tdoas,
                                          const Eigen::Vector3d& follow_direction_site) {
   if (!own_comb) return false;
   const GccPhat::UnitsView units = gcc.units();
@@ -105,7 +105,7 @@ bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> follow_tdoas,
                                    std::span<const double>(follow_lags.data(), pairs), carrier_hz))
       continue;
     if (!follow_comb_measured) {
-      follow_comb = steered_comb(follow_tdoas, units, frame_bins, used_pairs);
+      follow_comb = steered_comb(followed_tdoas, units, frame_bins, used_pairs);
       follow_comb.harmonic_count = own_comb->mark_lines(follow_comb, comb_lines);
       follow_comb_measured = true;
     }

@@ -16,6 +16,7 @@ using namespace node_detail;
 // One frame through the node's stages, in order.
 void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurement>& out) {
   const double time_s = begin_frame(frame);
+  trace_begin(time_s);
   whiten(frame, time_s);
   DetectionInput detection = correlate(frame, time_s);
   // Sharp correlations on a clean frame: worth tracking and solving. Whether to publish also
@@ -32,6 +33,7 @@ void NodePipeline::Impl::analyse(const FrameView& frame, std::vector<DoaMeasurem
   if (null_wanted && !null_observed) null_own_look();
   const bool detecting = gate_frame(detection, time_s);
   judge_channels(time_s, detection.frame_clean, sharp, frame_sources);
+  trace_end(sharp, detecting);
   if (!sources_to_publish(time_s, detecting)) return;
   for (int s = 0; s < candidate_count; ++s) {
     const Candidate& candidate = candidates[static_cast<std::size_t>(s)];
@@ -271,6 +273,17 @@ void NodePipeline::set_pose_track(PoseTrack track) {
     return;
   }
   impl_->pose_track = std::move(track);
+}
+
+void NodePipeline::set_frame_trace(FrameTraceSink* sink) {
+  if (per_band_) {
+    for (NodePipeline& node : per_band_->nodes) node.set_frame_trace(sink);
+    return;
+  }
+  impl_->trace_sink = sink;
+  const auto bins = static_cast<std::size_t>(impl_->gcc.band_bin_count());
+  impl_->trace.kept_after_null.assign(bins, 1);
+  impl_->trace.kept_at_search_end.assign(bins, 1);
 }
 
 void NodePipeline::finish() {

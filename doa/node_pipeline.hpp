@@ -12,6 +12,7 @@
 #include "doa/channel_health.hpp"
 #include "doa/doa_measurement.hpp"
 #include "doa/doa_params.hpp"
+#include "doa/node_trace.hpp"
 #include "doa/pose_track.hpp"
 
 namespace dronetrack::doa {
@@ -61,6 +62,10 @@ class NodePipeline {
   // to that attitude; one outside the track's span is counted (unposed_doas), not published.
   // An empty track (the default): the geometry's fixed pose.
   void set_pose_track(PoseTrack track);
+
+  // Tools only (explaining a missed source against a scene's truth): `sink` (null: none, the
+  // default) receives every analysed frame's FrameTrace; it must outlive the pipeline's use.
+  void set_frame_trace(FrameTraceSink* sink);
 
   // The stream ended: judges the audio health of its last, partial stretch (health().events()).
   void finish();

@@ -25,6 +25,7 @@
 #include "doa/ground_echo.hpp"
 #include "doa/harmonic_comb.hpp"
 #include "doa/ls_doa_solver.hpp"
+#include "doa/node_trace.hpp"
 #include "doa/source_bin_mask.hpp"
 #include "doa/source_tracks.hpp"
 #include "doa/spectral_frame.hpp"
@@ -92,7 +93,7 @@ struct NodePipeline::Impl {
                     DoaSolution& solution, double& power) const;
   // A followed direction within one carrier fringe of a comb source found this frame that shows
   // that source's comb, or none: the source again, not a second one (carrier_fringe.hpp).
-  bool fringe_of_found(std::span<const PairTdoa> follow_tdoas,
+  bool fringe_of_found(std::span<const PairTdoa> followed_tdoas,
                        const Eigen::Vector3d& follow_direction_site);
   // The static look (static_look): the held source measured again, or a search on the frames'
   // averaged phasors; adds at most one candidate (none when max_sources are found).
@@ -131,6 +132,15 @@ struct NodePipeline::Impl {
   // this frame starts from.
   void keep_frame_mask();
   void remove_ground_echo(int source, GroundEcho& echo);
+  // The frame trace (set_frame_trace; node_trace.cpp): each does nothing without a sink.
+  void trace_begin(double time_s);
+  // look_direction_array: where a refused solution's look was (null: its own direction).
+  void trace_look(LookKind kind, const DoaSolution& solution, bool duplicate,
+                  const Eigen::Vector3d* look_direction_array = nullptr);
+  void trace_added(LookKind kind, int first_candidate);  // candidates first_candidate.. added
+  void trace_search_end(bool under_floor);
+  void trace_candidates();
+  void trace_end(bool sharp, bool detecting);
   void smooth_candidates(double time_s);
   // This frame's sources' spectra into their slots' acoustic histories (every few frames).
   // acoustic_directions/slots/generations hold `count` sources.
@@ -222,6 +232,8 @@ struct NodePipeline::Impl {
   bool null_frame_clean = false;
   double frame_time_s = 0.0;  // this frame's centre, s (begin_frame())
   NodeDiagnostics diagnostics;
+  FrameTraceSink* trace_sink = nullptr;  // set_frame_trace(): tools only
+  FrameTrace trace;
   PoseStamp fixed_pose = fixed_stamp(geometry);
   PoseTrack pose_track;            // empty: a fixed array
   double sound_speed_mps = 343.0;  // for the Doppler correction

@@ -267,6 +267,75 @@ TEST(NodePipeline, SourcesBelowTheHorizonMaskAreNotReported) {
   EXPECT_GT(pipeline.diagnostics().below_horizon_rejected, frame_count / 2);
 }
 
+// The frame trace (tools' breakdown of missed frames) says what each look did, on a known scene:
+// a louder ground source (below the horizon: refused, its bins dropped) and a drone. With room
+// for several sources the drone is kept and the search ends with nothing left over the SRP
+// floor; with one source a frame there is no further look (no SRP) and the ground source, the
+// first look's, spends the frame.
+class CollectTraces final : public FrameTraceSink {
+ public:
+  std::vector<FrameTrace> frames;
+  void frame(const FrameTrace& trace) override { frames.push_back(trace); }
+};
+
+TEST(NodePipeline, FrameTraceSaysWhatEachLookDid) {
+  const ArrayGeometry geometry = testing::tetrahedron(0.0);
+  const Eigen::Vector3d ground = direction_from_azel_deg(-40.0, -12.0);
+  const Eigen::Vector3d drone = direction_from_azel_deg(100.0, 25.0);
+  const testing::Recording recording = two_sources(geometry, ground, 0.05, drone, 0.03, 3.0, 8);
+  for (const int max_sources : {4, 1}) {
+    DoaParams params;
+    params.tdoa_tracker = TdoaTracker::per_frame;
+    params.static_null = false;
+    params.max_sources = max_sources;
+    NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
+    CollectTraces traces;
+    pipeline.set_frame_trace(&traces);
+    run(pipeline, recording);
+    ASSERT_EQ(static_cast<std::int64_t>(traces.frames.size()),
+              pipeline.diagnostics().frames_processed);
+    int ground_refused = 0;
+    int drone_kept = 0;
+    int drone_candidate = 0;
+    int under_floor = 0;
+    int not_run = 0;
+    for (const FrameTrace& trace : traces.frames) {
+      for (int l = 0; l < trace.look_count; ++l) {
+        const LookTrace& look = trace.looks[static_cast<std::size_t>(l)];
+        ground_refused += look.outcome == LookOutcome::below_horizon &&
+                                  angle_between_deg(look.direction_site, ground) < 2.0
+                              ? 1
+                              : 0;
+        drone_kept +=
+            look.outcome == LookOutcome::kept && angle_between_deg(look.direction_site, drone) < 1.0
+                ? 1
+                : 0;
+      }
+      for (int c = 0; c < trace.candidate_count; ++c)
+        drone_candidate +=
+            angle_between_deg(trace.candidates[static_cast<std::size_t>(c)], drone) < 1.0 ? 1 : 0;
+      under_floor += trace.search_end == SearchEnd::under_floor ? 1 : 0;
+      not_run += trace.search_end == SearchEnd::not_run ? 1 : 0;
+      // Nothing is nulled without the static null: every bin kept before the first look.
+      EXPECT_EQ(std::count(trace.kept_after_null.begin(), trace.kept_after_null.end(), 0), 0);
+    }
+    const auto frames = static_cast<int>(traces.frames.size());
+    std::printf(
+        "max_sources %d: %d frames, ground refused %d, drone kept %d, candidate %d, "
+        "search ended under the floor %d, not run %d\n",
+        max_sources, frames, ground_refused, drone_kept, drone_candidate, under_floor, not_run);
+    EXPECT_GT(ground_refused, frames * 3 / 4);
+    if (max_sources == 1) {
+      EXPECT_EQ(not_run, frames);
+      EXPECT_EQ(drone_candidate, 0);
+      continue;
+    }
+    EXPECT_GT(drone_kept, frames * 3 / 4);
+    EXPECT_GT(drone_candidate, frames * 3 / 4);
+    EXPECT_GT(under_floor, frames * 3 / 4);
+  }
+}
+
 // SrpPhat's bounded search (patches, then groups of directions, skipped under their bounds) must
 // give what visiting every direction gives: the same direction and power on frames of two
 // sources and of noise alone (many near-equal maxima), after each found lobe is subtracted,

@@ -1,6 +1,7 @@
 #include "tests/doa/scene_eval.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -84,12 +85,17 @@ double ratio_db(double signal, double noise) {
 // receiver that keeps only the drone's bins would see; it does not depend on the interferers'
 // spectra to choose the bins.
 constexpr double kCombAboveMedianDb = 10.0;
-double comb_snr_db(const double* drone, const double* others, std::size_t bins,
-                   std::vector<double>& scratch) {
+// The least power of a comb bin of the drone's frame.
+double comb_threshold(const double* drone, std::size_t bins, std::vector<double>& scratch) {
   scratch.assign(drone, drone + bins);
   std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(bins / 2),
                    scratch.end());
-  const double threshold = scratch[bins / 2] * std::pow(10.0, kCombAboveMedianDb / 10.0);
+  return scratch[bins / 2] * std::pow(10.0, kCombAboveMedianDb / 10.0);
+}
+
+double comb_snr_db(const double* drone, const double* others, std::size_t bins,
+                   std::vector<double>& scratch) {
+  const double threshold = comb_threshold(drone, bins, scratch);
   double signal = 0.0;
   double noise = 0.0;
   for (std::size_t b = 0; b < bins; ++b) {
@@ -100,7 +106,93 @@ double comb_snr_db(const double* drone, const double* others, std::size_t bins,
   return signal > 0.0 ? ratio_db(signal, noise) : -100.0;
 }
 
+// The share of the drone's comb power (its bins kCombAboveMedianDb over its median) in
+// the bins a mask keeps.
+double comb_share_kept(const double* drone, std::size_t bins, const std::vector<std::uint8_t>& keep,
+                       std::vector<double>& scratch) {
+  const double threshold = comb_threshold(drone, bins, scratch);
+  double all = 0.0;
+  double kept = 0.0;
+  for (std::size_t b = 0; b < bins && b < keep.size(); ++b) {
+    if (drone[b] < threshold) continue;
+    all += drone[b];
+    kept += keep[b] != 0 ? drone[b] : 0.0;
+  }
+  return all > 0.0 ? kept / all : 1.0;
+}
+
+class TraceCollector final : public FrameTraceSink {
+ public:
+  std::vector<FrameTrace> frames;
+  void frame(const FrameTrace& trace) override { frames.push_back(trace); }
+};
+
+// Beyond this a look or candidate is another source, not the drone's fringe or bias.
+constexpr double kOffTargetDeg = 20.0;
+
+// The first cause, in pipeline order, of a miss (docs/doa.md "Where the drones' frames go").
+MissCause miss_cause(const FrameTrace& trace, const Eigen::Vector3d& truth, double comb_after_null,
+                     double comb_at_search_end, double within_deg, FrameAudibility& frame) {
+  if (!trace.sharp) return MissCause::not_sharp;
+  if (comb_after_null < 0.5) return MissCause::null_dropped;
+  for (int c = 0; c < trace.candidate_count; ++c)
+    if (angle_between_deg(trace.candidates[static_cast<std::size_t>(c)], truth) <= within_deg)
+      return trace.detecting ? MissCause::regression : MissCause::gate_closed;
+  bool kept_within = false;
+  for (int l = 0; l < trace.look_count; ++l) {
+    const LookTrace& look = trace.looks[static_cast<std::size_t>(l)];
+    if (angle_between_deg(look.direction_site, truth) > within_deg) continue;
+    switch (look.outcome) {
+      case LookOutcome::kept:
+        kept_within = true;
+        break;
+      case LookOutcome::refused_pairs:
+        return MissCause::refused_pairs;
+      case LookOutcome::refused_norm:
+        return MissCause::refused_norm;
+      case LookOutcome::refused_chi2:
+        return MissCause::refused_chi2;
+      case LookOutcome::duplicate:
+        return MissCause::duplicate;
+      case LookOutcome::below_horizon:
+        return MissCause::below_horizon;
+    }
+  }
+  if (kept_within) return MissCause::remeasure_moved;
+  double nearest = 180.0;
+  auto consider = [&](const Eigen::Vector3d& direction, int kind, bool kept) {
+    const double angle = angle_between_deg(direction, truth);
+    if (angle >= nearest) return;
+    nearest = angle;
+    frame.off_deg = angle;
+    frame.off_elevation_deg = elevation_deg(direction) - elevation_deg(truth);
+    frame.off_kind = kind;
+    frame.off_kept = kept;
+  };
+  for (int c = 0; c < trace.candidate_count; ++c)
+    consider(trace.candidates[static_cast<std::size_t>(c)], -1, true);
+  for (int l = 0; l < trace.look_count; ++l) {
+    const LookTrace& look = trace.looks[static_cast<std::size_t>(l)];
+    consider(look.direction_site, static_cast<int>(look.kind), look.outcome == LookOutcome::kept);
+  }
+  if (nearest <= kOffTargetDeg) return MissCause::off_target;
+  if (trace.search_end == SearchEnd::capacity) return MissCause::capacity;
+  if (comb_at_search_end < 0.5) return MissCause::owned_by_others;
+  if (trace.search_end == SearchEnd::under_floor) return MissCause::under_floor;
+  if (trace.search_end == SearchEnd::looks_spent) return MissCause::looks_spent;
+  return MissCause::other;
+}
+
 }  // namespace
+
+const char* miss_cause_name(MissCause cause) {
+  static constexpr std::array<const char*, static_cast<std::size_t>(MissCause::count)> kNames{
+      "found",           "not sharp",    "gate closed",  "null dropped",    "regression",
+      "refused pairs",   "refused norm", "refused chi2", "duplicate",       "below horizon",
+      "remeasure moved", "off 3-20 deg", "capacity",     "owned by others", "under SRP floor",
+      "looks spent",     "other"};
+  return kNames[static_cast<std::size_t>(cause)];
+}
 
 double DroneAtArray::median_deg() const { return percentile(errors_deg, 0.5); }
 double DroneAtArray::p90_deg() const { return percentile(errors_deg, 0.9); }
@@ -168,6 +260,8 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
 
     NodePipeline pipeline(geometry, static_cast<int>(a), params, full.sample_rate_hz,
                           scenario.site.speed_of_sound_mps);
+    TraceCollector traces;
+    if (settings.breakdown) pipeline.set_frame_trace(&traces);
     std::vector<DoaMeasurement> doas;
     doas.reserve(8192);
     const auto start = std::chrono::steady_clock::now();
@@ -191,6 +285,8 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
     };
     std::multimap<int, const DoaMeasurement*> by_frame;
     for (const DoaMeasurement& doa : doas) by_frame.emplace(frame_of(doa.time_s), &doa);
+    std::map<int, const FrameTrace*> trace_of;
+    for (const FrameTrace& trace : traces.frames) trace_of[frame_of(trace.time_s)] = &trace;
 
     // Stray DOAs: near no source at all (drones and interferers).
     for (const DoaMeasurement& doa : doas) {
@@ -251,6 +347,18 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
         }
         audibility.error_deg = best;
         audibility.elevation_error_deg = best_elevation_error;
+        audibility.truth_elevation_deg = elevation_deg(truth);
+        const auto traced = trace_of.find(static_cast<int>(k));
+        if (settings.breakdown && settings.audibility && best > settings.found_within_deg &&
+            traced != trace_of.end()) {
+          const FrameTrace& trace = *traced->second;
+          const std::size_t bins = drone_power.bins_per_frame;
+          audibility.cause = miss_cause(
+              trace, truth,
+              comb_share_kept(drone_power.frame(k), bins, trace.kept_after_null, scratch),
+              comb_share_kept(drone_power.frame(k), bins, trace.kept_at_search_end, scratch),
+              settings.found_within_deg, audibility);
+        }
         cell.frames.push_back(audibility);
         cell.max_snr_db = std::max(cell.max_snr_db, snr_db);
         if (snr_db < settings.audible_snr_db) continue;
@@ -299,6 +407,59 @@ std::string format_audibility_rows(const std::string& scene, const SceneResult& 
     std::snprintf(line, sizeof line, "| %s | %s | %s |%s %+.2f |\n", scene.c_str(),
                   cell.array_id.c_str(), cell.drone_id.c_str(), columns.c_str(),
                   percentile(elevation_errors, 0.5));
+    rows += line;
+  }
+  return rows;
+}
+
+std::string format_breakdown_rows(const std::string& scene, const SceneResult& result,
+                                  double found_within_deg) {
+  constexpr auto kCauses = static_cast<std::size_t>(MissCause::count);
+  std::string rows = "| scene | array | drone | comb >= 0 dB | found |";
+  for (std::size_t c = 1; c < kCauses; ++c)
+    rows += std::string(" ") + miss_cause_name(static_cast<MissCause>(c)) + " |";
+  rows +=
+      " off: 3-6 / 6-9 / 9-14 / 14-20 deg, median el | off: candidate / primary / followed / free "
+      "/ static kept, refused | drone el |\n|---|---|---|---|---|";
+  for (std::size_t c = 1; c < kCauses; ++c) rows += "---|";
+  rows += "---|---|---|\n";
+  char line[128];
+  for (const DroneAtArray& cell : result.cells) {
+    std::array<int, kCauses> counts{};
+    std::array<int, 4> off{};
+    std::vector<double> off_elevations;
+    std::vector<double> truth_elevations;
+    std::array<int, 6> off_kinds{};
+    int heard = 0;
+    int found = 0;
+    for (const FrameAudibility& frame : cell.frames) {
+      if (frame.comb_snr_db < 0.0) continue;
+      ++heard;
+      if (frame.error_deg <= found_within_deg) {
+        ++found;
+        continue;
+      }
+      ++counts[static_cast<std::size_t>(frame.cause)];
+      if (frame.cause != MissCause::off_target) continue;
+      off[frame.off_deg < 6.0 ? 0 : frame.off_deg < 9.0 ? 1 : frame.off_deg < 14.0 ? 2 : 3] += 1;
+      off_elevations.push_back(frame.off_elevation_deg);
+      off_kinds[frame.off_kept ? static_cast<std::size_t>(frame.off_kind + 1) : 5] += 1;
+    }
+    for (const FrameAudibility& frame : cell.frames)
+      truth_elevations.push_back(frame.truth_elevation_deg);
+    std::snprintf(line, sizeof line, "| %s | %s | %s | %d | %d |", scene.c_str(),
+                  cell.array_id.c_str(), cell.drone_id.c_str(), heard, found);
+    rows += line;
+    for (std::size_t c = 1; c < kCauses; ++c) {
+      std::snprintf(line, sizeof line, " %d |", counts[c]);
+      rows += line;
+    }
+    std::snprintf(line, sizeof line, " %d / %d / %d / %d, %+.1f |", off[0], off[1], off[2], off[3],
+                  off_elevations.empty() ? 0.0 : percentile(off_elevations, 0.5));
+    rows += line;
+    std::snprintf(line, sizeof line, " %d / %d / %d / %d / %d, %d | %.1f-%.1f |\n", off_kinds[0],
+                  off_kinds[1], off_kinds[2], off_kinds[3], off_kinds[4], off_kinds[5],
+                  percentile(truth_elevations, 0.05), percentile(truth_elevations, 0.95));
     rows += line;
   }
   return rows;

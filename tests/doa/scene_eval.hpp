@@ -27,12 +27,44 @@ RenderedScenario render_for_evaluation(const sim::Scenario& scenario);
 // `audible_snr_db` rule), against everything else (background, interferers, other drones) over
 // the whole band, and against everything else on its own comb bins (the band bins where the
 // drone alone stands >= 10 dB above its own median bin); the angle of the frame's nearest DOA.
+// Why a comb-audible frame has no DOA within found_within_deg of the drone (--breakdown), the
+// first that applies in pipeline order (doa/node_trace.hpp's FrameTrace of the frame).
+enum class MissCause : int {
+  found = 0,        // not missed
+  not_sharp,        // the first look's peaks too flat: no source looked for
+  gate_closed,      // sources found, the detection gate closed: nothing published
+  null_dropped,     // the static null dropped most of the drone's comb power
+  regression,       // a candidate of the frame within reach, the smoothed DOA not
+  refused_pairs,    // a look within reach, refused by the LS solver: too few pairs
+  refused_norm,     // ... its lags fit no plane wave (norm gate)
+  refused_chi2,     // ... residual gate
+  duplicate,        // ... taken for a source the frame already had
+  below_horizon,    // ... under min_elevation_deg
+  remeasure_moved,  // a look within reach kept, its re-measure (echo, own comb) moved it off
+  off_target,       // the nearest look or candidate 3-20 deg off (fringe, bias, pull)
+  capacity,         // max_sources spent on other sources first
+  owned_by_others,  // most of the drone's comb power dropped with other sources' bins
+  under_floor,      // nothing left cleared the SRP floor
+  looks_spent,      // the free looks ran out on refused or duplicate looks
+  other,
+  count
+};
+const char* miss_cause_name(MissCause cause);
+
 struct FrameAudibility {
   double background_snr_db = -100.0;
   double band_snr_db = -100.0;
   double comb_snr_db = -100.0;
-  double error_deg = 180.0;          // nearest DOA of the frame to the truth (180: none)
-  double elevation_error_deg = 0.0;  // that DOA's elevation minus the truth's
+  double error_deg = 180.0;            // nearest DOA of the frame to the truth (180: none)
+  double elevation_error_deg = 0.0;    // that DOA's elevation minus the truth's
+  MissCause cause = MissCause::found;  // breakdown only
+  double off_deg = 0.0;                // off_target: the nearest look's or candidate's angle
+  double off_elevation_deg = 0.0;      // ... its elevation minus the truth's
+  // ... what it was: a candidate after the re-measures (-1), or a look (its LookKind), and
+  // whether it was kept.
+  int off_kind = -1;
+  bool off_kept = true;
+  double truth_elevation_deg = 0.0;
 };
 
 struct DroneAtArray {
@@ -64,6 +96,9 @@ struct EvaluationSettings {
   // Fill FrameAudibility::band_snr_db / comb_snr_db (one more spectrum per drone and array:
   // off for the tests, which use the background rule only).
   bool audibility = false;
+  // Trace every frame (NodePipeline::set_frame_trace) and give each missed frame a MissCause
+  // (needs audibility: the drone's comb bins).
+  bool breakdown = false;
 };
 
 SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
@@ -74,6 +109,11 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
 // the median signed elevation error of the found frames.
 std::string format_audibility_rows(const std::string& scene, const SceneResult& result,
                                    double found_within_deg);
+
+// Per drone and array, the frames whose comb stands >= 0 dB over everything else and have no
+// DOA within found_within_deg, counted by MissCause, and the off_target offsets' spread.
+std::string format_breakdown_rows(const std::string& scene, const SceneResult& result,
+                                  double found_within_deg);
 
 // "| scene | tracker | array | drone | median | p90 | coverage |" rows.
 std::string format_rows(const std::string& scene, const std::string& tracker,

@@ -2,7 +2,9 @@
 // [TRACKER ...]: renders a simulated scene in memory, runs every array's NodePipeline with each
 // TDOA tracker (default: all four) and prints the accuracy table (markdown rows) that
 // docs/doa.md quotes; --audibility adds each drone's frames heard by each audibility rule and the
-// DOA coverage over them.
+// DOA coverage over them; --breakdown (implies --audibility) each missed comb-audible frame's
+// cause in pipeline order (docs/doa.md "Where the drones' frames go"); --follow 0|1 sets
+// doa.follow_source_tracks.
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -18,7 +20,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
-                 "[--audibility] "
+                 "[--audibility] [--breakdown] [--follow 0|1] "
                  "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
@@ -30,6 +32,7 @@ int main(int argc, char** argv) {
     doa::testing::EvaluationSettings settings;
     int static_null = -1;  // -1: as the scene's config says
     bool audibility = false;
+    int follow = -1;  // doa.follow_source_tracks: -1 as the scene's config says
     for (int i = 2; i < argc; ++i) {
       if (argv[i] == std::string("--audible-snr-db") && i + 1 < argc) {
         settings.audible_snr_db = std::stod(argv[++i]);
@@ -38,6 +41,16 @@ int main(int argc, char** argv) {
       if (argv[i] == std::string("--audibility")) {
         audibility = true;
         settings.audibility = true;
+        continue;
+      }
+      if (argv[i] == std::string("--breakdown")) {
+        audibility = true;
+        settings.audibility = true;
+        settings.breakdown = true;
+        continue;
+      }
+      if (argv[i] == std::string("--follow") && i + 1 < argc) {
+        follow = std::stoi(argv[++i]);
         continue;
       }
       if (argv[i] == std::string("--static-null") && i + 1 < argc) {
@@ -69,6 +82,7 @@ int main(int argc, char** argv) {
       doa::DoaParams params = scenario.site.doa;
       params.tdoa_tracker = tracker;
       if (static_null >= 0) params.static_null = static_null == 1;
+      if (follow >= 0) params.follow_source_tracks = follow == 1;
       const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);
       std::printf("%s",
                   doa::testing::format_rows(name, doa::tdoa_tracker_name(tracker), result).c_str());
@@ -79,6 +93,10 @@ int main(int argc, char** argv) {
             "deg |\n|---|---|---|---|---|---|---|---|---|---|---|\n%s\n",
             doa::testing::format_audibility_rows(name, result, settings.found_within_deg).c_str());
       }
+      if (settings.breakdown)
+        std::printf(
+            "%s\n",
+            doa::testing::format_breakdown_rows(name, result, settings.found_within_deg).c_str());
       std::fflush(stdout);
     }
   } catch (const std::exception& error) {

@@ -1,0 +1,62 @@
+#pragma once
+// What a frame's source stages did, for tools that explain a missed source against the truth
+// (tests/doa/scene_eval's --breakdown): every look in pipeline order with its outcome, why the
+// free search stopped, the frame's candidates before the per-source regression, and the band
+// bins kept after the static null and at the search's end. Off unless a sink is set; filled
+// in place (sized once, at NodePipeline::set_frame_trace), so tracing allocates nothing per frame.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace dronetrack::doa {
+
+enum class LookKind : std::uint8_t { primary, followed, free, static_look };
+enum class LookOutcome : std::uint8_t {
+  kept,
+  refused_pairs,  // the LS solver had too few pairs with a peak
+  refused_norm,   // ||A^-1 b| - 1| over max_norm_error: the lags fit no plane wave
+  refused_chi2,   // the fit's residual over max_chi2_per_dof
+  duplicate,      // within srp_min_separation_deg of a source the frame already has
+  below_horizon,  // under min_elevation_deg (a ground source or a drone's ground image)
+};
+enum class SearchEnd : std::uint8_t {
+  not_run,      // not sharp, no SRP, or the primary was the only look
+  capacity,     // max_sources found
+  under_floor,  // no direction of what was left cleared the SRP noise floor
+  looks_spent,  // max_sources + 2 looks made, the last ones refused or duplicates
+};
+
+struct LookTrace {
+  LookKind kind = LookKind::primary;
+  LookOutcome outcome = LookOutcome::kept;
+  Eigen::Vector3d direction_site = Eigen::Vector3d::UnitX();  // the solution's, or the look's
+};
+
+struct FrameTrace {
+  static constexpr int kMaxLooks = 24;
+  static constexpr int kMaxCandidates = 8;
+  double time_s = 0.0;  // the frame's centre (a DOA published for it carries this time)
+  bool sharp = false;   // the first look's peaks were sharp enough to look for sources
+  bool detecting = false;
+  int look_count = 0;
+  std::array<LookTrace, kMaxLooks> looks{};
+  SearchEnd search_end = SearchEnd::not_run;
+  // After the ground echoes' re-measures, before the per-source regression.
+  int candidate_count = 0;
+  std::array<Eigen::Vector3d, kMaxCandidates> candidates{};
+  // Band bins (the band's order), 1 = kept: after the static null (what the first look saw);
+  // when the free search stopped (the bins of every source found so far dropped).
+  std::vector<std::uint8_t> kept_after_null;
+  std::vector<std::uint8_t> kept_at_search_end;
+};
+
+class FrameTraceSink {
+ public:
+  virtual ~FrameTraceSink() = default;
+  // Called once per analysed frame, after its sources are found and before publishing.
+  virtual void frame(const FrameTrace& trace) = 0;
+};
+
+}  // namespace dronetrack::doa
