@@ -395,33 +395,17 @@ int DropOwnedBins(const OwnedBinScan& scan) {
   const Full d;
   const std::size_t lanes = hn::Lanes(d);
   const int pairs = std::min(scan.pairs, kMaxPairs);
-  HWY_ALIGN double start_re[kMaxLanes];
-  HWY_ALIGN double start_im[kMaxLanes];
   V rotation_re[kMaxPairs], rotation_im[kMaxPairs], step_re[kMaxPairs], step_im[kMaxPairs];
-  for (int p = 0; p < pairs; ++p) {
-    const std::complex<double> step =
-        std::polar(1.0, scan.bin_omega * static_cast<double>(lanes) * scan.taus[p]);
-    step_re[p] = hn::Set(d, step.real());
-    step_im[p] = hn::Set(d, step.imag());
-  }
+  for (int p = 0; p < pairs; ++p)
+    VectorStep(d, scan.bin_omega, scan.taus[p], step_re[p], step_im[p]);
   const auto* const* phasors = reinterpret_cast<const double* const*>(scan.phasors);
   const V threshold = hn::Set(d, scan.threshold);
   V dropped = hn::Zero(d);  // counts of whole bins: exact
   std::size_t index = 0;
   for (std::size_t r = 0; r < scan.run_count; ++r) {
     const BandRun& run = scan.runs[r];
-    for (int p = 0; p < pairs; ++p) {
-      const std::complex<double> step = std::polar(1.0, scan.bin_omega * scan.taus[p]);
-      std::complex<double> rotation =
-          std::polar(1.0, scan.bin_omega * run.first_bin * scan.taus[p]);
-      for (std::size_t l = 0; l < lanes; ++l) {
-        start_re[l] = rotation.real();
-        start_im[l] = rotation.imag();
-        rotation *= step;
-      }
-      rotation_re[p] = hn::Load(d, start_re);
-      rotation_im[p] = hn::Load(d, start_im);
-    }
+    for (int p = 0; p < pairs; ++p)
+      RunRotation(d, scan.bin_omega, run.first_bin, scan.taus[p], rotation_re[p], rotation_im[p]);
     const auto bins = static_cast<std::size_t>(run.last_bin - run.first_bin + 1);
     for (std::size_t k = 0; k < bins; k += lanes) {
       const std::size_t count = std::min(lanes, bins - k);

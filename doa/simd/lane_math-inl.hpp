@@ -8,6 +8,7 @@
 #endif
 
 #include <algorithm>
+#include <complex>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -92,6 +93,33 @@ HWY_INLINE void Advance(V& re, V& im, V step_re, V step_im) {
   const V next_re = hn::MulSub(re, step_re, hn::Mul(im, step_im));
   im = hn::MulAdd(re, step_im, hn::Mul(im, step_re));
   re = next_re;
+}
+
+// The rotation by delay `tau_s` of a vector of consecutive bins from `first_bin`, lane l one
+// bin further than lane l - 1, stepped in complex double: every kernel that scans a band run
+// starts from the same bits.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void RunRotation(D d, double bin_omega, int first_bin, double tau_s, V& re, V& im) {
+  HWY_ALIGN double start_re[kMaxLanes];
+  HWY_ALIGN double start_im[kMaxLanes];
+  const std::complex<double> step = std::polar(1.0, bin_omega * tau_s);
+  std::complex<double> rotation = std::polar(1.0, bin_omega * first_bin * tau_s);
+  for (std::size_t l = 0; l < hn::Lanes(d); ++l) {
+    start_re[l] = rotation.real();
+    start_im[l] = rotation.imag();
+    rotation *= step;
+  }
+  re = hn::Load(d, start_re);
+  im = hn::Load(d, start_im);
+}
+
+// The step that turns such a rotation on by a whole vector of bins (for Advance).
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void VectorStep(D d, double bin_omega, double tau_s, V& re, V& im) {
+  const std::complex<double> step =
+      std::polar(1.0, bin_omega * static_cast<double>(hn::Lanes(d)) * tau_s);
+  re = hn::Set(d, step.real());
+  im = hn::Set(d, step.imag());
 }
 
 // `count` (at most a vector) doubles from `source`, zeros after them.

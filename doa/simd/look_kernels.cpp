@@ -32,16 +32,10 @@ void LookPhasors(const LookRows& rows) {
   const std::size_t lanes = hn::Lanes(d);
   const int pairs = std::min(rows.pairs, kMaxPairs);
   const int terms = std::min(rows.source_starts[rows.sources], kMaxLookTerms);
-  HWY_ALIGN double start_re[kMaxLanes];
-  HWY_ALIGN double start_im[kMaxLanes];
   V rotation_re[kMaxLookTerms], rotation_im[kMaxLookTerms];
   V step_re[kMaxLookTerms], step_im[kMaxLookTerms];
-  for (int t = 0; t < terms; ++t) {
-    const std::complex<double> step =
-        std::polar(1.0, rows.bin_omega * static_cast<double>(lanes) * rows.term_taus[t]);
-    step_re[t] = hn::Set(d, step.real());
-    step_im[t] = hn::Set(d, step.imag());
-  }
+  for (int t = 0; t < terms; ++t)
+    VectorStep(d, rows.bin_omega, rows.term_taus[t], step_re[t], step_im[t]);
   V unit_re[kMaxPairs], unit_im[kMaxPairs], sizes[kMaxPairs], total[kMaxPairs];
   for (int p = 0; p < pairs; ++p) total[p] = hn::Zero(d);
   const V silent = hn::Set(d, rows.silent_level);
@@ -49,18 +43,9 @@ void LookPhasors(const LookRows& rows) {
   std::size_t index = 0;
   for (std::size_t r = 0; r < rows.run_count; ++r) {
     const BandRun& run = rows.runs[r];
-    for (int t = 0; t < terms; ++t) {
-      const double tau = rows.term_taus[t];
-      const std::complex<double> step = std::polar(1.0, rows.bin_omega * tau);
-      std::complex<double> rotation = std::polar(1.0, rows.bin_omega * run.first_bin * tau);
-      for (std::size_t l = 0; l < lanes; ++l) {
-        start_re[l] = rotation.real();
-        start_im[l] = rotation.imag();
-        rotation *= step;
-      }
-      rotation_re[t] = hn::Load(d, start_re);
-      rotation_im[t] = hn::Load(d, start_im);
-    }
+    for (int t = 0; t < terms; ++t)
+      RunRotation(d, rows.bin_omega, run.first_bin, rows.term_taus[t], rotation_re[t],
+                  rotation_im[t]);
     const auto bins = static_cast<std::size_t>(run.last_bin - run.first_bin + 1);
     for (std::size_t k = 0; k < bins; k += lanes) {
       const std::size_t count = std::min(lanes, bins - k);
