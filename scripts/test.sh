@@ -36,15 +36,18 @@ cmake --build --preset asan -j"$jobs"
 section_done "asan-build"
 # Leaks in third-party singletons (Cyclone, PortAudio) are not ours to fix; ASan still reports
 # every memory error. Browser and benchmark-style tests run once, in the release build, and so do
-# three Monte-Carlo statistics that take 25-120 s each under ASan (10x release: Ceres' autodiff
+# four Monte-Carlo statistics that take 25-120 s each under ASan (10x release: Ceres' autodiff
 # and the filters' inner loops instrumented) and run no code that a shorter test of the same
 # component does not run under ASan too: the calibration's coverage over drawn sites
 # (SiteCalibration.RecoversTheIssuesFieldErrors runs the same solve), the Student-t runs over
 # thousands of impulsive DOAs (TrackFilter.OutlierMixtureRidesOutImpulsiveDoas takes the same
-# filters through their robust update; the Student-t weights have their own unit tests) and the seed-004 EKF-versus-PF comparison (MultipeakParticleFilter.*
-# runs the same filter).
+# filters through their robust update; the Student-t weights have their own unit tests), the
+# seed-004 EKF-versus-PF comparison and the PF's convergence from no guess (44 s under ASan):
+# SeedFour.MultipeakLikelihoodRidesOutReflections runs the same filter from no guess, with
+# reflections in its input.
 asan_statistics="^(SiteCalibration.TwoSigmaCoverageOfDrawnErrors"
 asan_statistics+="|TrackFilter.StudentLikelihoodRidesOutImpulsiveDoas"
+asan_statistics+="|MultipeakParticleFilter.ConvergesWithNoInitialGuess"
 asan_statistics+="|SeedFour.ParticleFilterNeedsNoGuessWhereTheEkfNeedsAGoodOne)\$"
 ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --preset asan -j"$jobs" -LE "browser|slow" -E "$asan_statistics"
