@@ -128,10 +128,12 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // band); 6: the same bands as one union (per_band_detection false); 7: default DoaParams without
 // the static look (its cost is /0 minus /7); 8: default DoaParams on the scene with a rotor
 // beside the source (two sources a frame: the own-comb re-measures run); 9: the same without
-// own_comb_bins (that path's cost is /8 minus /9).
+// own_comb_bins (that path's cost is /8 minus /9); 10: /8 with follow_source_tracks (the followed
+// sources and their fringe judgement run).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
   if (state.range(0) == 9) params.own_comb_bins = false;
+  if (state.range(0) == 10) params.follow_source_tracks = true;
   if (state.range(0) == 4) params.acoustic.enabled = false;
   if (state.range(0) == 7) params.static_look.enabled = false;
   if (state.range(0) == 5 || state.range(0) == 6) {
@@ -185,6 +187,7 @@ BENCHMARK(BM_NodePipeline)
     ->Arg(7)
     ->Arg(8)
     ->Arg(9)
+    ->Arg(10)
     ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.

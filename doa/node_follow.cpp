@@ -17,6 +17,7 @@ namespace dronetrack::doa {
 // strongest first, each taking its bins before the next.
 void NodePipeline::Impl::follow_tracked_sources() {
   std::array<bool, kMaxSources> tried{};
+  found_combs.fill(FoundComb{});
   const int slots = std::min(source_tracks->slot_count(), kMaxSources);
   const auto pairs = tdoas.size();
   while (candidate_count < params.max_sources) {
@@ -79,11 +80,8 @@ void NodePipeline::Impl::follow_tracked_sources() {
 bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> followed_tdoas,
                                          const Eigen::Vector3d& follow_direction_site) {
   if (!own_comb) return false;
-  const GccPhat::UnitsView units = gcc.units();
-  const std::span<const std::uint8_t> frame_bins(frame_mask);
   const Eigen::Matrix3d site_to_array = solver.array_to_site().transpose();
   std::array<double, kMaxPairs> follow_lags{};
-  std::array<double, kMaxPairs> found_lags{};
   const auto pairs = static_cast<std::size_t>(gcc.pair_count());
   const Eigen::Vector3d follow_array = site_to_array * follow_direction_site;
   for (std::size_t p = 0; p < pairs; ++p)
@@ -91,29 +89,45 @@ bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> followed_tdoa
   HarmonicComb follow_comb;
   bool follow_comb_measured = false;
   for (int s = 0; s < candidate_count; ++s) {
-    const Candidate& found = candidates[static_cast<std::size_t>(s)];
-    int used_pairs = 0;
-    const HarmonicComb found_comb = steered_comb(
-        std::span<const PairTdoa>(found.tdoas.data(), pairs), units, frame_bins, used_pairs);
-    if (own_comb->mark_lines(found_comb, comb_lines) < node_detail::kMinOwnCombLines) continue;
-    const double carrier_hz =
-        comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
-    const Eigen::Vector3d found_array = site_to_array * found.solution.direction_site;
-    for (std::size_t p = 0; p < pairs; ++p)
-      found_lags[p] = solver.tdoa_for_direction(static_cast<int>(p), found_array);
-    if (!within_one_carrier_fringe(std::span<const double>(found_lags.data(), pairs),
-                                   std::span<const double>(follow_lags.data(), pairs), carrier_hz))
+    const FoundComb& found = found_comb(s);
+    if (!found.shows_comb) continue;
+    if (!within_one_carrier_fringe(std::span<const double>(found.lags_s.data(), pairs),
+                                   std::span<const double>(follow_lags.data(), pairs),
+                                   found.carrier_hz))
       continue;
     if (!follow_comb_measured) {
-      follow_comb = steered_comb(followed_tdoas, units, frame_bins, used_pairs);
+      int used_pairs = 0;
+      follow_comb = steered_comb(followed_tdoas, gcc.units(), frame_mask, used_pairs);
       follow_comb.harmonic_count = own_comb->mark_lines(follow_comb, comb_lines);
       follow_comb_measured = true;
     }
-    if (comb_is_the_sources(found_comb, follow_comb, node_detail::kMinOwnCombLines,
+    if (comb_is_the_sources(found.comb, follow_comb, node_detail::kMinOwnCombLines,
                             0.5 * own_comb->bin_hz()))
       return true;
   }
   return false;
+}
+
+// A found source's steered comb on the frame's bins, its carrier and its plane-wave lags: the
+// same for every follow judged against it this frame (the units and the frame's mask do not
+// change while the follows are measured), so made once.
+const NodePipeline::Impl::FoundComb& NodePipeline::Impl::found_comb(int source) {
+  FoundComb& found = found_combs[static_cast<std::size_t>(source)];
+  if (found.made) return found;
+  found.made = true;
+  const Candidate& candidate = candidates[static_cast<std::size_t>(source)];
+  const auto pairs = static_cast<std::size_t>(gcc.pair_count());
+  int used_pairs = 0;
+  found.comb = steered_comb(std::span<const PairTdoa>(candidate.tdoas.data(), pairs), gcc.units(),
+                            frame_mask, used_pairs);
+  found.shows_comb = own_comb->mark_lines(found.comb, comb_lines) >= node_detail::kMinOwnCombLines;
+  if (!found.shows_comb) return found;
+  found.carrier_hz = comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
+  const Eigen::Vector3d found_array =
+      solver.array_to_site().transpose() * candidate.solution.direction_site;
+  for (std::size_t p = 0; p < pairs; ++p)
+    found.lags_s[p] = solver.tdoa_for_direction(static_cast<int>(p), found_array);
+  return found;
 }
 
 // Every pair's correlation maximum nearest the lags of a direction (the fringe the source was

@@ -95,6 +95,15 @@ struct NodePipeline::Impl {
   // that source's comb, or none: the source again, not a second one (carrier_fringe.hpp).
   bool fringe_of_found(std::span<const PairTdoa> followed_tdoas,
                        const Eigen::Vector3d& follow_direction_site);
+  // A found source as fringe_of_found() judges follows against it, made once a frame.
+  struct FoundComb {
+    bool made = false;
+    bool shows_comb = false;  // >= kMinOwnCombLines lines marked
+    HarmonicComb comb;
+    double carrier_hz = 0.0;
+    std::array<double, kMaxPairs> lags_s{};
+  };
+  const FoundComb& found_comb(int source);
   // The static look (static_look): the held source measured again, or a search on the frames'
   // averaged phasors; adds at most one candidate (none when max_sources are found).
   void find_static_source();
@@ -210,7 +219,8 @@ struct NodePipeline::Impl {
   std::array<PairTdoa, kMaxPairs> best_follow_tdoas{};
   DoaSolution follow_solution;
   DoaSolution best_follow_solution;
-  std::unique_ptr<ConePeakHistory> cone_peaks;  // rank 1 only
+  std::array<FoundComb, kMaxSources> found_combs{};  // this frame's, by candidate index
+  std::unique_ptr<ConePeakHistory> cone_peaks;       // rank 1 only
   std::array<SourceObservation, kMaxSources> observations{};
   std::array<SourceEstimate, kMaxSources> estimates{};
   struct FrameDetection {
