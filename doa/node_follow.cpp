@@ -108,9 +108,11 @@ bool NodePipeline::Impl::fringe_of_found(std::span<const PairTdoa> followed_tdoa
   return false;
 }
 
-// A found source's steered comb on the frame's bins, its carrier and its plane-wave lags: the
-// same for every follow judged against it this frame (the units and the frame's mask do not
-// change while the follows are measured), so made once.
+// A found source's steered comb on the frame's bins, its carrier and its plane-wave lags, made
+// once a frame, when a follow is first judged against it. A follow kept after that takes its
+// bins from the units, so a later follow is judged against the source's comb as it stood before
+// (not bit-identical to making it per follow: perimeter draw 303's DOAs differ from the first
+// frame with two follows; docs/doa.md "Session 17 (branch `fringe2`)").
 const NodePipeline::Impl::FoundComb& NodePipeline::Impl::found_comb(int source) {
   FoundComb& found = found_combs[static_cast<std::size_t>(source)];
   if (found.made) return found;
