@@ -410,7 +410,8 @@ try {
   // 5. N4 stopped at 12 s: shown stale in the node table and on the plan; the others alive.
   await page.waitForSelector('#node-rows tr[data-node-id="N4"][data-node-state="stale"]', { timeout: 25000 });
   await page.waitForSelector('#plan [data-array-id="N4"][data-node-state="stale"]', { timeout: 3000 });
-  const states = await page.$$eval('#node-rows tr', (rows) => rows.map((r) => `${r.dataset.nodeId}:${r.dataset.nodeState}`));
+  // A node's own row; the warning line under a node (tr.node-warning) is not one.
+  const states = await page.$$eval('#node-rows tr[data-node-id]', (rows) => rows.map((r) => `${r.dataset.nodeId}:${r.dataset.nodeState}`));
   log(`nodes: ${states.join(' ')}`);
   for (const id of ['N1', 'N2', 'N3']) if (!states.includes(`${id}:alive`)) fail(`${id} should be alive: ${states}`);
 
