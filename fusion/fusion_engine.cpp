@@ -295,7 +295,7 @@ void FusionEngine::Impl::update_assigned(const Frame& frame) {
                                track.one_array ? track.origin_noise : floor_of(m, 1.0), m, model,
                                time_s)) {
       doa_taken[j] = 1;
-      record_update(track, array, m, time_s);
+      record_update(track, array, m.acoustic, time_s);
       continue;
     }
     Innovation innovation = track.innovation;
@@ -317,7 +317,7 @@ void FusionEngine::Impl::update_assigned(const Frame& frame) {
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
     if (held_by_one_array(track)) weak_claimant[j] = track.id;
     if (status == FilterStatus::failed) continue;
-    record_update(track, array, m, time_s);
+    record_update(track, array, m.acoustic, time_s);
     if (crowded && !track.confirmed && beside_missed_track(m.direction)) ++track.crowded_updates;
     if (track.one_array) {
       if (log::level() <= log::Level::debug) log_branches(track, time_s);
