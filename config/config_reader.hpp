@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <istream>
+#include <limits>
 #include <optional>
 #include <set>
 #include <string>
@@ -42,7 +43,9 @@ class ObjectReader {
   double number(const std::string& key, double fallback, double min = -1e300, double max = 1e300);
   std::optional<double> required_number(const std::string& key, double min = -1e300,
                                         double max = 1e300);
-  int integer(const std::string& key, int fallback, int min, int max);
+  // An integer within [min, max]; default when absent.
+  int integer(const std::string& key, int fallback, int min = std::numeric_limits<int>::min(),
+              int max = std::numeric_limits<int>::max());
   std::optional<int> optional_integer(const std::string& key, int min, int max);
   bool boolean(const std::string& key, bool fallback);
   std::string string(const std::string& key, const std::string& fallback);

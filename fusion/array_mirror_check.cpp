@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <stdexcept>
 #include <string>
 
 namespace dronetrack::fusion {
@@ -28,25 +27,6 @@ Eigen::Vector3d reflect(const Eigen::Vector3d& direction, const Eigen::Vector3d&
 ArrayMirrorCheck::ArrayMirrorCheck(int array_index, const doa::ArrayGeometry& geometry,
                                    const MirrorCheckSettings& settings)
     : array_(array_index), settings_(settings), sector_of_(std::max(settings.sectors, 1)) {
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("fusion.mirror_check." + what);
-  };
-  if (!(settings.gate_deg > 0.0 && settings.gate_deg < 90.0)) fail("gate_deg must be in (0, 90)");
-  if (!(settings.min_separation_deg > settings.gate_deg && settings.min_separation_deg <= 180.0))
-    fail("min_separation_deg must be in (gate_deg, 180]");
-  if (!(settings.evidence_ratio > 1.0)) fail("evidence_ratio must be > 1");
-  if (!(settings.floor_deg > 0.0)) fail("floor_deg must be > 0");
-  if (settings.min_sectors < 1) fail("min_sectors must be >= 1");
-  if (!(settings.min_sector_doas > 0.0)) fail("min_sector_doas must be > 0");
-  if (settings.sectors < 1 || settings.sectors > 1024) fail("sectors must be in [1, 1024]");
-  if (!(settings.window_s > 0.0)) fail("window_s must be > 0");
-  if (settings.judge_doas < 1) fail("judge_doas must be >= 1");
-  if (!(settings.symmetry_tolerance >= 0.0 && settings.symmetry_tolerance < 0.5))
-    fail("symmetry_tolerance must be in [0, 0.5)");
-  if (settings.min_other_arrays < 1) fail("min_other_arrays must be >= 1");
-  if (!(settings.max_track_angle_deg > 0.0)) fail("max_track_angle_deg must be > 0");
-  if (!(settings.rewarn_s >= 0.0)) fail("rewarn_s must be >= 0");
-
   // A swap of a and b is a mirror when the plane bisecting them holds every other mic: then the
   // reflection through it exchanges a and b and keeps the rest, so the swapped array is the
   // reflected one (only the plane's normal matters to a direction).

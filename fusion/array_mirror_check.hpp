@@ -87,7 +87,7 @@ struct MirrorCheckStatus {
 
 class ArrayMirrorCheck {
  public:
-  // Throws std::invalid_argument naming the bad setting.
+  // `settings` as config::check_fusion_params checks them (their bounds live there alone).
   ArrayMirrorCheck(int array_index, const doa::ArrayGeometry& geometry,
                    const MirrorCheckSettings& settings);
 

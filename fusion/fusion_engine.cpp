@@ -20,10 +20,6 @@ namespace dronetrack::fusion {
 
 namespace {
 
-void check(bool ok, const char* parameter, const char* what) {
-  if (!ok) throw std::invalid_argument(std::string("fusion.") + parameter + ": " + what);
-}
-
 DoaVerdict count_verdict(FusionCounters& counters, DoaVerdict verdict) {
   // In the enum's order; accepted is counted where the DOA is taken.
   static_assert(static_cast<int>(DoaVerdict::bad_direction) == 5);
@@ -41,68 +37,7 @@ DoaVerdict count_verdict(FusionCounters& counters, DoaVerdict verdict) {
 FusionEngine::FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeometry> arrays,
                            double speed_of_sound_mps)
     : impl_(std::make_unique<Impl>()) {
-  check(params.jerk_noise_std_mps3 > 0.0, "jerk_noise_std_mps3", "must be > 0");
-  check(params.output_rate_hz > 0.0, "output_rate_hz", "must be > 0");
-  check(params.reorder_window_s >= 0.0, "reorder_window_s", "must be >= 0");
-  check(params.gate_probability > 0.0 && params.gate_probability < 1.0, "gate_probability",
-        "must be in (0, 1)");
-  check(params.confirm_window >= 1 && params.confirm_window <= 32, "confirm_window",
-        "must be in [1, 32]");
-  check(params.confirm_hits >= 1 && params.confirm_hits <= params.confirm_window, "confirm_hits",
-        "must be in [1, confirm_window]");
-  check(params.coast_timeout_s > 0.0, "coast_timeout_s", "must be > 0");
-  check(params.coast_after_s > 0.0, "coast_after_s", "must be > 0");
-  check(params.tentative_timeout_s > 0.0, "tentative_timeout_s", "must be > 0");
-  check(params.ukf_alpha > 0.0, "ukf_alpha", "must be > 0");
-  check(params.ukf_alpha * params.ukf_alpha * (kStateSize + params.ukf_kappa) > 0.0, "ukf_kappa",
-        "alpha^2 (9 + kappa) must be > 0");
-  check(params.particle_count >= 10, "particle_count", "must be >= 10");
-  check(params.student_t_dof >= 1.0, "student_t_dof", "must be >= 1");
-  check(params.outlier_probability >= 0.0 && params.outlier_probability < 1.0,
-        "outlier_probability", "must be in [0, 1)");
-  check(params.doa_noise_floor_deg >= 0.0, "doa_noise_floor_deg", "must be >= 0");
-  check(params.init_pair_window_s > 0.0, "init_pair_window_s", "must be > 0");
-  check(params.init_max_range_m > 0.0, "init_max_range_m", "must be > 0");
-  check(params.init_max_speed_mps >= 0.0, "init_max_speed_mps", "must be >= 0");
-  check(params.init_velocity_std_mps > 0.0, "init_velocity_std_mps", "must be > 0");
-  check(params.init_acceleration_std_mps2 > 0.0, "init_acceleration_std_mps2", "must be > 0");
-  check(params.max_tracks >= 1, "max_tracks", "must be >= 1");
-  check(params.confirm_min_arrays >= 1, "confirm_min_arrays", "must be >= 1");
-  check(params.max_position_std_m > 0.0, "max_position_std_m", "must be > 0");
-  for (double level : params.imm_jerk_std_mps3) {
-    check(level > 0.0 && std::isfinite(level), "imm_jerk_std_mps3", "levels must be > 0");
-  }
-  check(params.imm_sojourn_s > 0.0, "imm_sojourn_s", "must be > 0");
-  for (double level : params.imm_turn_rate_std_radps2) {
-    check(level > 0.0 && std::isfinite(level), "imm_turn_rate_std_radps2", "levels must be > 0");
-  }
-  check(params.imm_turn_jerk_std_mps3 > 0.0 && std::isfinite(params.imm_turn_jerk_std_mps3),
-        "imm_turn_jerk_std_mps3", "must be > 0");
-  check(params.doa_error_correlation_s >= 0.0, "doa_error_correlation_s", "must be >= 0");
-  check(std::isfinite(params.ground_altitude_m), "ground_altitude_m", "must be finite");
-  if (!(speed_of_sound_mps > 0.0) || !std::isfinite(speed_of_sound_mps)) {
-    throw std::invalid_argument("speed_of_sound_mps: must be a positive number");
-  }
   const OneArrayParams& one = params.single_array;
-  check(one.hypothesis_spacing_m > 0.0, "single_array.hypothesis_spacing_m", "must be > 0");
-  check(one.hypotheses_per_side >= 1 && one.hypotheses_per_side <= 64,
-        "single_array.hypotheses_per_side", "must be in [1, 64]");
-  check(one.max_range_m > 0.0, "single_array.max_range_m", "must be > 0");
-  check(one.hypothesis_range_ratio >= 1.0 && one.hypothesis_range_ratio <= 4.0,
-        "single_array.hypothesis_range_ratio", "must be in [1, 4]");
-  check(one.prune_gamma > 0.0 && one.prune_gamma < 1.0, "single_array.prune_gamma",
-        "must be in (0, 1)");
-  check(one.merge_d2 >= 0.0, "single_array.merge_d2", "must be >= 0");
-  check(one.range_init_m > 0.0, "single_array.range_init_m", "must be > 0");
-  check(one.range_init_std_m > 0.0, "single_array.range_init_std_m", "must be > 0");
-  check(one.bearing_init_std_deg > 0.0, "single_array.bearing_init_std_deg", "must be > 0");
-  check(one.jerk_std_mps3 > 0.0, "single_array.jerk_std_mps3", "must be > 0");
-  check(one.velocity_std_mps > 0.0, "single_array.velocity_std_mps", "must be > 0");
-  check(one.acceleration_std_mps2 > 0.0, "single_array.acceleration_std_mps2", "must be > 0");
-  check(one.particle_count >= 10, "single_array.particle_count", "must be >= 10");
-  check(!one.source_plane_z_m || std::isfinite(*one.source_plane_z_m), "source_plane_z_m",
-        "must be finite");
-  check(one.source_plane_std_m > 0.0, "source_plane_std_m", "must be > 0");
   const std::size_t min_arrays = params.single_array_start ? 1 : 2;
   if (arrays.size() < min_arrays || arrays.size() > static_cast<std::size_t>(kMaxArrays)) {
     throw std::invalid_argument(
@@ -360,7 +295,7 @@ void FusionEngine::Impl::update_assigned(const Frame& frame) {
                                track.one_array ? track.origin_noise : floor_of(m, 1.0), m, model,
                                time_s)) {
       doa_taken[j] = 1;
-      record_update(track, array, m, time_s);
+      record_update(track, array, m.acoustic, time_s);
       continue;
     }
     Innovation innovation = track.innovation;
@@ -382,7 +317,7 @@ void FusionEngine::Impl::update_assigned(const Frame& frame) {
     doa_taken[j] = 1;  // gated to a live track: never an initiation seed, even if refused
     if (held_by_one_array(track)) weak_claimant[j] = track.id;
     if (status == FilterStatus::failed) continue;
-    record_update(track, array, m, time_s);
+    record_update(track, array, m.acoustic, time_s);
     if (crowded && !track.confirmed && beside_missed_track(m.direction)) ++track.crowded_updates;
     if (track.one_array) {
       if (log::level() <= log::Level::debug) log_branches(track, time_s);

@@ -33,7 +33,10 @@ struct FusionCounters {
 
 class FusionEngine {
  public:
-  // Throws std::invalid_argument naming the bad parameter.
+  // `params` as checked by config::check_fusion_params (the site config's parse, or
+  // config::validate for hand-made params): their bounds live there alone, and the engine trusts
+  // them. Throws std::invalid_argument when `arrays` is not 2 to 64 arrays (1 with
+  // single_array_start): the tracker's per-array records are fixed at 64.
   FusionEngine(const FusionParams& params, std::vector<doa::ArrayGeometry> arrays,
                double speed_of_sound_mps);
   ~FusionEngine();

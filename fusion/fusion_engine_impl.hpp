@@ -253,14 +253,16 @@ struct FusionEngine::Impl {
   // against that array's previous one (kManoeuvreRunGapS); when both agree, the track is widened
   // by manoeuvre_noise and the DOA offered again. Returns the DOA's index when it was taken.
   int follow_manoeuvre(Track& track, int array, std::size_t begin, int doa_count, double time_s);
-  // The bookkeeping of a DOA a track took.
-  void record_update(Track& track, int array, const doa::DoaMeasurement& m, double time_s) {
+  // The bookkeeping of a DOA a track took, or one that started it: the one path by which a DOA's
+  // spectrum reaches both the per-array tally (one spectrum at every array) and the classifier.
+  void record_update(Track& track, int array, const doa::AcousticFeatures& acoustic,
+                     double time_s) {
     track.hits_by_array[array] |= 1u;
     track.last_update_s = time_s;
     track.heard_by_array_s[array] = time_s;
     ++track.updates_by_array[array];
-    track.acoustic_by_array[array].add(m.acoustic);
-    classifier->add_acoustic(track.evidence, m.acoustic, time_s);
+    track.acoustic_by_array[array].add(acoustic);
+    classifier->add_acoustic(track.evidence, acoustic, time_s);
   }
   void note(FilterStatus status) {
     if (status == FilterStatus::repaired) ++counters.filter_repairs;

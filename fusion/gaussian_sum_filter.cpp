@@ -8,10 +8,6 @@
 
 namespace dronetrack::fusion {
 namespace {
-// S must be a finite, positive-definite 2x2 for gating and the weights.
-bool valid(const MeasurementCovariance& s) {
-  return s.allFinite() && s(0, 0) > 0.0 && s.determinant() > 0.0;
-}
 // ln det of a covariance's position block (-inf when it is not positive definite).
 double log_det_position(const StateCovariance& covariance) {
   const Eigen::LLT<Eigen::Matrix3d> llt(covariance.topLeftCorner<3, 3>());
@@ -109,27 +105,11 @@ FilterStatus GaussianSumFilter::innovation(const DoaMeasurementModel& model,
   noise_ = noise;
   // The moment-matched mixture, angles as wrapped offsets from the heaviest hypothesis's: the
   // gate and the assignment see every hypothesis's spread.
-  const Measurement centre = innovations_[static_cast<std::size_t>(reference)].predicted;
-  Measurement offset = Measurement::Zero();
-  for (int i = 0; i < count_; ++i) {
-    const auto j = static_cast<std::size_t>(i);
-    if (innovation_ok_[j])
-      offset += effective_[j] / weight_sum * model.residual(innovations_[j].predicted, centre);
-  }
-  const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
-  MeasurementCovariance s = MeasurementCovariance::Zero();
-  CrossCovariance cross = CrossCovariance::Zero();
-  for (int i = 0; i < count_; ++i) {
-    const auto j = static_cast<std::size_t>(i);
-    if (!innovation_ok_[j]) continue;
-    const double w = effective_[j] / weight_sum;
-    const Measurement dz = model.residual(innovations_[j].predicted, z_hat);
-    s += w * (innovations_[j].covariance + dz * dz.transpose());
-    cross += w * (innovations_[j].cross + (components_[j]->mean() - mean_) * dz.transpose());
-  }
-  s = 0.5 * (s + s.transpose()).eval();
-  if (!valid(s)) return FilterStatus::failed;
-  out = {z_hat, s, cross, noise, &model, std::nullopt};
+  const auto live = static_cast<std::size_t>(count_);
+  if (!mixture_innovation(model, noise, std::span(components_).first(live),
+                          std::span(innovations_).first(live), innovation_ok_, effective_,
+                          weight_sum, static_cast<std::size_t>(reference), mean_, out))
+    return FilterStatus::failed;
   return worst;
 }
 
@@ -138,7 +118,7 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
   // The tracker may have added the DOA's own covariance to S and R after innovation(): every
   // hypothesis takes the same.
   const MeasurementCovariance extra = innovation.noise - noise_;
-  if (!valid(innovation.covariance)) return FilterStatus::failed;
+  if (!valid_innovation_covariance(innovation.covariance)) return FilterStatus::failed;
   const Eigen::LDLT<MeasurementCovariance> common(innovation.covariance);
   // A constant for every hypothesis, but the outlier part's density over the Gaussian part's
   // depends on it when the law spreads its outliers (doa_likelihood.hpp).
@@ -153,7 +133,7 @@ FilterStatus GaussianSumFilter::update(const Innovation& innovation, const Measu
     own.covariance += extra;
     own.noise = innovation.noise;
     own.outlier_probability = innovation.outlier_probability;
-    if (!valid(own.covariance)) continue;
+    if (!valid_innovation_covariance(own.covariance)) continue;
     // Each hypothesis's own prediction, judged on the mixture's common spread (see below).
     const Measurement residual = own.residual(z);
     const double d2 = residual.dot(common.solve(residual));

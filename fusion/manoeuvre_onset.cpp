@@ -82,7 +82,7 @@ int FusionEngine::Impl::follow_manoeuvre(Track& track, int array, std::size_t be
   const FilterStatus update_status = track.filter->update(innovation, z);
   note(update_status);
   if (update_status == FilterStatus::failed) return -1;
-  record_update(track, array, m, time_s);
+  record_update(track, array, m.acoustic, time_s);
   return nearest;
 }
 

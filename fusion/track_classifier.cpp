@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 
 namespace dronetrack::fusion {
 
@@ -28,18 +27,7 @@ std::optional<TrackClass> track_class_from_string(const std::string& name) {
 }
 
 TrackClassifier::TrackClassifier(const ClassifierSettings& settings, double ground_altitude_m)
-    : settings_(settings), ground_altitude_m_(ground_altitude_m) {
-  auto check = [](bool ok, const char* name) {
-    if (!ok)
-      throw std::invalid_argument(std::string("fusion.classifier.") + name + ": out of range");
-  };
-  check(settings.drone_max_fundamental_hz > settings.drone_min_fundamental_hz,
-        "drone_max_fundamental_hz");
-  check(settings.acoustic_memory_s > 0.0, "acoustic_memory_s");
-  check(settings.kinematic_memory_s > 0.0, "kinematic_memory_s");
-  check(settings.drone_leave_share <= settings.drone_enter_share, "drone_leave_share");
-  check(std::isfinite(ground_altitude_m), "ground_altitude_m");
-}
+    : settings_(settings), ground_altitude_m_(ground_altitude_m) {}
 
 void TrackClassifier::add_acoustic(TrackEvidence& evidence, const doa::AcousticFeatures& features,
                                    double time_s) const {

@@ -64,7 +64,7 @@ struct TrackEvidence {
 
 class TrackClassifier {
  public:
-  // Throws std::invalid_argument naming a bad setting.
+  // `settings` as config::check_fusion_params checks them (their bounds live there alone).
   TrackClassifier(const ClassifierSettings& settings, double ground_altitude_m);
 
   // One DOA the track took (features invalid: no vote).

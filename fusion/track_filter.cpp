@@ -22,11 +22,6 @@ void symmetrise(StateCovariance& covariance) {
   covariance = 0.5 * (covariance + covariance.transpose()).eval();
 }
 
-// S must be a finite, positive-definite 2x2 for gating and the gain.
-bool valid_innovation_covariance(const MeasurementCovariance& s) {
-  return s.allFinite() && s(0, 0) > 0.0 && s.determinant() > 0.0;
-}
-
 // Shared by the Gaussian filters: exact linear prediction, the Kalman update from (S, P_xz).
 class GaussianFilter : public TrackFilter {
  public:
@@ -606,26 +601,9 @@ class InteractingFilter final : public TrackFilter {
       weight_sum += probability_[j];
     }
     if (!(weight_sum > 0.0)) return FilterStatus::failed;
-    const Measurement centre = innovations_[reference].predicted;
-    Measurement offset = Measurement::Zero();
-    for (std::size_t j = 0; j < models_.size(); ++j) {
-      if (innovation_ok_[j]) {
-        offset += probability_[j] / weight_sum * model.residual(innovations_[j].predicted, centre);
-      }
-    }
-    const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
-    MeasurementCovariance s = MeasurementCovariance::Zero();
-    CrossCovariance cross = CrossCovariance::Zero();
-    for (std::size_t j = 0; j < models_.size(); ++j) {
-      if (!innovation_ok_[j]) continue;
-      const double w = probability_[j] / weight_sum;
-      const Measurement dz = model.residual(innovations_[j].predicted, z_hat);
-      s += w * (innovations_[j].covariance + dz * dz.transpose());
-      cross += w * (innovations_[j].cross + (models_[j]->mean() - mean_) * dz.transpose());
-    }
-    s = 0.5 * (s + s.transpose()).eval();
-    if (!valid_innovation_covariance(s)) return FilterStatus::failed;
-    out = {z_hat, s, cross, noise, &model, std::nullopt};
+    if (!mixture_innovation(model, noise, models_, innovations_, innovation_ok_, probability_,
+                            weight_sum, reference, mean_, out))
+      return FilterStatus::failed;
     return worst;
   }
 
@@ -799,6 +777,36 @@ std::unique_ptr<TrackFilter> make_single_filter(FilterKind kind, const FilterSet
   return nullptr;
 }
 }  // namespace
+
+bool valid_innovation_covariance(const MeasurementCovariance& s) {
+  return s.allFinite() && s(0, 0) > 0.0 && s.determinant() > 0.0;
+}
+
+bool mixture_innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                        std::span<const std::unique_ptr<TrackFilter>> components,
+                        std::span<const Innovation> innovations, std::span<const char> ok,
+                        std::span<const double> weights, double weight_sum, std::size_t reference,
+                        const StateVector& mixture_mean, Innovation& out) {
+  const Measurement centre = innovations[reference].predicted;
+  Measurement offset = Measurement::Zero();
+  for (std::size_t j = 0; j < components.size(); ++j) {
+    if (ok[j]) offset += weights[j] / weight_sum * model.residual(innovations[j].predicted, centre);
+  }
+  const Measurement z_hat = model.residual(centre + offset, Measurement::Zero());
+  MeasurementCovariance s = MeasurementCovariance::Zero();
+  CrossCovariance cross = CrossCovariance::Zero();
+  for (std::size_t j = 0; j < components.size(); ++j) {
+    if (!ok[j]) continue;
+    const double w = weights[j] / weight_sum;
+    const Measurement dz = model.residual(innovations[j].predicted, z_hat);
+    s += w * (innovations[j].covariance + dz * dz.transpose());
+    cross += w * (innovations[j].cross + (components[j]->mean() - mixture_mean) * dz.transpose());
+  }
+  s = 0.5 * (s + s.transpose()).eval();
+  if (!valid_innovation_covariance(s)) return false;
+  out = {z_hat, s, cross, noise, &model, std::nullopt};
+  return true;
+}
 
 std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSettings& settings) {
   // The particle filters sample one jerk level; the IMM mixes the plain Gaussian filters only (the

@@ -16,6 +16,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "doa/doa_measurement.hpp"
@@ -125,5 +126,17 @@ std::unique_ptr<TrackFilter> make_track_filter(FilterKind kind, const FilterSett
 FilterStatus robust_cholesky(StateCovariance& covariance, StateCovariance& lower);
 // True when symmetric positive definite and finite.
 bool is_positive_definite(const StateCovariance& covariance);
+// S must be a finite, positive-definite 2x2 for gating, the gain and the weights.
+bool valid_innovation_covariance(const MeasurementCovariance& s);
+// The moment-matched innovation of a mixture of filters (the IMM's modes, the Gaussian sum's
+// hypotheses): component j, where ok[j], weighs weights[j] / weight_sum; angles are wrapped
+// offsets from the reference component's prediction, so a mixture across +-180 deg keeps its
+// mean. `mixture_mean` is the mixture's state mean. False when the moment-matched S is no
+// covariance (`out` is then left as it was).
+bool mixture_innovation(const DoaMeasurementModel& model, const MeasurementCovariance& noise,
+                        std::span<const std::unique_ptr<TrackFilter>> components,
+                        std::span<const Innovation> innovations, std::span<const char> ok,
+                        std::span<const double> weights, double weight_sum, std::size_t reference,
+                        const StateVector& mixture_mean, Innovation& out);
 
 }  // namespace dronetrack::fusion

@@ -210,11 +210,8 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   track.time_s = time_s;
   track.last_update_s = time_s;
   track.heard_by_array_s.fill(kNeverS);
-  const auto seed_support = [&track, time_s](int supporting_array, const RecentDoa& doa) {
-    track.hits_by_array[supporting_array] = 1u;
-    track.heard_by_array_s[supporting_array] = time_s;
-    track.updates_by_array[supporting_array] = 1;
-    track.acoustic_by_array[supporting_array].add(doa.acoustic);
+  const auto seed_support = [this, &track, time_s](int supporting_array, const RecentDoa& doa) {
+    record_update(track, supporting_array, doa.acoustic, time_s);
   };
   seed_support(array, seed);
   seed_support(best.partner_array, partner);
@@ -286,9 +283,7 @@ bool FusionEngine::Impl::try_start_one_array(int array, std::size_t recent_index
   track.time_s = time_s;
   track.last_update_s = time_s;
   track.heard_by_array_s.fill(kNeverS);
-  track.hits_by_array[array] = 1u;
-  track.heard_by_array_s[array] = time_s;
-  track.updates_by_array[array] = 1;
+  record_update(track, array, seed.acoustic, time_s);
   tracks.push_back(std::move(track));
   ++counters.tracks_started;
   seed.used = true;

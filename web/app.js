@@ -526,16 +526,33 @@
     const doc = await getJson(`/api/alerts?since=${encodeURIComponent(last - 1e-6)}`);
     for (const a of doc.alerts) onAlert(a);
   }
-  function connect() {
+  function connect(snapshotLoaded) {
     const status = $('connection');
     const source = new EventSource('/api/stream');
-    let lost = false;
+    // What the page still has to read once the stream is up: the whole snapshot when it could
+    // not be read at start, else the alerts of a gap. A read that fails (the network often
+    // comes back in steps) is tried again while the stream stays up, so no alert is left behind.
+    let behind = snapshotLoaded ? null : 'snapshot';
+    let retry = null;
+    const readWhatWasMissed = () => {
+      retry = null;
+      if (!behind || source.readyState !== EventSource.OPEN) return;
+      const what = behind;
+      behind = null;
+      (what === 'snapshot' ? loadSnapshot() : catchUpAlerts()).catch((err) => {
+        console.warn(`${what === 'snapshot' ? 'snapshot' : 'alerts'} after reconnect: ${err.message}`);
+        if (behind !== 'snapshot') behind = what;
+        if (!retry) retry = setTimeout(readWhatWasMissed, 1000);
+      });
+    };
     source.addEventListener('open', () => {
       status.dataset.state = 'live'; status.textContent = 'live';
-      if (lost) catchUpAlerts().catch((err) => console.warn(`alerts after reconnect: ${err.message}`));
-      lost = false;
+      readWhatWasMissed();
     });
-    source.addEventListener('error', () => { lost = true; status.dataset.state = 'lost'; status.textContent = 'reconnecting…'; });
+    source.addEventListener('error', () => {
+      if (behind !== 'snapshot') behind = 'alerts';
+      status.dataset.state = 'lost'; status.textContent = 'reconnecting…';
+    });
     source.addEventListener('tracks', (e) => onTracks(JSON.parse(e.data)));
     source.addEventListener('doa', (e) => onDoa(JSON.parse(e.data)));
     source.addEventListener('nodes', (e) => onNodes(JSON.parse(e.data)));
@@ -543,8 +560,11 @@
   }
 
   loadSnapshot()
-    .catch((err) => { $('connection').dataset.state = 'lost'; $('connection').textContent = `error: ${err.message}`; })
-    .finally(connect);
+    .then(() => true, (err) => {
+      $('connection').dataset.state = 'lost'; $('connection').textContent = `error: ${err.message}`;
+      return false;
+    })
+    .then(connect);
   // Exposed for the browser test and for debugging from the console.
   window.dronetrack = { state, select, fitView };
 })();

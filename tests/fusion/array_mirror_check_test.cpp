@@ -128,12 +128,6 @@ TEST(ArrayMirrorCheck, OneDirectionIsNotJudged) {
   EXPECT_EQ(check.status().best_ratio, 0.0);
 }
 
-TEST(ArrayMirrorCheck, BadSettingsAreNamed) {
-  MirrorCheckSettings settings;
-  settings.min_separation_deg = 4.0;  // under the gate: a rotation could pass for a mirror
-  EXPECT_THROW(ArrayMirrorCheck(0, turned_tetrahedron(), settings), std::invalid_argument);
-}
-
 // The engine: three arrays, a drone circling above the middle one; A2's channels 1 and 2 are
 // swapped, so its DOAs are mirrored. The tracks A1 and A3 fix name it; the same scene clean, or
 // with A2's yaw 3 deg off, says nothing.

@@ -836,26 +836,16 @@ TEST(FusionEngine, CoastsThenDeletesAndNeverReusesAnId) {
   EXPECT_GT(tracks[0].id, first_id);
 }
 
-TEST(FusionEngine, ConstructorNamesTheBadParameter) {
+// The params' bounds are config's (tests/config/fusion_bounds_test.cpp); the engine refuses what
+// its fixed per-array records cannot hold.
+TEST(FusionEngine, ConstructorRefusesTheArraysItCannotHold) {
   const auto arrays = square_site(100.0);
-  FusionParams params;
-  params.confirm_hits = 9;
-  try {
-    FusionEngine engine(params, arrays, kSpeed);
-    FAIL() << "accepted confirm_hits > confirm_window";
-  } catch (const std::invalid_argument& error) {
-    EXPECT_NE(std::string(error.what()).find("confirm_hits"), std::string::npos);
-  }
   EXPECT_THROW(FusionEngine(FusionParams{}, {arrays[0]}, kSpeed), std::invalid_argument);
-  EXPECT_THROW(FusionEngine(FusionParams{}, arrays, 0.0), std::invalid_argument);
-  FusionParams turn;
-  turn.imm_turn_rate_std_radps2 = {1.0, 0.0};
-  try {
-    FusionEngine engine(turn, arrays, kSpeed);
-    FAIL() << "accepted a zero turn-rate noise level";
-  } catch (const std::invalid_argument& error) {
-    EXPECT_NE(std::string(error.what()).find("imm_turn_rate_std_radps2"), std::string::npos);
-  }
+  FusionParams one_array;
+  one_array.single_array_start = true;
+  EXPECT_NO_THROW(FusionEngine(one_array, {arrays[0]}, kSpeed));
+  const std::vector<doa::ArrayGeometry> too_many(65, arrays[0]);  // the limit is 64
+  EXPECT_THROW(FusionEngine(FusionParams{}, too_many, kSpeed), std::invalid_argument);
 }
 
 }  // namespace

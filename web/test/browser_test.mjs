@@ -101,12 +101,21 @@ function freePort() {
 }
 
 // The page talks to the server through this proxy, so the test can cut the network between
-// them (every open connection dropped, new ones refused) while the server goes on.
+// them (every open connection dropped, new ones refused) while the server goes on, and can
+// answer the next request for a path with a 503, as a network coming back in steps does.
 function startProxy(targetPort) {
   const sockets = new Set();
   let down = false;
+  let failNext = null;
   const server = http.createServer((req, res) => {
     if (down) { req.socket.destroy(); return; }
+    if (failNext && req.url.startsWith(failNext.prefix)) {
+      failNext.resolve(req.url);
+      failNext = null;
+      res.writeHead(503, { 'Content-Type': 'text/plain' });
+      res.end('unavailable');
+      return;
+    }
     const upstream = http.request({ host: '127.0.0.1', port: targetPort, path: req.url, method: req.method, headers: req.headers },
                                   (reply) => { res.writeHead(reply.statusCode, reply.headers); reply.pipe(res); });
     upstream.on('error', () => res.destroy());
@@ -117,6 +126,8 @@ function startProxy(targetPort) {
   return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve({
     port: server.address().port,
     setDown(value) { down = value; if (value) for (const socket of sockets) socket.destroy(); },
+    // Resolves with the URL of the request that was failed.
+    failNextRequest(prefix) { return new Promise((resolve) => { failNext = { prefix, resolve }; }); },
     close() { server.close(); for (const socket of sockets) socket.destroy(); },
   })));
 }
@@ -283,9 +294,12 @@ try {
   page.on('pageerror', (e) => pageErrors.push(e.message));
   // While the test holds the network down, the browser's failed loads are expected.
   let networkDown = false;
+  // So is the one 503 the proxy answers the page's first catch-up with.
+  let injected503 = 0;
   page.on('console', (m) => {
     if (m.type() !== 'error') return;
     if (networkDown && m.text().startsWith('Failed to load resource: net::')) return;
+    if (injected503 > 0 && m.text().includes('status of 503')) { --injected503; return; }
     pageErrors.push(m.text());
   });
   // Nothing may be fetched from anywhere but this server (the appliance is offline).
@@ -398,8 +412,14 @@ try {
   const heardOffline = await page.evaluate(() =>
     window.dronetrack.state.alerts.filter((a) => a.event !== 'class_changed').length);
   if (heardOffline !== 0) fail(`the page got ${heardOffline} zone alert(s) while offline`);
+  // The page's first catch-up after the reconnect fails: it must ask again.
+  injected503 = 1;
+  const failedCatchUp = proxy.failNextRequest('/api/alerts?since=');
   proxy.setDown(false);
   log('network back');
+  const failedUrl = await waitFor('the page to ask /api/alerts?since= after the reconnect',
+                                  () => Promise.race([failedCatchUp, null]), 10000);
+  log(`the page's first catch-up failed (503): ${failedUrl}`);
   await page.waitForSelector('#alert-banner:not([hidden])[data-zone="inner-yard"][data-event="entered"]', { timeout: 25000 });
   await page.waitForSelector('#connection[data-state="live"]', { timeout: 10000 });
   networkDown = false;
@@ -410,7 +430,8 @@ try {
   // 5. N4 stopped at 12 s: shown stale in the node table and on the plan; the others alive.
   await page.waitForSelector('#node-rows tr[data-node-id="N4"][data-node-state="stale"]', { timeout: 25000 });
   await page.waitForSelector('#plan [data-array-id="N4"][data-node-state="stale"]', { timeout: 3000 });
-  const states = await page.$$eval('#node-rows tr', (rows) => rows.map((r) => `${r.dataset.nodeId}:${r.dataset.nodeState}`));
+  // A node's own row; the warning line under a node (tr.node-warning) is not one.
+  const states = await page.$$eval('#node-rows tr[data-node-id]', (rows) => rows.map((r) => `${r.dataset.nodeId}:${r.dataset.nodeState}`));
   log(`nodes: ${states.join(' ')}`);
   for (const id of ['N1', 'N2', 'N3']) if (!states.includes(`${id}:alive`)) fail(`${id} should be alive: ${states}`);
 
