@@ -141,6 +141,12 @@ struct DoaParams {
   // gain false-track time (0 -> 2.1 %) and the far low-SNR pass 0.10 m of RMSE.
   bool follow_source_tracks = false;
 
+  // docs/doa.md stage 7, "A free look's lobe": a free SRP look on a source left with only its
+  // rotor's lines may take a neighbouring carrier fringe (one period off at one mic); the look
+  // and those neighbours are judged by how well they align the comb's lines, each line bin
+  // counted the same, and the best is kept.
+  bool free_look_lobe_choice = true;
+
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
   // horizon are learned from their constant TDOAs and their band bins dropped before the
   // inverse FFTs, so a drone next to a loud ground source is still found.
