@@ -134,6 +134,8 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.own_comb_bins = section.boolean("own_comb_bins", params.own_comb_bins);
   params.follow_source_tracks =
       section.boolean("follow_source_tracks", params.follow_source_tracks);
+  params.free_look_lobe_choice =
+      section.boolean("free_look_lobe_choice", params.free_look_lobe_choice);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

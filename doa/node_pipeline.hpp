@@ -34,6 +34,9 @@ struct NodeDiagnostics {
       0;  // sources measured from their tracks' lags (doa.follow_source_tracks)
   // Followed directions left out as a found comb source's carrier fringe (fringe_of_found()).
   std::int64_t fringes_not_followed = 0;
+  // Free looks moved to a neighbouring carrier lobe that aligns the comb's lines better
+  // (doa.free_look_lobe_choice).
+  std::int64_t free_look_lobes_moved = 0;
   int static_sources_nulled = 0;  // ground sources whose bins are dropped (static_null)
   std::int64_t unposed_doas = 0;  // moving array: DOAs outside the pose track's span (dropped)
 };

@@ -112,6 +112,15 @@ struct NodePipeline::Impl {
   bool add_static_source(const Eigen::Vector3d& look_direction_site);
   // The array's pose track (if any) says it held still over the static look's hold window.
   bool array_still() const;
+  // free_look_lobe_choice (node_lobe_choice.cpp): of a free look's lags and those one carrier
+  // period away at each mic, the ones that align the comb the kept bins hold best; true when
+  // the look moved to another lobe (look_tdoas and solution replaced).
+  bool choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution& solution);
+  // Marks the kept band bins on a tonal line of the frame (lobe_line_bins); returns the lines'
+  // mean frequency (Hz, each line bin counted once), 0 when fewer than kMinOwnCombLines lines.
+  double mark_kept_lines();
+  // Mean agreement of the line bins (lobe_line_bins) with the lags, over pairs with a lag.
+  double line_alignment(std::span<const PairTdoa> lags);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -137,6 +146,12 @@ struct NodePipeline::Impl {
   // comb_agreement); pairs: how many pairs carry a lag.
   HarmonicComb steered_comb(std::span<const PairTdoa> source_tdoas, const GccPhat::UnitsView& units,
                             std::span<const std::uint8_t> keep, int& pairs);
+  // Adds, over the pairs that carry a lag, each bin's agreement with the lags, cos(phase_ij -
+  // w tau_ij), and its steered cross-power (times |X_i||X_j|) where `keep` (band order) is 1;
+  // power and agreement are indexed by FFT bin from the band's first. Returns the pairs added.
+  int steer(std::span<const PairTdoa> lags, const GccPhat::UnitsView& units,
+            std::span<const std::uint8_t> keep, std::span<double> power,
+            std::span<double> agreement) const;
   // The mask as it stands (static null, sources below the horizon): what every later look of
   // this frame starts from.
   void keep_frame_mask();
@@ -218,6 +233,17 @@ struct NodePipeline::Impl {
   std::array<PairTdoa, kMaxPairs> follow_tdoas{};
   std::array<PairTdoa, kMaxPairs> best_follow_tdoas{};
   DoaSolution follow_solution;
+  // choose_lobe()'s line bins and the frame's log power per band bin (band order).
+  std::vector<std::uint8_t> lobe_line_bins;
+  int lobe_line_bin_count = 0;
+  std::vector<double> lobe_log_power;
+  // line_alignment()'s steered sums (FFT bins from the band's first).
+  std::vector<double> lobe_power;
+  std::vector<double> lobe_agreement;
+  // choose_lobe()'s lobe being judged and the best so far.
+  std::array<PairTdoa, kMaxPairs> lobe_tdoas{};
+  std::array<PairTdoa, kMaxPairs> best_lobe_tdoas{};
+  DoaSolution best_lobe_solution;
   DoaSolution best_follow_solution;
   std::array<FoundComb, kMaxSources> found_combs{};  // this frame's, by candidate index
   std::unique_ptr<ConePeakHistory> cone_peaks;       // rank 1 only

@@ -208,6 +208,7 @@ void NodePipeline::Impl::find_further_sources() {
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
     srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
     candidate.solution = solver.solve(candidate_tdoas);
+    if (params.free_look_lobe_choice) choose_lobe(candidate_tdoas, candidate.solution);
     const bool duplicate =
         !candidate.solution.accepted || already_found(candidate.solution.direction_site);
     trace_look(LookKind::free, candidate.solution, duplicate, &peak.direction_array);
@@ -278,10 +279,19 @@ HarmonicComb NodePipeline::Impl::steered_comb(std::span<const PairTdoa> source_t
                                               std::span<const std::uint8_t> keep, int& pairs) {
   std::fill(comb_power.begin(), comb_power.end(), 0.0);
   std::fill(comb_agreement.begin(), comb_agreement.end(), 0.0);
-  pairs = 0;
+  pairs = steer(source_tdoas, units, keep, comb_power, comb_agreement);
+  for (double& power : comb_power) power = std::max(power, 0.0);
+  return own_comb->analyse(comb_power);
+}
+
+int NodePipeline::Impl::steer(std::span<const PairTdoa> lags, const GccPhat::UnitsView& units,
+                              std::span<const std::uint8_t> keep, std::span<double> power,
+                              std::span<double> agreement) const {
+  int pairs = 0;
   const double omega = gcc.bin_omega_rad_per_s();
+  const int first_bin = gcc.band().front().first_bin;
   for (int p = 0; p < gcc.pair_count(); ++p) {
-    const PairTdoa& tdoa = source_tdoas[static_cast<std::size_t>(p)];
+    const PairTdoa& tdoa = lags[static_cast<std::size_t>(p)];
     if (!(tdoa.variance_s2 > 0.0)) continue;
     ++pairs;
     const MicPairSpec& spec = gcc.pair_spec(p);
@@ -293,7 +303,7 @@ HarmonicComb NodePipeline::Impl::steered_comb(std::span<const PairTdoa> source_t
     std::size_t index = 0;
     for (const BandRun& run : gcc.band()) {
       const auto bins = static_cast<std::size_t>(run.last_bin - run.first_bin + 1);
-      const auto bin = static_cast<std::size_t>(run.first_bin - comb_first_bin);
+      const auto bin = static_cast<std::size_t>(run.first_bin - first_bin);
       simd::steered_agreement({bins,
                                static_cast<double>(run.first_bin),
                                omega,
@@ -302,13 +312,12 @@ HarmonicComb NodePipeline::Impl::steered_comb(std::span<const PairTdoa> source_t
                                {rj.data() + index, ij.data() + index},
                                magnitude.data() + index,
                                keep.data() + index,
-                               comb_power.data() + bin,
-                               comb_agreement.data() + bin});
+                               power.data() + bin,
+                               agreement.data() + bin});
       index += bins;
     }
   }
-  for (double& power : comb_power) power = std::max(power, 0.0);
-  return own_comb->analyse(comb_power);
+  return pairs;
 }
 
 // Every source's ground reflection, found on its own bins (the others' dropped), divided out of

@@ -262,6 +262,20 @@ TEST(SiteConfig, FollowSourceTracksIsOffUnlessTurnedOn) {
   expect_problem(site, "doa.follow_source_tracks: expected true or false, got a number");
 }
 
+// doa.free_look_lobe_choice: off by default, on when the site says so, a boolean or a problem.
+TEST(SiteConfig, FreeLookLobeChoiceIsOffUnlessTurnedOn) {
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings())
+                   .doa.free_look_lobe_choice);
+  json site = two_array_site();
+  site["doa"] = {{"free_look_lobe_choice", true}};
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_TRUE(parsed.doa.free_look_lobe_choice);
+  site["doa"]["free_look_lobe_choice"] = "yes";
+  expect_problem(site, "doa.free_look_lobe_choice: expected true or false, got a string");
+}
+
 TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 1.4}};

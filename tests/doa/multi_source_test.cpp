@@ -2,7 +2,9 @@
 // found on the bins the louder sources do not own (SourceBinMask, through NodePipeline).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <iterator>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -186,63 +188,119 @@ TEST(NodePipeline, WeakerSourceNextToALouderOneIsNotPulledByItsLobes) {
 // 5 dB weaker, a comb of lines only (205 Hz) with its ground image (half as loud, 12 deg below
 // it in elevation, 2.3 ms later). Once the louder source's bins are dropped the weaker one has
 // only its lines, whose correlation is fringes one carrier period apart; its echo lifts the
-// fringe below. A free search takes that fringe (11-12 deg low) in many frames; followed from
-// its source track's lags it stays on its own (doa.follow_source_tracks).
-TEST(NodePipeline, WeakerCombIsFollowedOnItsOwnFringe) {
-  const ArrayGeometry geometry = testing::tetrahedron(45.0);
-  const Eigen::Vector3d loud = direction_from_azel_deg(80.0, 16.0);
-  const Eigen::Vector3d weak = direction_from_azel_deg(25.0, 11.0);
+// fringe below.
+struct WeakerCombScene {
+  ArrayGeometry geometry = testing::tetrahedron(45.0);
+  Eigen::Vector3d loud = direction_from_azel_deg(80.0, 16.0);
+  Eigen::Vector3d weak = direction_from_azel_deg(25.0, 11.0);
+  testing::Recording recording;
+};
+
+WeakerCombScene weaker_comb_scene() {
+  WeakerCombScene scene;
   const Eigen::Vector3d image = direction_from_azel_deg(25.0, -12.6);
   const double seconds = 4.0;
   const auto frames = static_cast<std::size_t>(seconds * kRate);
-  testing::Recording recording = testing::silent_recording(4, frames);
+  scene.recording = testing::silent_recording(4, frames);
   const auto length = static_cast<int>(frames);
   const testing::BandNoise loud_comb =
       testing::BandNoise::comb(length, kRate, 150.0, 1000.0, 4000.0, 21);
   const testing::BandNoise loud_broadband(length, kRate, 1000.0, 4000.0, 22);
   const testing::BandNoise weak_comb =
       testing::BandNoise::comb(length, kRate, 205.0, 1000.0, 4000.0, 23);
-  testing::add_source(recording, geometry, loud, loud_comb, 0.05);
-  testing::add_source(recording, geometry, loud, loud_broadband, 0.02);
+  testing::add_source(scene.recording, scene.geometry, scene.loud, loud_comb, 0.05);
+  testing::add_source(scene.recording, scene.geometry, scene.loud, loud_broadband, 0.02);
   const double weak_rms = 0.05 * std::pow(10.0, -5.0 / 20.0);
-  testing::add_source(recording, geometry, weak, weak_comb, weak_rms);
-  const std::vector<double> image_delays = testing::plane_wave_delays(geometry, image, 343.0);
+  testing::add_source(scene.recording, scene.geometry, scene.weak, weak_comb, weak_rms);
+  const std::vector<double> image_delays = testing::plane_wave_delays(scene.geometry, image, 343.0);
   for (int mic = 0; mic < 4; ++mic)
-    recording.add(mic, weak_comb.delayed(image_delays[static_cast<std::size_t>(mic)] + 2.3e-3,
-                                         0.5 * weak_rms));
-  testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, 0.005, 24);
+    scene.recording.add(mic, weak_comb.delayed(image_delays[static_cast<std::size_t>(mic)] + 2.3e-3,
+                                               0.5 * weak_rms));
+  testing::add_sensor_noise(scene.recording, kRate, 200.0, 8000.0, 0.005, 24);
+  return scene;
+}
+
+// After the regression's first window: frames with the weaker source within 1 deg, DOAs 5-20 deg
+// from it (its fringe below), DOAs of the louder one.
+struct WeakerCombFinds {
+  std::ptrdiff_t found = 0;
+  int frames_after = 0;
+  int fringe_doas = 0;
+  int loud_doas = 0;
+  std::int64_t lobes_moved = 0;
+};
+
+WeakerCombFinds run_weaker_comb(const WeakerCombScene& scene, const DoaParams& params) {
+  NodePipeline pipeline(scene.geometry, 0, params, kRate, 343.0);
+  const std::vector<DoaMeasurement> doas = run(pipeline, scene.recording);
+  WeakerCombFinds finds;
+  std::vector<int> found_frames;
+  for (const DoaMeasurement& doa : doas) {
+    if (doa.time_s < 1.0) continue;
+    const double to_weak = angle_between_deg(doa.direction, scene.weak);
+    if (to_weak <= 1.0) found_frames.push_back(static_cast<int>(std::lround(doa.time_s / 0.05)));
+    if (to_weak > 5.0 && to_weak < 20.0) ++finds.fringe_doas;
+    if (angle_between_deg(doa.direction, scene.loud) <= 1.0) ++finds.loud_doas;
+  }
+  std::sort(found_frames.begin(), found_frames.end());
+  finds.found =
+      std::distance(found_frames.begin(), std::unique(found_frames.begin(), found_frames.end()));
+  const double last_s = doas.empty() ? 0.0 : doas.back().time_s;
+  finds.frames_after = static_cast<int>(std::lround((last_s - 1.0) / 0.05)) + 1;
+  finds.lobes_moved = pipeline.diagnostics().free_look_lobes_moved;
+  return finds;
+}
+
+// A free search takes the weaker comb's fringe below in many frames; followed from its source
+// track's lags it stays on its own (doa.follow_source_tracks). The free look's lobe choice is
+// off here: this is the follow's answer alone.
+TEST(NodePipeline, WeakerCombIsFollowedOnItsOwnFringe) {
+  const WeakerCombScene scene = weaker_comb_scene();
   for (const bool follow : {false, true}) {
     DoaParams params;
     params.follow_source_tracks = follow;
+    params.free_look_lobe_choice = false;
     params.ground_echo = false;  // a far-field image: no ground geometry to remove it by
-    NodePipeline pipeline(geometry, 0, params, kRate, 343.0);
-    const std::vector<DoaMeasurement> doas = run(pipeline, recording);
-    // Frames after the regression's first window: with the weaker source within 1 deg, and
-    // DOAs 5-20 deg below it (its fringe below).
-    std::vector<int> found_frames;
-    int fringe_doas = 0;
-    int loud_doas = 0;
-    for (const DoaMeasurement& doa : doas) {
-      if (doa.time_s < 1.0) continue;
-      const double to_weak = angle_between_deg(doa.direction, weak);
-      if (to_weak <= 1.0) found_frames.push_back(static_cast<int>(std::lround(doa.time_s / 0.05)));
-      if (to_weak > 5.0 && to_weak < 20.0) ++fringe_doas;
-      if (angle_between_deg(doa.direction, loud) <= 1.0) ++loud_doas;
-    }
-    std::sort(found_frames.begin(), found_frames.end());
-    const auto found =
-        std::distance(found_frames.begin(), std::unique(found_frames.begin(), found_frames.end()));
-    const double last_s = doas.empty() ? 0.0 : doas.back().time_s;
-    const int frames_after = static_cast<int>(std::lround((last_s - 1.0) / 0.05)) + 1;
+    const WeakerCombFinds finds = run_weaker_comb(scene, params);
     std::printf(
         "follow %s: weaker comb within 1 deg in %td of %d frames, %d DOAs on the fringe "
         "below, louder %d DOAs\n",
-        follow ? "on" : "off", found, frames_after, fringe_doas, loud_doas);
+        follow ? "on" : "off", finds.found, finds.frames_after, finds.fringe_doas, finds.loud_doas);
     if (!follow) continue;
-    EXPECT_GE(found, frames_after * 9 / 10);
-    EXPECT_LE(fringe_doas, frames_after / 20);
-    EXPECT_GE(loud_doas, frames_after * 9 / 10);
+    EXPECT_GE(finds.found, finds.frames_after * 9 / 10);
+    EXPECT_LE(finds.fringe_doas, finds.frames_after / 20);
+    EXPECT_GE(finds.loud_doas, finds.frames_after * 9 / 10);
   }
+}
+
+// The same scene without following: the free SRP look alone. Its peak is the fringe below in
+// about half the frames (lobe choice off: the scene does show the failure); the true lags align
+// every one of the comb's lines on every pair, the fringe's only those near the carrier, so
+// judged by the lines' alignment the look moves to the weaker comb's own lobe
+// (doa.free_look_lobe_choice).
+TEST(NodePipeline, FreeLookTakesTheLobeThatAlignsTheCombsLines) {
+  const WeakerCombScene scene = weaker_comb_scene();
+  WeakerCombFinds off;
+  WeakerCombFinds on;
+  for (const bool choose : {false, true}) {
+    DoaParams params;
+    params.follow_source_tracks = false;
+    params.free_look_lobe_choice = choose;
+    params.ground_echo = false;  // a far-field image: no ground geometry to remove it by
+    (choose ? on : off) = run_weaker_comb(scene, params);
+    const WeakerCombFinds& finds = choose ? on : off;
+    std::printf(
+        "lobe choice %s: weaker comb within 1 deg in %td of %d frames, %d DOAs on the fringe "
+        "below, louder %d DOAs, %lld looks moved\n",
+        choose ? "on" : "off", finds.found, finds.frames_after, finds.fringe_doas, finds.loud_doas,
+        static_cast<long long>(finds.lobes_moved));
+  }
+  EXPECT_GE(off.fringe_doas, off.frames_after / 5);
+  EXPECT_EQ(off.lobes_moved, 0);
+  EXPECT_GT(on.lobes_moved, 0);
+  EXPECT_GE(on.found, on.frames_after * 9 / 10);
+  EXPECT_LE(on.fringe_doas, on.frames_after / 20);
+  EXPECT_GE(on.loud_doas, on.frames_after * 9 / 10);
 }
 
 // A loud source below the horizon (a generator beside the array, or a drone's ground image) is
