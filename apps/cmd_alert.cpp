@@ -16,6 +16,7 @@
 
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
+#include "apps/dds_options.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/signals.hpp"
 #include "common/log.hpp"
@@ -30,11 +31,10 @@ namespace {
 
 struct AlertArguments {
   std::string site;
-  std::optional<int> domain;
+  DdsOptions dds{{}, "alert"};
   std::string exec;
   int max_alerts = 0;
   double duration_s = 0.0;
-  std::string identity = "alert";
 };
 
 void run_program(const std::string& program, const fusion::ZoneEvent& event) {
@@ -105,9 +105,9 @@ int run(const AlertArguments& arguments) {
   load_options.check_recordings = false;
   const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
   for (const auto& warning : warnings) log::warn(warning);
-  const int domain = resolve_domain(site, arguments.domain);
+  const int domain = resolve_domain(site, arguments.dds.domain);
 
-  const auto security = security_files(site, arguments.identity);
+  const auto security = security_files(site, arguments.dds.identity);
   dds::Participant participant(domain, security ? &*security : nullptr);
   dds::Topic<dronetrack_Alert> topic(participant);
   dds::Qos qos;
@@ -116,13 +116,12 @@ int run(const AlertArguments& arguments) {
   install_stop_handlers();
   log::info("alert: listening on DDS domain ", domain);
 
-  const auto started = std::chrono::steady_clock::now();
-  const auto limit = std::chrono::duration<double>(arguments.duration_s);
+  const WallTimeLimit limit(arguments.duration_s);
   int alerts = 0;
   std::int64_t malformed = 0;
   fusion::ZoneEvent event;
   while (!stop_requested()) {
-    if (arguments.duration_s > 0.0 && std::chrono::steady_clock::now() - started > limit) break;
+    if (limit.reached()) break;
     if (!arguments.exec.empty()) reap_children(arguments.exec);
     if (!reader.wait(std::chrono::milliseconds(100))) continue;
     dds::Samples<dronetrack_Alert> samples = reader.take();
@@ -162,18 +161,12 @@ void register_alert(CLI::App& root, CommandTable& table) {
   command->add_option("site", arguments->site, "Site config (JSON, SPEC 3.1)")
       ->required()
       ->check(CLI::ExistingFile);
-  command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
-      ->check(CLI::Range(0, 232));
-  command->add_option("--identity", arguments->identity,
-                      "DDS Security identity in dds.security.directory (default: alert)");
+  add_dds_options(*command, arguments->dds, "alert");
   command->add_option("--exec", arguments->exec,
                       "Run PROGRAM ZONE TRACK_ID entered|left TIME_S X Y Z per alert (no shell)");
   command->add_option("--max-alerts", arguments->max_alerts, "Exit after this many alerts")
       ->check(CLI::NonNegativeNumber);
-  command
-      ->add_option("--duration", arguments->duration_s,
-                   "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")
-      ->check(finite_in(0.0, kMaxDuration_s));
+  add_duration_option(*command, arguments->duration_s);
   table.add(command, [arguments]() { return run(*arguments); });
 }
 

@@ -9,6 +9,7 @@
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
 #include "apps/dds_fusion_service.hpp"
+#include "apps/dds_options.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/jsonl_output.hpp"
 #include "apps/live_state_observer.hpp"
@@ -28,9 +29,8 @@ struct FusionArguments {
   std::string tracks_out;
   std::string http;
   std::string web_root;
-  std::optional<int> domain;
+  DdsOptions dds{{}, "fusion"};
   double duration_s = 0.0;
-  std::string identity = "fusion";
   std::string track_ids;
 };
 
@@ -41,7 +41,7 @@ int run(const FusionArguments& arguments) {
   load_options.for_fusion = true;
   const config::SiteConfig site = config::load_site_config(arguments.site, warnings, load_options);
   for (const auto& warning : warnings) log::warn(warning);
-  const int domain = resolve_domain(site, arguments.domain);
+  const int domain = resolve_domain(site, arguments.dds.domain);
   if (!arguments.tracks_out.empty())
     check_output_paths(site_inputs(site, false), {{"--tracks-out", arguments.tracks_out}});
 
@@ -80,7 +80,7 @@ int run(const FusionArguments& arguments) {
   std::vector<FusionObserver*> observers;
   for (auto& observer : owned) observers.push_back(observer.get());
 
-  const auto security = security_files(site, arguments.identity);
+  const auto security = security_files(site, arguments.dds.identity);
   dds::Participant participant(domain, security ? &*security : nullptr);  // first: destroyed last
   FusionServiceOptions service_options;
   service_options.array_partitions = site.dds.secure();
@@ -88,12 +88,11 @@ int run(const FusionArguments& arguments) {
   DdsFusionService service(site, participant, observers, service_options);
   log::info("fusion: ", site.arrays.size(), " arrays, DDS domain ", domain);
   install_stop_handlers();
-  const auto started = std::chrono::steady_clock::now();
-  const auto limit = std::chrono::duration<double>(arguments.duration_s);
+  const WallTimeLimit limit(arguments.duration_s);
   while (!stop_requested()) {
     service.poll(std::chrono::milliseconds(100));
     if (metrics) metrics->set_intake_counters(service.counters());
-    if (arguments.duration_s > 0.0 && std::chrono::steady_clock::now() - started > limit) break;
+    if (limit.reached()) break;
   }
   service.finish();
   const IntakeCounters& counters = service.counters();
@@ -129,17 +128,11 @@ void register_fusion(CLI::App& root, CommandTable& table) {
           "--web-root", arguments->web_root,
           "With --http: folder of the web page (default: $DRONETRACK_WEB_ROOT or the built-in one)")
       ->check(CLI::ExistingDirectory);
-  command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
-      ->check(CLI::Range(0, 232));
-  command->add_option("--identity", arguments->identity,
-                      "DDS Security identity in dds.security.directory (default: fusion)");
+  add_dds_options(*command, arguments->dds, "fusion");
   command->add_option("--track-ids", arguments->track_ids,
                       "State file of the track id high-water mark: a restarted fusion never "
                       "reuses an id an earlier one published (docs/contract.md)");
-  command
-      ->add_option("--duration", arguments->duration_s,
-                   "Stop after this many seconds of wall time (default: until SIGINT/SIGTERM)")
-      ->check(finite_in(0.0, kMaxDuration_s));
+  add_duration_option(*command, arguments->duration_s);
   table.add(command, [arguments]() { return run(*arguments); });
 }
 

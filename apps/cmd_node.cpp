@@ -21,6 +21,7 @@
 #include "apps/array_node.hpp"
 #include "apps/cli_checks.hpp"
 #include "apps/commands.hpp"
+#include "apps/dds_options.hpp"
 #include "apps/dds_support.hpp"
 #include "apps/incident_recorder.hpp"
 #include "apps/live_pose_stamper.hpp"
@@ -50,8 +51,7 @@ struct NodeArguments {
   bool realtime = false;
   bool loop = false;
   std::optional<double> epoch_unix_s;
-  std::optional<int> domain;
-  std::string identity;  // DDS Security identity; empty: the array id
+  DdsOptions dds;  // an empty identity: the array id
   double sample_rate_hz = 48000.0;
   double block_s = 0.01;
   bool pose_topic = false;
@@ -171,7 +171,7 @@ int run(const NodeArguments& arguments) {
     metrics_options = http_options_for(site, arguments.metrics_listen, {}, "--metrics-listen");
     metrics_options->web_root.clear();
   }
-  const int domain = resolve_domain(site, arguments.domain);
+  const int domain = resolve_domain(site, arguments.dds.domain);
   const std::optional<int> device = arguments.device ? arguments.device : array.device;
   const bool live = arguments.device.has_value() ||
                     (arguments.recording.empty() && array.recording.empty() && device);
@@ -247,8 +247,8 @@ int run(const NodeArguments& arguments) {
 
   // Participant first: destroyed last. A secure site: this array's identity (or --identity),
   // writing in its own partition, the only one its permissions grant.
-  const auto security =
-      security_files(site, arguments.identity.empty() ? node.array_id() : arguments.identity);
+  const auto security = security_files(
+      site, arguments.dds.identity.empty() ? node.array_id() : arguments.dds.identity);
   dds::Participant participant(domain, security ? &*security : nullptr);
   dds::Topic<dronetrack_Doa> doa_topic(participant);
   dds::Topic<dronetrack_NodeStatus> status_topic(participant);
@@ -478,10 +478,7 @@ void register_node(CLI::App& root, CommandTable& table) {
   command->add_flag("--pose-topic", arguments->pose_topic,
                     "Take the array's pose from the ArrayPose DDS topic (as the array's "
                     "\"pose_topic\": true does), not from its pose_file");
-  command->add_option("--identity", arguments->identity,
-                      "DDS Security identity in dds.security.directory (default: the array id)");
-  command->add_option("--domain", arguments->domain, "DDS domain id (overrides dds.domain_id)")
-      ->check(CLI::Range(0, 232));
+  add_dds_options(*command, arguments->dds, "the array id");
   command
       ->add_option("--metrics-listen", arguments->metrics_listen,
                    "Serve Prometheus metrics on HOST:PORT (GET /metrics; docs/http_api.md "
