@@ -24,35 +24,44 @@ constexpr double kLobeMargin = 0.1;
 constexpr double kSameLobeCosine = 0.99939;  // cos(2 deg)
 }  // namespace
 
-// The comb of the steered spectrum at `lags` on the kept bins (keep_own_comb's comb); its line
-// bins that are kept set to 1 in `line_bins` (band order; others untouched). Returns the lines.
-int NodePipeline::Impl::steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb,
-                                      std::span<std::uint8_t> line_bins) {
-  const std::span<const std::uint8_t> keep = gcc.bin_keep();
+// How many lines the comb of the steered spectrum at `lags` on the kept bins shows
+// (keep_own_comb's comb).
+int NodePipeline::Impl::steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb) {
   int pairs = 0;
-  comb = steered_comb(lags, gcc.units(), keep, pairs);
-  const int lines = pairs == 0 ? 0 : own_comb->mark_lines(comb, comb_lines);
-  if (lines < node_detail::kMinOwnCombLines) return lines;
-  std::size_t index = 0;
-  for (const BandRun& run : gcc.band())
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
-      if (keep[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0)
-        line_bins[index] = 1;
-  return lines;
+  comb = steered_comb(lags, gcc.units(), gcc.bin_keep(), pairs);
+  return pairs == 0 ? 0 : own_comb->mark_lines(comb, comb_lines);
 }
 
-// Mean over the line bins of the mean over the pairs that carry a lag of cos(phase_ij - w tau_ij):
-// 1 when every line is in phase at the lags.
-double NodePipeline::Impl::line_alignment(std::span<const PairTdoa> lags,
-                                          std::span<const std::uint8_t> line_bins) {
-  const auto line_count = std::count(line_bins.begin(), line_bins.end(), std::uint8_t{1});
-  std::fill(lobe_power.begin(), lobe_power.end(), 0.0);
-  std::fill(lobe_agreement.begin(), lobe_agreement.end(), 0.0);
-  const int pairs = steer(lags, gcc.units(), line_bins, lobe_power, lobe_agreement);
-  if (pairs == 0 || line_count == 0) return 0.0;
+// Mean over the line bins of the mean over the pairs that carry a lag of cos(phase_ij - w tau_ij),
+// as steer() sums it, on the line bins alone (a few dozen of the band's bins): 1 when every
+// line is in phase at the lags.
+double NodePipeline::Impl::line_alignment(std::span<const PairTdoa> lags) const {
+  if (lobe_line_count == 0) return 0.0;
+  const GccPhat::UnitsView units = gcc.units();
+  const double omega = gcc.bin_omega_rad_per_s();
   double sum = 0.0;
-  for (const double agreement : lobe_agreement) sum += agreement;
-  return sum / (static_cast<double>(pairs) * static_cast<double>(line_count));
+  int pairs = 0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& tdoa = lags[static_cast<std::size_t>(p)];
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    ++pairs;
+    const MicPairSpec& spec = gcc.pair_spec(p);
+    const std::span<const double> ri = units.real_row(spec.mic_i);
+    const std::span<const double> ii = units.imag_row(spec.mic_i);
+    const std::span<const double> rj = units.real_row(spec.mic_j);
+    const std::span<const double> ij = units.imag_row(spec.mic_j);
+    const double turn = omega * tdoa.tdoa_s;
+    for (int n = 0; n < lobe_line_count; ++n) {
+      const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+      const std::size_t b = line.band_index;
+      // The pair's phasor a b* turned by the lags' phase at the bin: its real part.
+      const double re = ri[b] * rj[b] + ii[b] * ij[b];
+      const double im = ii[b] * rj[b] - ri[b] * ij[b];
+      const double phase = turn * line.fft_bin;
+      sum += re * std::cos(phase) - im * std::sin(phase);
+    }
+  }
+  return pairs == 0 ? 0.0 : sum / (static_cast<double>(pairs) * lobe_line_count);
 }
 
 // A fringe reads one mic's arrival a carrier period early or late: every pair holding that mic
@@ -83,7 +92,7 @@ void NodePipeline::Impl::refine_lobe(std::span<const PairTdoa> look_tdoas) {
   }
 }
 
-// The lines judged (lobe_line_bins): the comb of the kept bins' power (the mics' mean, the
+// The lines judged (lobe_lines): the comb of the kept bins' power (the mics' mean, the
 // sources found so far own the other bins), found and marked by the comb detector
 // keep_own_comb uses. Returns its carrier, 0 when it shows fewer than kMinOwnCombLines lines.
 double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {
@@ -102,49 +111,116 @@ double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {
     }
   }
   comb = own_comb->analyse(comb_power);
-  std::fill(lobe_line_bins.begin(), lobe_line_bins.end(), std::uint8_t{0});
+  lobe_line_count = 0;
   if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return 0.0;
   index = 0;
   for (const BandRun& run : gcc.band())
     for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
       if (keep[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0)
-        lobe_line_bins[index] = 1;
+        lobe_lines[static_cast<std::size_t>(lobe_line_count++)] = {index, k};
   return comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
 }
 
+// The look's alignment, and into lobe_order (lobes_screened of them, best first) the lobes one
+// carrier period away at each mic that align the lines better at the shifted lags. Each pair's
+// steered line phasors z = a b* e^{j w tau} are made once: a lag one period P later turns z by
+// e^{j w P}, so every lobe's sum is the look's with its moved pairs' sums turned (no sin/cos
+// per lobe).
+double NodePipeline::Impl::screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz) {
+  const GccPhat::UnitsView units = gcc.units();
+  const double omega = gcc.bin_omega_rad_per_s();
+  const double period_s = 1.0 / carrier_hz;
+  for (int n = 0; n < lobe_line_count; ++n) {
+    LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+    line.period_re = std::cos(omega * period_s * line.fft_bin);
+    line.period_im = std::sin(omega * period_s * line.fft_bin);
+  }
+  struct PairSums {
+    double look = 0.0;
+    double later = 0.0;    // the lag one period later
+    double earlier = 0.0;  // one period earlier
+  };
+  std::array<PairSums, kMaxPairs> sums{};
+  int pairs = 0;
+  double look_sum = 0.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& tdoa = look_tdoas[static_cast<std::size_t>(p)];
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    ++pairs;
+    const MicPairSpec& spec = gcc.pair_spec(p);
+    const std::span<const double> ri = units.real_row(spec.mic_i);
+    const std::span<const double> ii = units.imag_row(spec.mic_i);
+    const std::span<const double> rj = units.real_row(spec.mic_j);
+    const std::span<const double> ij = units.imag_row(spec.mic_j);
+    const double turn = omega * tdoa.tdoa_s;
+    PairSums& sum = sums[static_cast<std::size_t>(p)];
+    for (int n = 0; n < lobe_line_count; ++n) {
+      const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+      const std::size_t b = line.band_index;
+      const double re = ri[b] * rj[b] + ii[b] * ij[b];
+      const double im = ii[b] * rj[b] - ri[b] * ij[b];
+      const double phase = turn * line.fft_bin;
+      const double cosine = std::cos(phase);
+      const double sine = std::sin(phase);
+      const double zr = re * cosine - im * sine;
+      const double zi = re * sine + im * cosine;
+      sum.look += zr;
+      sum.later += zr * line.period_re - zi * line.period_im;
+      sum.earlier += zr * line.period_re + zi * line.period_im;
+    }
+    look_sum += sum.look;
+  }
+  lobes_screened = 0;
+  if (pairs == 0) return 0.0;
+  const double scale = 1.0 / (static_cast<double>(pairs) * lobe_line_count);
+  const double look_alignment = look_sum * scale;
+  // Lobe l reads mic l / 2 one period early (l even) or late (shifted_lags()).
+  for (int l = 0; l < 2 * gcc.unit_channels(); ++l) {
+    const int mic = l / 2;
+    const bool late = l % 2 == 1;
+    double sum = 0.0;
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const MicPairSpec& spec = gcc.pair_spec(p);
+      const PairSums& pair = sums[static_cast<std::size_t>(p)];
+      // The pair's lag moves with mic i's reading and against mic j's.
+      if (spec.mic_i == mic)
+        sum += late ? pair.later : pair.earlier;
+      else if (spec.mic_j == mic)
+        sum += late ? pair.earlier : pair.later;
+      else
+        sum += pair.look;
+    }
+    if (sum * scale > look_alignment)
+      lobe_order[static_cast<std::size_t>(lobes_screened++)] = {sum * scale, l};
+  }
+  return look_alignment;
+}
+
 bool NodePipeline::Impl::choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution& solution) {
-  if (!own_comb || lobe_line_bins.empty() || !solution.accepted) return false;
+  if (!own_comb || lobe_lines.empty() || !solution.accepted) return false;
   HarmonicComb kept_comb;
   const double carrier_hz = mark_kept_comb(kept_comb);
   if (!(carrier_hz > 0.0)) return false;
+  const auto pairs = static_cast<std::size_t>(gcc.pair_count());
+  const std::span<const PairTdoa> lobe(lobe_tdoas.data(), pairs);
+  // Judged first at the look's lags moved by exactly one period (no grid climb, no solve): only
+  // a lobe that aligns the lines better there is measured (each moved pair's correlation
+  // maximum nearest the shifted lag) and solved, best first, and judged again on its own lags.
+  const double look_alignment = screen_lobes(look_tdoas, carrier_hz);
+  const int screened = lobes_screened;
+  if (screened == 0) return false;
   // A look that steers out a comb of its own spacing other than the kept bins' is on another
   // source than the one whose lines would be judged (two drones' lines sharing the kept bins
   // where their rays cross): it stays.
   HarmonicComb look_comb;
-  std::fill(lobe_look_bins.begin(), lobe_look_bins.end(), std::uint8_t{0});
-  if (steered_lines(look_tdoas, look_comb, lobe_look_bins) >= node_detail::kMinOwnCombLines &&
+  if (steered_lines(look_tdoas, look_comb) >= node_detail::kMinOwnCombLines &&
       std::abs(look_comb.fundamental_hz - kept_comb.fundamental_hz) > 0.5 * own_comb->bin_hz())
     return false;
-  const double period_s = 1.0 / carrier_hz;
-  const auto pairs = static_cast<std::size_t>(gcc.pair_count());
-  const std::span<const PairTdoa> lobe(lobe_tdoas.data(), pairs);
-  const double look_alignment = line_alignment(look_tdoas, lobe_line_bins);
-  // Judged first at the look's lags moved by exactly one period (no grid climb, no solve): only
-  // a lobe that aligns the lines better there is measured (each moved pair's correlation
-  // maximum nearest the shifted lag) and solved, best first, and judged again on its own lags.
-  const int lobes = 2 * gcc.unit_channels();
-  int screened = 0;
-  for (int l = 0; l < lobes; ++l) {
-    shifted_lags(look_tdoas, l, period_s);
-    const double alignment = line_alignment(lobe, lobe_line_bins);
-    if (alignment > look_alignment)
-      lobe_order[static_cast<std::size_t>(screened++)] = {alignment, l};
-  }
   std::sort(lobe_order.begin(), lobe_order.begin() + screened,
             [](const auto& a, const auto& b) { return a.first > b.first; });
   for (int rank = 0; rank < screened; ++rank) {
     const int l = lobe_order[static_cast<std::size_t>(rank)].second;
-    shifted_lags(look_tdoas, l, period_s);
+    shifted_lags(look_tdoas, l, 1.0 / carrier_hz);
     refine_lobe(look_tdoas);
     const DoaSolution lobe_solution = solver.solve(lobe);
     // A lobe below the horizon or on a source already found would hand the look's lines to
@@ -155,7 +231,7 @@ bool NodePipeline::Impl::choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution
         already_found(lobe_solution.direction_site))
       continue;
     // Its lines agree with a source as its own bins do (SourceBinMask's test).
-    const double alignment = line_alignment(lobe, lobe_line_bins);
+    const double alignment = line_alignment(lobe);
     if (alignment < node_detail::kOwnBinAgreement || alignment <= look_alignment + kLobeMargin)
       continue;
     std::copy(lobe.begin(), lobe.end(), look_tdoas.begin());

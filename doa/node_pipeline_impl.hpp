@@ -116,15 +116,16 @@ struct NodePipeline::Impl {
   // period away at each mic, the ones that align the comb the kept bins hold best; true when
   // the look moved to another lobe (look_tdoas and solution replaced).
   bool choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution& solution);
-  // The comb of the steered spectrum at `lags` (kept bins); its kept line bins set in
-  // line_bins (band order). Returns its lines.
-  int steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb,
-                    std::span<std::uint8_t> line_bins);
-  // The comb of the kept bins' power, its kept line bins into lobe_line_bins; returns its
-  // carrier (Hz), 0 when it shows fewer than kMinOwnCombLines lines.
+  // How many lines the comb of the steered spectrum at `lags` (kept bins) shows.
+  int steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb);
+  // The comb of the kept bins' power, its kept line bins into lobe_lines; returns its carrier
+  // (Hz), 0 when it shows fewer than kMinOwnCombLines lines.
   double mark_kept_comb(HarmonicComb& comb);
-  // Mean agreement of the line bins with the lags, over pairs with a lag.
-  double line_alignment(std::span<const PairTdoa> lags, std::span<const std::uint8_t> line_bins);
+  // Mean agreement of the line bins (lobe_lines) with the lags, over pairs with a lag.
+  double line_alignment(std::span<const PairTdoa> lags) const;
+  // The look's line alignment; the lobes that align the lines better at its lags moved by one
+  // carrier period into lobe_order (lobes_screened, best first).
+  double screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz);
   // lobe_tdoas: the look's lags with mic lobe / 2 read one period early (lobe even) or late.
   void shifted_lags(std::span<const PairTdoa> look_tdoas, int lobe, double period_s);
   // lobe_tdoas' moved pairs: each pair's correlation maximum nearest its shifted lag.
@@ -241,12 +242,16 @@ struct NodePipeline::Impl {
   std::array<PairTdoa, kMaxPairs> follow_tdoas{};
   std::array<PairTdoa, kMaxPairs> best_follow_tdoas{};
   DoaSolution follow_solution;
-  // choose_lobe()'s line bins (band order): the kept comb's, and the look's own.
-  std::vector<std::uint8_t> lobe_line_bins;
-  std::vector<std::uint8_t> lobe_look_bins;
-  // line_alignment()'s steered sums (FFT bins from the band's first).
-  std::vector<double> lobe_power;
-  std::vector<double> lobe_agreement;
+  // choose_lobe()'s line bins: the first lobe_line_count of lobe_lines (room for the band).
+  struct LineBin {
+    std::size_t band_index = 0;  // in the band's bins (the units' rows)
+    int fft_bin = 0;
+    double period_re = 0.0;  // e^{j w P}: the phase one carrier period P turns the bin by
+    double period_im = 0.0;
+  };
+  std::vector<LineBin> lobe_lines;
+  int lobe_line_count = 0;
+  int lobes_screened = 0;  // of lobe_order
   // choose_lobe()'s lobe being judged, and the lobes by their alignment at the shifted lags.
   std::array<PairTdoa, kMaxPairs> lobe_tdoas{};
   std::array<std::pair<double, int>, 2 * kMaxMics> lobe_order{};

@@ -220,15 +220,8 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
     comb_lines.assign(static_cast<std::size_t>(bins), 0);
   }
   // The lobe choice judges a look by its own comb's lines: it needs the comb detector.
-  if (params.free_look_lobe_choice && srp && own_comb) {
-    const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
-    lobe_line_bins.assign(bins, 0);
-    lobe_look_bins.assign(bins, 0);
-    const auto span_bins =
-        static_cast<std::size_t>(gcc.band().back().last_bin - gcc.band().front().first_bin + 1);
-    lobe_power.assign(span_bins, 0.0);
-    lobe_agreement.assign(span_bins, 0.0);
-  }
+  if (params.free_look_lobe_choice && srp && own_comb)
+    lobe_lines.assign(static_cast<std::size_t>(gcc.band_bin_count()), LineBin{});
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
   // horizontal one hears the same comb at every mic: no differential phase to remove.
   if (params.ground_echo && solver.rank() >= 3) {
