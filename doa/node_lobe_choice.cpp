@@ -32,36 +32,52 @@ int NodePipeline::Impl::steered_lines(std::span<const PairTdoa> lags, HarmonicCo
   return pairs == 0 ? 0 : own_comb->mark_lines(comb, comb_lines);
 }
 
-// Mean over the line bins of the mean over the pairs that carry a lag of cos(phase_ij - w tau_ij),
-// as steer() sums it, on the line bins alone (a few dozen of the band's bins): 1 when every
-// line is in phase at the lags.
-double NodePipeline::Impl::line_alignment(std::span<const PairTdoa> lags) const {
-  if (lobe_line_count == 0) return 0.0;
+// Over the line bins, the pair's agreement with its lag, cos(phase_ij - w tau_ij) as steer()
+// sums it (look), and with the lag one carrier period later and earlier. The steered phasor
+// z = a b* e^{j w tau} of each line bin is made once: one period P later turns it by e^{j w P}.
+NodePipeline::Impl::PairLineSums NodePipeline::Impl::pair_line_sums(int pair, double tdoa_s) const {
   const GccPhat::UnitsView units = gcc.units();
-  const double omega = gcc.bin_omega_rad_per_s();
+  const MicPairSpec& spec = gcc.pair_spec(pair);
+  const std::span<const double> ri = units.real_row(spec.mic_i);
+  const std::span<const double> ii = units.imag_row(spec.mic_i);
+  const std::span<const double> rj = units.real_row(spec.mic_j);
+  const std::span<const double> ij = units.imag_row(spec.mic_j);
+  const double turn = gcc.bin_omega_rad_per_s() * tdoa_s;
+  PairLineSums sums;
+  for (int n = 0; n < lobe_line_count; ++n) {
+    const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+    const std::size_t b = line.band_index;
+    const double re = ri[b] * rj[b] + ii[b] * ij[b];
+    const double im = ii[b] * rj[b] - ri[b] * ij[b];
+    const double phase = turn * line.fft_bin;
+    const double cosine = std::cos(phase);
+    const double sine = std::sin(phase);
+    const double zr = re * cosine - im * sine;
+    const double zi = re * sine + im * cosine;
+    sums.look += zr;
+    sums.later += zr * line.period_re - zi * line.period_im;
+    sums.earlier += zr * line.period_re + zi * line.period_im;
+  }
+  return sums;
+}
+
+// Every pair's line sums (pair_line_sums) at the lags into line_sums, 0 for a pair without a
+// lag; returns the look's mean agreement over the pairs with a lag and the line bins: 1 when
+// every line is in phase at the lags.
+double NodePipeline::Impl::all_line_sums(std::span<const PairTdoa> lags) {
   double sum = 0.0;
   int pairs = 0;
   for (int p = 0; p < gcc.pair_count(); ++p) {
     const PairTdoa& tdoa = lags[static_cast<std::size_t>(p)];
+    PairLineSums& pair = line_sums[static_cast<std::size_t>(p)];
+    pair = tdoa.variance_s2 > 0.0 ? pair_line_sums(p, tdoa.tdoa_s) : PairLineSums{};
     if (!(tdoa.variance_s2 > 0.0)) continue;
     ++pairs;
-    const MicPairSpec& spec = gcc.pair_spec(p);
-    const std::span<const double> ri = units.real_row(spec.mic_i);
-    const std::span<const double> ii = units.imag_row(spec.mic_i);
-    const std::span<const double> rj = units.real_row(spec.mic_j);
-    const std::span<const double> ij = units.imag_row(spec.mic_j);
-    const double turn = omega * tdoa.tdoa_s;
-    for (int n = 0; n < lobe_line_count; ++n) {
-      const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
-      const std::size_t b = line.band_index;
-      // The pair's phasor a b* turned by the lags' phase at the bin: its real part.
-      const double re = ri[b] * rj[b] + ii[b] * ij[b];
-      const double im = ii[b] * rj[b] - ri[b] * ij[b];
-      const double phase = turn * line.fft_bin;
-      sum += re * std::cos(phase) - im * std::sin(phase);
-    }
+    sum += pair.look;
   }
-  return pairs == 0 ? 0.0 : sum / (static_cast<double>(pairs) * lobe_line_count);
+  line_sum_pairs = pairs;
+  return pairs == 0 || lobe_line_count == 0 ? 0.0
+                                            : sum / (static_cast<double>(pairs) * lobe_line_count);
 }
 
 // A fringe reads one mic's arrival a carrier period early or late: every pair holding that mic
@@ -121,13 +137,10 @@ double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {
   return comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
 }
 
-// The look's alignment, and into lobe_order (lobes_screened of them, best first) the lobes one
-// carrier period away at each mic that align the lines better at the shifted lags. Each pair's
-// steered line phasors z = a b* e^{j w tau} are made once: a lag one period P later turns z by
-// e^{j w P}, so every lobe's sum is the look's with its moved pairs' sums turned (no sin/cos
-// per lobe).
+// The look's alignment, and into lobe_order (lobes_screened of them) the lobes one carrier
+// period away at each mic that align the lines better at the shifted lags: every lobe's sum is
+// the look's with its moved pairs' sums turned by one period (no sin/cos per lobe).
 double NodePipeline::Impl::screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz) {
-  const GccPhat::UnitsView units = gcc.units();
   const double omega = gcc.bin_omega_rad_per_s();
   const double period_s = 1.0 / carrier_hz;
   for (int n = 0; n < lobe_line_count; ++n) {
@@ -135,45 +148,10 @@ double NodePipeline::Impl::screen_lobes(std::span<const PairTdoa> look_tdoas, do
     line.period_re = std::cos(omega * period_s * line.fft_bin);
     line.period_im = std::sin(omega * period_s * line.fft_bin);
   }
-  struct PairSums {
-    double look = 0.0;
-    double later = 0.0;    // the lag one period later
-    double earlier = 0.0;  // one period earlier
-  };
-  std::array<PairSums, kMaxPairs> sums{};
-  int pairs = 0;
-  double look_sum = 0.0;
-  for (int p = 0; p < gcc.pair_count(); ++p) {
-    const PairTdoa& tdoa = look_tdoas[static_cast<std::size_t>(p)];
-    if (!(tdoa.variance_s2 > 0.0)) continue;
-    ++pairs;
-    const MicPairSpec& spec = gcc.pair_spec(p);
-    const std::span<const double> ri = units.real_row(spec.mic_i);
-    const std::span<const double> ii = units.imag_row(spec.mic_i);
-    const std::span<const double> rj = units.real_row(spec.mic_j);
-    const std::span<const double> ij = units.imag_row(spec.mic_j);
-    const double turn = omega * tdoa.tdoa_s;
-    PairSums& sum = sums[static_cast<std::size_t>(p)];
-    for (int n = 0; n < lobe_line_count; ++n) {
-      const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
-      const std::size_t b = line.band_index;
-      const double re = ri[b] * rj[b] + ii[b] * ij[b];
-      const double im = ii[b] * rj[b] - ri[b] * ij[b];
-      const double phase = turn * line.fft_bin;
-      const double cosine = std::cos(phase);
-      const double sine = std::sin(phase);
-      const double zr = re * cosine - im * sine;
-      const double zi = re * sine + im * cosine;
-      sum.look += zr;
-      sum.later += zr * line.period_re - zi * line.period_im;
-      sum.earlier += zr * line.period_re + zi * line.period_im;
-    }
-    look_sum += sum.look;
-  }
+  const double look_alignment = all_line_sums(look_tdoas);
   lobes_screened = 0;
-  if (pairs == 0) return 0.0;
-  const double scale = 1.0 / (static_cast<double>(pairs) * lobe_line_count);
-  const double look_alignment = look_sum * scale;
+  if (line_sum_pairs == 0) return 0.0;
+  const double scale = 1.0 / (static_cast<double>(line_sum_pairs) * lobe_line_count);
   // Lobe l reads mic l / 2 one period early (l even) or late (shifted_lags()).
   for (int l = 0; l < 2 * gcc.unit_channels(); ++l) {
     const int mic = l / 2;
@@ -181,7 +159,7 @@ double NodePipeline::Impl::screen_lobes(std::span<const PairTdoa> look_tdoas, do
     double sum = 0.0;
     for (int p = 0; p < gcc.pair_count(); ++p) {
       const MicPairSpec& spec = gcc.pair_spec(p);
-      const PairSums& pair = sums[static_cast<std::size_t>(p)];
+      const PairLineSums& pair = line_sums[static_cast<std::size_t>(p)];
       // The pair's lag moves with mic i's reading and against mic j's.
       if (spec.mic_i == mic)
         sum += late ? pair.later : pair.earlier;
@@ -231,7 +209,7 @@ bool NodePipeline::Impl::choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution
         already_found(lobe_solution.direction_site))
       continue;
     // Its lines agree with a source as its own bins do (SourceBinMask's test).
-    const double alignment = line_alignment(lobe);
+    const double alignment = all_line_sums(lobe);
     if (alignment < node_detail::kOwnBinAgreement || alignment <= look_alignment + kLobeMargin)
       continue;
     std::copy(lobe.begin(), lobe.end(), look_tdoas.begin());

@@ -121,8 +121,17 @@ struct NodePipeline::Impl {
   // The comb of the kept bins' power, its kept line bins into lobe_lines; returns its carrier
   // (Hz), 0 when it shows fewer than kMinOwnCombLines lines.
   double mark_kept_comb(HarmonicComb& comb);
-  // Mean agreement of the line bins (lobe_lines) with the lags, over pairs with a lag.
-  double line_alignment(std::span<const PairTdoa> lags) const;
+  // A pair's agreement summed over the line bins at its lag, one carrier period later and
+  // earlier (the periods' turns in lobe_lines).
+  struct PairLineSums {
+    double look = 0.0;
+    double later = 0.0;
+    double earlier = 0.0;
+  };
+  PairLineSums pair_line_sums(int pair, double tdoa_s) const;
+  // Every pair's sums at the lags (line_sums, line_sum_pairs); returns the mean agreement of the
+  // line bins with the lags over the pairs with a lag.
+  double all_line_sums(std::span<const PairTdoa> lags);
   // The look's line alignment; the lobes that align the lines better at its lags moved by one
   // carrier period into lobe_order (lobes_screened, best first).
   double screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz);
@@ -252,6 +261,8 @@ struct NodePipeline::Impl {
   std::vector<LineBin> lobe_lines;
   int lobe_line_count = 0;
   int lobes_screened = 0;  // of lobe_order
+  std::array<PairLineSums, kMaxPairs> line_sums{};
+  int line_sum_pairs = 0;
   // choose_lobe()'s lobe being judged, and the lobes by their alignment at the shifted lags.
   std::array<PairTdoa, kMaxPairs> lobe_tdoas{};
   std::array<std::pair<double, int>, 2 * kMaxMics> lobe_order{};
