@@ -2,12 +2,13 @@
 // lobe"). A source left with only its rotor's lines correlates as fringes one carrier period
 // apart, the neighbours nearly as high as the peak, and its ground echo can lift one above it.
 // The true lags bring every line into phase on every pair; a neighbouring fringe only the lines
-// near the carrier, so its steered spectrum shows a few of the lines or no comb at all
-// (carrier_fringe.hpp). So the look's lags and those one carrier period away at each mic are
-// judged by how well they align the comb lines the look and the lobe steer out, each line bin
+// near the carrier. So the look's lags and those one carrier period away at each mic are judged
+// by how well they align the lines of the harmonic comb the kept bins hold, each line bin
 // counted the same (the SRP's sum over every kept bin also counts the noise and the other
 // sources' leftovers between the lines, which the echo and the near carrier lines can tip
-// towards a fringe).
+// towards a fringe). The lines are found in the kept bins' power, not in the look's steered
+// spectrum: on a fringe that shows the lines near the carrier only, most often too few to call
+// a comb (carrier_fringe.hpp; docs/doa.md, session 18).
 #include <algorithm>
 #include <cmath>
 
@@ -18,7 +19,8 @@ namespace dronetrack::doa {
 namespace {
 // A neighbouring lobe replaces the look only when it aligns the lines better by this much (mean
 // agreement over the line bins, 1 = all in phase on every pair): the mean over ~50 line bins of
-// noise-only agreements (sd ~0.3 each over six pairs) has sd ~0.05, so this is two of them.
+// noise-only agreements (sd ~0.3 each over six pairs) has sd ~0.05, so this is two of them
+// (a comb of 10-15 lines marks 30-45 bins).
 constexpr double kLobeMargin = 0.1;
 // Lobes within this of the look are the look again (the refinement climbed back).
 constexpr double kSameLobeCosine = 0.99939;  // cos(2 deg)
@@ -108,7 +110,7 @@ void NodePipeline::Impl::refine_lobe(std::span<const PairTdoa> look_tdoas) {
   }
 }
 
-// The lines judged (lobe_lines): the comb of the kept bins' power (the mics' mean, the
+// The lines judged (lobe_lines): the comb of the kept bins' power (summed over the mics; the
 // sources found so far own the other bins), found and marked by the comb detector
 // keep_own_comb uses. Returns its carrier, 0 when it shows fewer than kMinOwnCombLines lines.
 double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {

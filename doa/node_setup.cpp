@@ -219,7 +219,8 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
     comb_agreement.assign(static_cast<std::size_t>(bins), 0.0);
     comb_lines.assign(static_cast<std::size_t>(bins), 0);
   }
-  // The lobe choice judges a look by its own comb's lines: it needs the comb detector.
+  // The lobe choice judges a look by the lines of the kept bins' comb: it needs the comb
+  // detector (own_comb_bins); without it the key does nothing.
   if (params.free_look_lobe_choice && srp && own_comb)
     lobe_lines.assign(static_cast<std::size_t>(gcc.band_bin_count()), LineBin{});
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
