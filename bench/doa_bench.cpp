@@ -129,11 +129,13 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // the static look (its cost is /0 minus /7); 8: default DoaParams on the scene with a rotor
 // beside the source (two sources a frame: the own-comb re-measures run); 9: the same without
 // own_comb_bins (that path's cost is /8 minus /9); 10: /8 with follow_source_tracks (the followed
-// sources and their fringe judgement run).
+// sources and their fringe judgement run); 11: /8 with free_look_lobe_choice (its cost is /11
+// minus /8).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
   if (state.range(0) == 9) params.own_comb_bins = false;
   if (state.range(0) == 10) params.follow_source_tracks = true;
+  if (state.range(0) == 11) params.free_look_lobe_choice = true;
   if (state.range(0) == 4) params.acoustic.enabled = false;
   if (state.range(0) == 7) params.static_look.enabled = false;
   if (state.range(0) == 5 || state.range(0) == 6) {
@@ -188,6 +190,7 @@ BENCHMARK(BM_NodePipeline)
     ->Arg(8)
     ->Arg(9)
     ->Arg(10)
+    ->Arg(11)
     ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.

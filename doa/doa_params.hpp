@@ -143,10 +143,10 @@ struct DoaParams {
 
   // docs/doa.md stage 7, "A free look's lobe": a free SRP look on a source left with only its
   // rotor's lines may take a neighbouring carrier fringe (one period off at one mic); the look
-  // and those neighbours are judged by how well they align the comb's lines, each line bin
-  // counted the same, and the best is kept. Off by default: right on the known-answer scene
-  // (27 -> 52 of 53 frames), +1.4 % of the mixed site's drone frames, but the perimeter's D2
-  // RMSE 0.797 -> 0.872 m, and ~20 % of the two-source bench frame's instructions.
+  // and those neighbours are judged by how well they align the lines of the kept bins' comb,
+  // each line bin counted the same, and the best is kept. Off by default: 27 -> 40 of 53 frames
+  // on the known-answer scene, +1.1 % of the mixed site's drone frames and +4.5 % of the
+  // two-source bench frame's instructions, but the mixed site's D2 RMSE 1.86 -> 1.93 m.
   bool free_look_lobe_choice = false;
 
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the

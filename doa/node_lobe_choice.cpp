@@ -3,9 +3,12 @@
 // apart, the neighbours nearly as high as the peak, and its ground echo can lift one above it.
 // The true lags bring every line into phase on every pair; a neighbouring fringe only the lines
 // near the carrier. So the look's lags and those one carrier period away at each mic are judged
-// by how well they align the lines the kept bins hold, each line bin counted the same (the SRP's
-// sum over every kept bin also counts the noise and the other sources' leftovers between the
-// lines, which the echo and the near carrier lines can tip towards a fringe).
+// by how well they align the lines of the harmonic comb the kept bins hold, each line bin
+// counted the same (the SRP's sum over every kept bin also counts the noise and the other
+// sources' leftovers between the lines, which the echo and the near carrier lines can tip
+// towards a fringe). The lines are found in the kept bins' power, not in the look's steered
+// spectrum: on a fringe that shows the lines near the carrier only, most often too few to call
+// a comb (carrier_fringe.hpp; docs/doa.md, session 18).
 #include <algorithm>
 #include <cmath>
 
@@ -16,130 +19,207 @@ namespace dronetrack::doa {
 namespace {
 // A neighbouring lobe replaces the look only when it aligns the lines better by this much (mean
 // agreement over the line bins, 1 = all in phase on every pair): the mean over ~50 line bins of
-// noise-only agreements (sd ~0.3 each over six pairs) has sd ~0.05, so this is two of them.
+// noise-only agreements (sd ~0.3 each over six pairs) has sd ~0.05, so this is two of them
+// (a comb of 10-15 lines marks 30-45 bins).
 constexpr double kLobeMargin = 0.1;
 // Lobes within this of the look are the look again (the refinement climbed back).
 constexpr double kSameLobeCosine = 0.99939;  // cos(2 deg)
-// A line stands this far over the frame's local level (HarmonicCombSettings' line salience,
-// 6 dB, as a natural log of power), the local level being the mean log power over +-90 Hz.
-constexpr double kLineSalience = 1.3815510557964274;  // ln(10^0.6)
-constexpr double kEnvelopeHalfWidthHz = 90.0;
 }  // namespace
 
-// A line is judged on the frame's whole band (the mics' mean power before any bin was dropped),
-// so it stands over the broadband around it whatever the masks dropped; it counts when its bin
-// is kept (the sources found so far own the others).
-double NodePipeline::Impl::mark_kept_lines() {
+// How many lines the comb of the steered spectrum at `lags` on the kept bins shows
+// (keep_own_comb's comb).
+int NodePipeline::Impl::steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb) {
+  int pairs = 0;
+  comb = steered_comb(lags, gcc.units(), gcc.bin_keep(), pairs);
+  return pairs == 0 ? 0 : own_comb->mark_lines(comb, comb_lines);
+}
+
+// Over the line bins, the pair's agreement with its lag, cos(phase_ij - w tau_ij) as steer()
+// sums it (look), and with the lag one carrier period later and earlier. The steered phasor
+// z = a b* e^{j w tau} of each line bin is made once: one period P later turns it by e^{j w P}.
+NodePipeline::Impl::PairLineSums NodePipeline::Impl::pair_line_sums(int pair, double tdoa_s) const {
+  const GccPhat::UnitsView units = gcc.units();
+  const MicPairSpec& spec = gcc.pair_spec(pair);
+  const std::span<const double> ri = units.real_row(spec.mic_i);
+  const std::span<const double> ii = units.imag_row(spec.mic_i);
+  const std::span<const double> rj = units.real_row(spec.mic_j);
+  const std::span<const double> ij = units.imag_row(spec.mic_j);
+  const double turn = gcc.bin_omega_rad_per_s() * tdoa_s;
+  PairLineSums sums;
+  for (int n = 0; n < lobe_line_count; ++n) {
+    const LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+    const std::size_t b = line.band_index;
+    const double re = ri[b] * rj[b] + ii[b] * ij[b];
+    const double im = ii[b] * rj[b] - ri[b] * ij[b];
+    const double phase = turn * line.fft_bin;
+    const double cosine = std::cos(phase);
+    const double sine = std::sin(phase);
+    const double zr = re * cosine - im * sine;
+    const double zi = re * sine + im * cosine;
+    sums.look += zr;
+    sums.later += zr * line.period_re - zi * line.period_im;
+    sums.earlier += zr * line.period_re + zi * line.period_im;
+  }
+  return sums;
+}
+
+// Every pair's line sums (pair_line_sums) at the lags into line_sums, 0 for a pair without a
+// lag; returns the look's mean agreement over the pairs with a lag and the line bins: 1 when
+// every line is in phase at the lags.
+double NodePipeline::Impl::all_line_sums(std::span<const PairTdoa> lags) {
+  double sum = 0.0;
+  int pairs = 0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const PairTdoa& tdoa = lags[static_cast<std::size_t>(p)];
+    PairLineSums& pair = line_sums[static_cast<std::size_t>(p)];
+    pair = tdoa.variance_s2 > 0.0 ? pair_line_sums(p, tdoa.tdoa_s) : PairLineSums{};
+    if (!(tdoa.variance_s2 > 0.0)) continue;
+    ++pairs;
+    sum += pair.look;
+  }
+  line_sum_pairs = pairs;
+  return pairs == 0 || lobe_line_count == 0 ? 0.0
+                                            : sum / (static_cast<double>(pairs) * lobe_line_count);
+}
+
+// A fringe reads one mic's arrival a carrier period early or late: every pair holding that mic
+// moves by one period, the others stay. Lobe `lobe` is mic lobe / 2, early (even) or late (odd).
+void NodePipeline::Impl::shifted_lags(std::span<const PairTdoa> look_tdoas, int lobe,
+                                      double period_s) {
+  const int mic = lobe / 2;
+  const double sign = lobe % 2 == 0 ? -1.0 : 1.0;
+  for (int p = 0; p < gcc.pair_count(); ++p) {
+    const MicPairSpec& spec = gcc.pair_spec(p);
+    const auto pair = static_cast<std::size_t>(p);
+    lobe_tdoas[pair] = look_tdoas[pair];
+    if (spec.mic_i == mic) lobe_tdoas[pair].tdoa_s += sign * period_s;
+    if (spec.mic_j == mic) lobe_tdoas[pair].tdoa_s -= sign * period_s;
+  }
+}
+
+// Each moved pair's correlation maximum nearest its shifted lag.
+void NodePipeline::Impl::refine_lobe(std::span<const PairTdoa> look_tdoas) {
+  for (std::size_t p = 0; p < static_cast<std::size_t>(gcc.pair_count()); ++p) {
+    if (lobe_tdoas[p].tdoa_s == look_tdoas[p].tdoa_s || !(look_tdoas[p].variance_s2 > 0.0))
+      continue;
+    GccPeak peak;
+    lobe_tdoas[p] = gcc.refine(static_cast<int>(p), lobe_tdoas[p].tdoa_s, peak) && peak.value > 0.0
+                        ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value,
+                                   peak.coherence}
+                        : PairTdoa{};
+  }
+}
+
+// The lines judged (lobe_lines): the comb of the kept bins' power (summed over the mics; the
+// sources found so far own the other bins), found and marked by the comb detector
+// keep_own_comb uses. Returns its carrier, 0 when it shows fewer than kMinOwnCombLines lines.
+double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {
   const std::span<const std::uint8_t> keep = gcc.bin_keep();
   const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
   const std::span<const double> powers = gcc.band_powers();
-  std::vector<double>& level = lobe_log_power;  // band bin b's log power at b
-  for (std::size_t b = 0; b < bins; ++b) {
-    double power = 0.0;
-    for (int c = 0; c < gcc.unit_channels(); ++c)
-      power += powers[static_cast<std::size_t>(c) * bins + b];
-    level[b] = std::log(std::max(power, 1e-300));
-  }
-  const double bin_hz = sample_rate_hz / fft.fft_size();
-  const auto half =
-      static_cast<std::size_t>(std::max(2.0, std::round(kEnvelopeHalfWidthHz / bin_hz)));
-  std::fill(lobe_line_bins.begin(), lobe_line_bins.end(), std::uint8_t{0});
-  double window = 0.0;  // sum of level over [low, high)
-  std::size_t low = 0;
-  std::size_t high = 0;
-  int lines = 0;
-  int line_bins = 0;
-  double frequency_sum_hz = 0.0;
-  std::size_t b = 0;
+  std::fill(comb_power.begin(), comb_power.end(), 0.0);
+  std::size_t index = 0;
   for (const BandRun& run : gcc.band()) {
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++b) {
-      const std::size_t want_high = std::min(bins, b + half + 1);
-      const std::size_t want_low = b > half ? b - half : 0;
-      while (high < want_high) window += level[high++];
-      while (low < want_low) window -= level[low++];
-      const double envelope = window / static_cast<double>(high - low);
-      const bool peak =
-          (b == 0 || level[b] > level[b - 1]) && (b + 1 == bins || level[b] >= level[b + 1]);
-      if (!peak || keep[b] == 0 || level[b] - envelope < kLineSalience) continue;
-      ++lines;
-      for (std::size_t n = b > 0 ? b - 1 : 0; n <= std::min(bins - 1, b + 1); ++n) {
-        if (keep[n] == 0 || lobe_line_bins[n] != 0) continue;
-        lobe_line_bins[n] = 1;
-        ++line_bins;
-        frequency_sum_hz += (k + static_cast<int>(n) - static_cast<int>(b)) * bin_hz;
-      }
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      if (keep[index] == 0) continue;
+      double power = 0.0;
+      for (int c = 0; c < gcc.unit_channels(); ++c)
+        power += powers[static_cast<std::size_t>(c) * bins + index];
+      comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
     }
   }
-  lobe_line_bin_count = line_bins;
-  if (lines < node_detail::kMinOwnCombLines || line_bins == 0) return 0.0;
-  return frequency_sum_hz / line_bins;
+  comb = own_comb->analyse(comb_power);
+  lobe_line_count = 0;
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return 0.0;
+  index = 0;
+  for (const BandRun& run : gcc.band())
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
+      if (keep[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0)
+        lobe_lines[static_cast<std::size_t>(lobe_line_count++)] = {index, k};
+  return comb_carrier_hz(comb_power, comb_lines, comb_first_bin, own_comb->bin_hz());
 }
 
-// Mean over the line bins of the mean over the pairs that carry a lag of cos(phase_ij - w tau_ij):
-// 1 when every line is in phase at the lags.
-double NodePipeline::Impl::line_alignment(std::span<const PairTdoa> lags) {
-  std::fill(lobe_power.begin(), lobe_power.end(), 0.0);
-  std::fill(lobe_agreement.begin(), lobe_agreement.end(), 0.0);
-  const int pairs = steer(lags, gcc.units(), lobe_line_bins, lobe_power, lobe_agreement);
-  if (pairs == 0 || lobe_line_bin_count == 0) return 0.0;
-  double sum = 0.0;
-  for (const double agreement : lobe_agreement) sum += agreement;
-  return sum / (static_cast<double>(pairs) * lobe_line_bin_count);
+// The look's alignment, and into lobe_order (lobes_screened of them) the lobes one carrier
+// period away at each mic that align the lines better at the shifted lags: every lobe's sum is
+// the look's with its moved pairs' sums turned by one period (no sin/cos per lobe).
+double NodePipeline::Impl::screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz) {
+  const double omega = gcc.bin_omega_rad_per_s();
+  const double period_s = 1.0 / carrier_hz;
+  for (int n = 0; n < lobe_line_count; ++n) {
+    LineBin& line = lobe_lines[static_cast<std::size_t>(n)];
+    line.period_re = std::cos(omega * period_s * line.fft_bin);
+    line.period_im = std::sin(omega * period_s * line.fft_bin);
+  }
+  const double look_alignment = all_line_sums(look_tdoas);
+  lobes_screened = 0;
+  if (line_sum_pairs == 0) return 0.0;
+  const double scale = 1.0 / (static_cast<double>(line_sum_pairs) * lobe_line_count);
+  // Lobe l reads mic l / 2 one period early (l even) or late (shifted_lags()).
+  for (int l = 0; l < 2 * gcc.unit_channels(); ++l) {
+    const int mic = l / 2;
+    const bool late = l % 2 == 1;
+    double sum = 0.0;
+    for (int p = 0; p < gcc.pair_count(); ++p) {
+      const MicPairSpec& spec = gcc.pair_spec(p);
+      const PairLineSums& pair = line_sums[static_cast<std::size_t>(p)];
+      // The pair's lag moves with mic i's reading and against mic j's.
+      if (spec.mic_i == mic)
+        sum += late ? pair.later : pair.earlier;
+      else if (spec.mic_j == mic)
+        sum += late ? pair.earlier : pair.later;
+      else
+        sum += pair.look;
+    }
+    if (sum * scale > look_alignment)
+      lobe_order[static_cast<std::size_t>(lobes_screened++)] = {sum * scale, l};
+  }
+  return look_alignment;
 }
 
 bool NodePipeline::Impl::choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution& solution) {
-  if (lobe_line_bins.empty() || !solution.accepted) return false;
-  const double carrier_hz = mark_kept_lines();
+  if (!own_comb || lobe_lines.empty() || !solution.accepted) return false;
+  HarmonicComb kept_comb;
+  const double carrier_hz = mark_kept_comb(kept_comb);
   if (!(carrier_hz > 0.0)) return false;
-  const double period_s = 1.0 / carrier_hz;
   const auto pairs = static_cast<std::size_t>(gcc.pair_count());
-  const double look_alignment = line_alignment(look_tdoas);
-  double best_alignment = look_alignment + kLobeMargin;
-  bool moved = false;
-  // A fringe reads one mic's arrival a carrier period early or late: every pair holding that mic
-  // moves by one period, the others stay.
-  for (int mic = 0; mic < gcc.unit_channels(); ++mic) {
-    for (const double sign : {-1.0, 1.0}) {
-      bool touched = false;
-      for (std::size_t p = 0; p < pairs; ++p) {
-        const MicPairSpec& spec = gcc.pair_spec(static_cast<int>(p));
-        const double shift =
-            spec.mic_i == mic ? sign * period_s : (spec.mic_j == mic ? -sign * period_s : 0.0);
-        lobe_tdoas[p] = look_tdoas[p];
-        if (shift == 0.0 || !(look_tdoas[p].variance_s2 > 0.0)) continue;
-        GccPeak peak;
-        touched = true;
-        lobe_tdoas[p] =
-            gcc.refine(static_cast<int>(p), look_tdoas[p].tdoa_s + shift, peak) && peak.value > 0.0
-                ? PairTdoa{peak.lag_s, gcc.tdoa_variance_for_peak(peak.value), peak.value,
-                           peak.coherence}
-                : PairTdoa{};
-      }
-      if (!touched) continue;
-      const std::span<const PairTdoa> lobe(lobe_tdoas.data(), pairs);
-      const DoaSolution lobe_solution = solver.solve(lobe);
-      // A lobe below the horizon or on a source already found would hand the look's lines to
-      // the horizon mask's drop or to the duplicate's subtraction: the look is kept instead.
-      if (!lobe_solution.accepted ||
-          lobe_solution.direction_site.dot(solution.direction_site) >= kSameLobeCosine ||
-          (solver.rank() >= 3 && lobe_solution.direction_site.z() < min_elevation_sine) ||
-          already_found(lobe_solution.direction_site))
-        continue;
-      // Its own lines agree with a source as its own bins do (SourceBinMask's test): lines of
-      // other sources that no lobe aligns do not move the look.
-      const double alignment = line_alignment(lobe);
-      if (alignment <= best_alignment || alignment < node_detail::kOwnBinAgreement) continue;
-      best_alignment = alignment;
-      std::copy(lobe.begin(), lobe.end(), best_lobe_tdoas.begin());
-      best_lobe_solution = lobe_solution;
-      moved = true;
-    }
+  const std::span<const PairTdoa> lobe(lobe_tdoas.data(), pairs);
+  // Judged first at the look's lags moved by exactly one period (no grid climb, no solve): only
+  // a lobe that aligns the lines better there is measured (each moved pair's correlation
+  // maximum nearest the shifted lag) and solved, best first, and judged again on its own lags.
+  const double look_alignment = screen_lobes(look_tdoas, carrier_hz);
+  const int screened = lobes_screened;
+  if (screened == 0) return false;
+  // A look that steers out a comb of its own spacing other than the kept bins' is on another
+  // source than the one whose lines would be judged (two drones' lines sharing the kept bins
+  // where their rays cross): it stays.
+  HarmonicComb look_comb;
+  if (steered_lines(look_tdoas, look_comb) >= node_detail::kMinOwnCombLines &&
+      std::abs(look_comb.fundamental_hz - kept_comb.fundamental_hz) > 0.5 * own_comb->bin_hz())
+    return false;
+  std::sort(lobe_order.begin(), lobe_order.begin() + screened,
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (int rank = 0; rank < screened; ++rank) {
+    const int l = lobe_order[static_cast<std::size_t>(rank)].second;
+    shifted_lags(look_tdoas, l, 1.0 / carrier_hz);
+    refine_lobe(look_tdoas);
+    const DoaSolution lobe_solution = solver.solve(lobe);
+    // A lobe below the horizon or on a source already found would hand the look's lines to
+    // the horizon mask's drop or to the duplicate's subtraction: the look is kept instead.
+    if (!lobe_solution.accepted ||
+        lobe_solution.direction_site.dot(solution.direction_site) >= kSameLobeCosine ||
+        (solver.rank() >= 3 && lobe_solution.direction_site.z() < min_elevation_sine) ||
+        already_found(lobe_solution.direction_site))
+      continue;
+    // Its lines agree with a source as its own bins do (SourceBinMask's test).
+    const double alignment = all_line_sums(lobe);
+    if (alignment < node_detail::kOwnBinAgreement || alignment <= look_alignment + kLobeMargin)
+      continue;
+    std::copy(lobe.begin(), lobe.end(), look_tdoas.begin());
+    solution = lobe_solution;
+    ++diagnostics.free_look_lobes_moved;
+    return true;
   }
-  if (!moved) return false;
-  std::copy_n(best_lobe_tdoas.begin(), pairs, look_tdoas.begin());
-  solution = best_lobe_solution;
-  ++diagnostics.free_look_lobes_moved;
-  return true;
+  return false;
 }
 
 }  // namespace dronetrack::doa

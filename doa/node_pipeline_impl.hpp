@@ -116,11 +116,29 @@ struct NodePipeline::Impl {
   // period away at each mic, the ones that align the comb the kept bins hold best; true when
   // the look moved to another lobe (look_tdoas and solution replaced).
   bool choose_lobe(std::span<PairTdoa> look_tdoas, DoaSolution& solution);
-  // Marks the kept band bins on a tonal line of the frame (lobe_line_bins); returns the lines'
-  // mean frequency (Hz, each line bin counted once), 0 when fewer than kMinOwnCombLines lines.
-  double mark_kept_lines();
-  // Mean agreement of the line bins (lobe_line_bins) with the lags, over pairs with a lag.
-  double line_alignment(std::span<const PairTdoa> lags);
+  // How many lines the comb of the steered spectrum at `lags` (kept bins) shows.
+  int steered_lines(std::span<const PairTdoa> lags, HarmonicComb& comb);
+  // The comb of the kept bins' power, its kept line bins into lobe_lines; returns its carrier
+  // (Hz), 0 when it shows fewer than kMinOwnCombLines lines.
+  double mark_kept_comb(HarmonicComb& comb);
+  // A pair's agreement summed over the line bins at its lag, one carrier period later and
+  // earlier (the periods' turns in lobe_lines).
+  struct PairLineSums {
+    double look = 0.0;
+    double later = 0.0;
+    double earlier = 0.0;
+  };
+  PairLineSums pair_line_sums(int pair, double tdoa_s) const;
+  // Every pair's sums at the lags (line_sums, line_sum_pairs); returns the mean agreement of the
+  // line bins with the lags over the pairs with a lag.
+  double all_line_sums(std::span<const PairTdoa> lags);
+  // The look's line alignment; the lobes that align the lines better at its lags moved by one
+  // carrier period into lobe_order (lobes_screened, best first).
+  double screen_lobes(std::span<const PairTdoa> look_tdoas, double carrier_hz);
+  // lobe_tdoas: the look's lags with mic lobe / 2 read one period early (lobe even) or late.
+  void shifted_lags(std::span<const PairTdoa> look_tdoas, int lobe, double period_s);
+  // lobe_tdoas' moved pairs: each pair's correlation maximum nearest its shifted lag.
+  void refine_lobe(std::span<const PairTdoa> look_tdoas);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -233,17 +251,21 @@ struct NodePipeline::Impl {
   std::array<PairTdoa, kMaxPairs> follow_tdoas{};
   std::array<PairTdoa, kMaxPairs> best_follow_tdoas{};
   DoaSolution follow_solution;
-  // choose_lobe()'s line bins and the frame's log power per band bin (band order).
-  std::vector<std::uint8_t> lobe_line_bins;
-  int lobe_line_bin_count = 0;
-  std::vector<double> lobe_log_power;
-  // line_alignment()'s steered sums (FFT bins from the band's first).
-  std::vector<double> lobe_power;
-  std::vector<double> lobe_agreement;
-  // choose_lobe()'s lobe being judged and the best so far.
+  // choose_lobe()'s line bins: the first lobe_line_count of lobe_lines (room for the band).
+  struct LineBin {
+    std::size_t band_index = 0;  // in the band's bins (the units' rows)
+    int fft_bin = 0;
+    double period_re = 0.0;  // e^{j w P}: the phase one carrier period P turns the bin by
+    double period_im = 0.0;
+  };
+  std::vector<LineBin> lobe_lines;
+  int lobe_line_count = 0;
+  int lobes_screened = 0;  // of lobe_order
+  std::array<PairLineSums, kMaxPairs> line_sums{};
+  int line_sum_pairs = 0;
+  // choose_lobe()'s lobe being judged, and the lobes by their alignment at the shifted lags.
   std::array<PairTdoa, kMaxPairs> lobe_tdoas{};
-  std::array<PairTdoa, kMaxPairs> best_lobe_tdoas{};
-  DoaSolution best_lobe_solution;
+  std::array<std::pair<double, int>, 2 * kMaxMics> lobe_order{};
   DoaSolution best_follow_solution;
   std::array<FoundComb, kMaxSources> found_combs{};  // this frame's, by candidate index
   std::unique_ptr<ConePeakHistory> cone_peaks;       // rank 1 only

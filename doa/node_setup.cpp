@@ -219,15 +219,10 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
     comb_agreement.assign(static_cast<std::size_t>(bins), 0.0);
     comb_lines.assign(static_cast<std::size_t>(bins), 0);
   }
-  if (params.free_look_lobe_choice && srp) {
-    const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
-    lobe_log_power.assign(bins, 0.0);
-    lobe_line_bins.assign(bins, 0);
-    const auto span_bins =
-        static_cast<std::size_t>(gcc.band().back().last_bin - gcc.band().front().first_bin + 1);
-    lobe_power.assign(span_bins, 0.0);
-    lobe_agreement.assign(span_bins, 0.0);
-  }
+  // The lobe choice judges a look by the lines of the kept bins' comb: it needs the comb
+  // detector (own_comb_bins); without it the key does nothing.
+  if (params.free_look_lobe_choice && srp && own_comb)
+    lobe_lines.assign(static_cast<std::size_t>(gcc.band_bin_count()), LineBin{});
   // A planar or linear array cannot tell the echo (mirrored elevation) from the source, and a
   // horizontal one hears the same comb at every mic: no differential phase to remove.
   if (params.ground_echo && solver.rank() >= 3) {

@@ -277,7 +277,9 @@ TEST(NodePipeline, WeakerCombIsFollowedOnItsOwnFringe) {
 // about half the frames (lobe choice off: the scene does show the failure); the true lags align
 // every one of the comb's lines on every pair, the fringe's only those near the carrier, so
 // judged by the lines' alignment the look moves to the weaker comb's own lobe
-// (doa.free_look_lobe_choice).
+// (doa.free_look_lobe_choice). The lines are the comb the detector finds in the kept bins; in
+// about a fifth of the frames it marks fewer than four and the look stays where it is (found in
+// 40 of 53 frames, docs/doa.md "A free look's lobe").
 TEST(NodePipeline, FreeLookTakesTheLobeThatAlignsTheCombsLines) {
   const WeakerCombScene scene = weaker_comb_scene();
   WeakerCombFinds off;
@@ -298,7 +300,8 @@ TEST(NodePipeline, FreeLookTakesTheLobeThatAlignsTheCombsLines) {
   EXPECT_GE(off.fringe_doas, off.frames_after / 5);
   EXPECT_EQ(off.lobes_moved, 0);
   EXPECT_GT(on.lobes_moved, 0);
-  EXPECT_GE(on.found, on.frames_after * 9 / 10);
+  EXPECT_GE(on.found, on.frames_after * 7 / 10);
+  EXPECT_GE(on.found, off.found + off.frames_after / 5);
   EXPECT_LE(on.fringe_doas, on.frames_after / 20);
   EXPECT_GE(on.loud_doas, on.frames_after * 9 / 10);
 }
