@@ -121,6 +121,13 @@ struct NodePipeline::Impl {
   double mark_kept_lines();
   // Mean agreement of the line bins (lobe_line_bins) with the lags, over pairs with a lag.
   double line_alignment(std::span<const PairTdoa> lags);
+  // The SRP floor for the bins the last correlation kept (node_sources.cpp).
+  double kept_bins_floor() const;
+  // A look's peak solved into the next candidate's place; false: refused or a duplicate.
+  bool solve_look(const SrpPeak& peak, LookKind kind);
+  // After the free search stopped under the floor: one look on the kept bins of the comb their
+  // power shows (doa.comb_look); true when it added a candidate.
+  bool comb_look();
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -163,6 +170,8 @@ struct NodePipeline::Impl {
                   const Eigen::Vector3d* look_direction_array = nullptr);
   void trace_added(LookKind kind, int first_candidate);  // candidates first_candidate.. added
   void trace_search_end(bool under_floor);
+  void trace_comb_look(int line_bins,
+                       double floor);  // after the comb look's correlation, before its search
   void trace_candidates();
   void trace_end(bool sharp, bool detecting);
   void smooth_candidates(double time_s);

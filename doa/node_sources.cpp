@@ -197,21 +197,12 @@ void NodePipeline::Impl::find_further_sources() {
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
        ++look) {
-    // Incoherent noise over fewer bins correlates more by chance. Nothing under the floor is
-    // used: the search may skip what cannot reach it.
-    const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
-                                                     std::max(1, gcc.kept_bin_count()));
     SrpPeak peak;
-    under_floor = !srp->strongest(peak, floor);
+    under_floor = !srp->strongest(peak, kept_bins_floor());
     if (under_floor) break;
+    const bool duplicate = !solve_look(peak, LookKind::free);
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
-    srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
-    candidate.solution = solver.solve(candidate_tdoas);
-    if (params.free_look_lobe_choice) choose_lobe(candidate_tdoas, candidate.solution);
-    const bool duplicate =
-        !candidate.solution.accepted || already_found(candidate.solution.direction_site);
-    trace_look(LookKind::free, candidate.solution, duplicate, &peak.direction_array);
     if (!duplicate && below_horizon(candidate.solution)) {
       mask_source(candidate_tdoas);
       srp->begin_frame(gcc);
@@ -230,7 +221,89 @@ void NodePipeline::Impl::find_further_sources() {
     }
   }
   trace_search_end(under_floor);
+  if (under_floor && own_comb && params.comb_look && candidate_count < params.max_sources)
+    comb_look();
   if (candidate_count >= 2) remeasure(0, gcc.units());
+}
+
+// The TDOAs of the correlation maxima nearest a look's lags, solved into the next candidate's
+// place; false when the solver refuses them or they are a source the frame already has.
+bool NodePipeline::Impl::solve_look(const SrpPeak& peak, LookKind kind) {
+  Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+  const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+  srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
+  candidate.solution = solver.solve(candidate_tdoas);
+  if (params.free_look_lobe_choice) choose_lobe(candidate_tdoas, candidate.solution);
+  const bool duplicate =
+      !candidate.solution.accepted || already_found(candidate.solution.direction_site);
+  trace_look(kind, candidate.solution, duplicate, &peak.direction_array);
+  return !duplicate;
+}
+
+// Incoherent noise over fewer bins correlates more by chance: the SRP floor for the bins the
+// last correlation kept. Nothing under it is used: the search may skip what cannot reach it.
+double NodePipeline::Impl::kept_bins_floor() const {
+  return srp_noise_floor *
+         std::sqrt(static_cast<double>(gcc.band_bin_count()) / std::max(1, gcc.kept_bin_count()));
+}
+
+// A rotor puts its power into a few dozen line bins. The free look sums the steered cross-power
+// over every kept bin, so a comb whose lines stand far over their noise still peaks under the
+// floor set for the whole band: its lines are a small share of the bins, the rest is noise that
+// only widens the spread. After the search stops there, one more look on the lines alone: the
+// comb the kept bins' power shows (HarmonicCombDetector on the mics' summed |X|^2), its line bins
+// kept, the rest dropped. The lines are chosen by power, which says nothing about the phases the
+// look sums, so noise on them correlates as on any other bins of that count: the floor is the
+// same rule for the bins kept, and a frame without a comb gets no look.
+bool NodePipeline::Impl::comb_look() {
+  const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
+  const std::span<const double> powers = gcc.band_powers();
+  const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
+  std::fill(comb_power.begin(), comb_power.end(), 0.0);
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band()) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      if (kept[index] == 0) continue;
+      double power = 0.0;
+      for (int c = 0; c < gcc.unit_channels(); ++c)
+        power += powers[static_cast<std::size_t>(c) * bins + index];
+      comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
+    }
+  }
+  const HarmonicComb comb = own_comb->analyse(comb_power);
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  index = 0;
+  int line_bins = 0;
+  int lines = 0;  // runs of kept line bins
+  for (const BandRun& run : gcc.band()) {
+    bool on_line = false;
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      if (comb_lines[static_cast<std::size_t>(k - comb_first_bin)] == 0) keep[index] = 0;
+      lines += keep[index] != 0 && !on_line ? 1 : 0;
+      on_line = keep[index] != 0;
+      line_bins += keep[index];
+    }
+  }
+  if (lines < node_detail::kMinOwnCombLines) return false;  // its lines are the others'
+  gcc.correlate(false, false);
+  srp->begin_frame(gcc);
+  ++diagnostics.comb_looks;
+  // A line's bins (its window's main lobe) hold one phasor per pair, not one per bin: the look
+  // averages `lines` independent values per pair, and noise-only lines reach the floor as
+  // rarely as the whole band's bins reach theirs (srp_noise_sigma, node_setup.cpp).
+  const double floor = params.srp_min_power_sigmas / std::sqrt(2.0 * lines * solver.pair_count());
+  trace_comb_look(line_bins, floor);
+  SrpPeak peak;
+  if (!srp->strongest(peak, floor) || !solve_look(peak, LookKind::comb)) return false;
+  Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+  if (below_horizon(candidate.solution)) return false;
+  candidate.coherence =
+      mean_coherence(std::span<const PairTdoa>(candidate.tdoas.data(), tdoas.size()));
+  candidate.time_offset_s = 0.0;
+  ++candidate_count;
+  ++diagnostics.comb_look_sources;
+  return true;
 }
 
 // The frame's cross-power again from `units`, minus every other candidate's bins.
