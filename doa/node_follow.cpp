@@ -17,7 +17,6 @@ namespace dronetrack::doa {
 // strongest first, each taking its bins before the next.
 void NodePipeline::Impl::follow_tracked_sources() {
   std::array<bool, kMaxSources> tried{};
-  found_combs.fill(FoundComb{});
   const int slots = std::min(source_tracks->slot_count(), kMaxSources);
   const auto pairs = tdoas.size();
   while (candidate_count < params.max_sources) {

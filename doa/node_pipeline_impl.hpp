@@ -85,7 +85,7 @@ struct NodePipeline::Impl {
   bool gate_frame(DetectionInput& detection, double time_s);
   bool sources_to_publish(double time_s, bool detecting);
   void find_candidates();
-  void find_further_sources();
+  bool find_further_sources();  // true: the search stopped under the SRP floor
   // follow_source_tracks: each tracked source the frame has not found yet, measured from its
   // track's lags before the free looks (node_follow.cpp).
   void follow_tracked_sources();
@@ -125,8 +125,9 @@ struct NodePipeline::Impl {
   double kept_bins_floor() const;
   // A look's peak solved into the next candidate's place; false: refused or a duplicate.
   bool solve_look(const SrpPeak& peak, LookKind kind);
-  // After the free search stopped under the floor: one look on the kept bins of the comb their
-  // power shows (doa.comb_look); true when it added a candidate.
+  // After the free search stopped under the floor and the static look: one look on the frame's
+  // bins no source owns, those of the comb their power shows (doa.comb_look); true when it
+  // added a candidate.
   bool comb_look();
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();

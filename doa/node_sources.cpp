@@ -173,10 +173,14 @@ void NodePipeline::Impl::find_candidates() {
     ++candidate_count;
   }
   keep_frame_mask();
-  if (srp) find_further_sources();
+  const bool under_floor = srp && find_further_sources();
   const int before_static_look = candidate_count;
   if (static_look) find_static_source();
   trace_added(LookKind::static_look, before_static_look);
+  // After the static look: a source it holds is not one the own looks found (it would lose
+  // its hold on a hovering drone the comb look finds only now and then).
+  if (under_floor && own_comb && params.comb_look && candidate_count < params.max_sources)
+    comb_look();
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
@@ -187,8 +191,9 @@ void NodePipeline::Impl::find_candidates() {
 // Each source found takes its bins out of the correlations before the next look: what is left is
 // normalised over the bins the louder sources do not own, so a weaker drone's peak is neither
 // buried under the louder one's lobes nor pulled by them.
-void NodePipeline::Impl::find_further_sources() {
+bool NodePipeline::Impl::find_further_sources() {
   if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
+  found_combs.fill(FoundComb{});  // made when first asked for (the follow, the comb look)
   const int before_follow = candidate_count;
   if (source_tracks && params.follow_source_tracks) follow_tracked_sources();
   trace_added(LookKind::followed, before_follow);
@@ -221,9 +226,8 @@ void NodePipeline::Impl::find_further_sources() {
     }
   }
   trace_search_end(under_floor);
-  if (under_floor && own_comb && params.comb_look && candidate_count < params.max_sources)
-    comb_look();
   if (candidate_count >= 2) remeasure(0, gcc.units());
+  return under_floor;
 }
 
 // The TDOAs of the correlation maxima nearest a look's lags, solved into the next candidate's
@@ -256,6 +260,12 @@ double NodePipeline::Impl::kept_bins_floor() const {
 // look sums, so noise on them correlates as on any other bins of that count: the floor is the
 // same rule for the bins kept, and a frame without a comb gets no look.
 bool NodePipeline::Impl::comb_look() {
+  // The frame's phasors under its mask, every found source's bins dropped (the re-measures and
+  // the static look leave their own in gcc).
+  gcc.cross_power(gcc.units(), frame_mask);
+  for (int s = 0; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
   const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
   const std::span<const double> powers = gcc.band_powers();
   const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
@@ -297,9 +307,13 @@ bool NodePipeline::Impl::comb_look() {
   SrpPeak peak;
   if (!srp->strongest(peak, floor) || !solve_look(peak, LookKind::comb)) return false;
   Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
-  if (below_horizon(candidate.solution)) return false;
-  candidate.coherence =
-      mean_coherence(std::span<const PairTdoa>(candidate.tdoas.data(), tdoas.size()));
+  const std::span<const PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+  // On its lines alone a source correlates as fringes one carrier period apart: a look on a
+  // found source's fringe is that source again, and its bins would be taken from it.
+  if (below_horizon(candidate.solution) ||
+      fringe_of_found(candidate_tdoas, candidate.solution.direction_site))
+    return false;
+  candidate.coherence = mean_coherence(candidate_tdoas);
   candidate.time_offset_s = 0.0;
   ++candidate_count;
   ++diagnostics.comb_look_sources;
