@@ -125,10 +125,13 @@ struct NodePipeline::Impl {
   double kept_bins_floor() const;
   // A look's peak solved into the next candidate's place; false: refused or a duplicate.
   bool solve_look(const SrpPeak& peak, LookKind kind);
-  // After the free search stopped under the floor and the static look: one look on the frame's
-  // bins no source owns, those of the comb their power shows (doa.comb_look); true when it
-  // added a candidate.
-  bool comb_look();
+  // doa.comb_look: when the free search stops under the floor, the lines of the comb the kept
+  // bins' power shows (comb_look_keep, comb_look_lines; 0 lines: no comb); after the static
+  // look, one look on them minus the bins of the sources found from first_unmasked on; true
+  // when it added a candidate.
+  void mark_comb_look_lines();
+  int count_lines(std::span<const std::uint8_t> keep) const;  // runs of kept bins
+  bool comb_look(int first_unmasked);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -224,6 +227,9 @@ struct NodePipeline::Impl {
   std::vector<double> comb_power;
   std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
   std::vector<std::uint8_t> comb_lines;
+  std::vector<std::uint8_t> comb_look_keep =
+      std::vector<std::uint8_t>(static_cast<std::size_t>(gcc.band_bin_count()), 0);  // band order
+  int comb_look_lines = 0;
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped

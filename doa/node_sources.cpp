@@ -3,6 +3,7 @@
 // measured again on its own bins, smoothed over frames, published.
 #include "doa/node_pipeline_impl.hpp"
 
+#include <algorithm>
 #include <numeric>
 
 #include "doa/comb_line_cleaning.hpp"
@@ -179,8 +180,8 @@ void NodePipeline::Impl::find_candidates() {
   trace_added(LookKind::static_look, before_static_look);
   // After the static look: a source it holds is not one the own looks found (it would lose
   // its hold on a hovering drone the comb look finds only now and then).
-  if (under_floor && own_comb && params.comb_look && candidate_count < params.max_sources)
-    comb_look();
+  if (under_floor && comb_look_lines > 0 && candidate_count < params.max_sources)
+    comb_look(before_static_look);
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
@@ -226,6 +227,8 @@ bool NodePipeline::Impl::find_further_sources() {
     }
   }
   trace_search_end(under_floor);
+  comb_look_lines = 0;
+  if (under_floor && own_comb && params.comb_look) mark_comb_look_lines();
   if (candidate_count >= 2) remeasure(0, gcc.units());
   return under_floor;
 }
@@ -257,15 +260,10 @@ double NodePipeline::Impl::kept_bins_floor() const {
 // only widens the spread. After the search stops there, one more look on the lines alone: the
 // comb the kept bins' power shows (HarmonicCombDetector on the mics' summed |X|^2), its line bins
 // kept, the rest dropped. The lines are chosen by power, which says nothing about the phases the
-// look sums, so noise on them correlates as on any other bins of that count: the floor is the
-// same rule for the bins kept, and a frame without a comb gets no look.
-bool NodePipeline::Impl::comb_look() {
-  // The frame's phasors under its mask, every found source's bins dropped (the re-measures and
-  // the static look leave their own in gcc).
-  gcc.cross_power(gcc.units(), frame_mask);
-  for (int s = 0; s < candidate_count; ++s)
-    bin_mask.drop(gcc, std::span<const PairTdoa>(
-                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+// look sums, so noise on them correlates as on any other bins of that count, and a frame without
+// a comb gets no look. The comb is marked when the search stops (mark_comb_look_lines: the bins
+// no source owns then, their power only); the look is made after the static look.
+void NodePipeline::Impl::mark_comb_look_lines() {
   const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
   const std::span<const double> powers = gcc.band_powers();
   const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
@@ -281,20 +279,39 @@ bool NodePipeline::Impl::comb_look() {
     }
   }
   const HarmonicComb comb = own_comb->analyse(comb_power);
-  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return false;
-  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return;
   index = 0;
-  int line_bins = 0;
-  int lines = 0;  // runs of kept line bins
+  for (const BandRun& run : gcc.band())
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
+      comb_look_keep[index] =
+          kept[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0;
+  comb_look_lines = count_lines(comb_look_keep);
+}
+
+// Runs of kept bins in band order: a line is +-1 bin of a peak, and two lines of a comb are at
+// least its lowest spacing (40 Hz, 6 bins) apart.
+int NodePipeline::Impl::count_lines(std::span<const std::uint8_t> keep) const {
+  int lines = 0;
+  std::size_t index = 0;
   for (const BandRun& run : gcc.band()) {
     bool on_line = false;
     for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      if (comb_lines[static_cast<std::size_t>(k - comb_first_bin)] == 0) keep[index] = 0;
       lines += keep[index] != 0 && !on_line ? 1 : 0;
       on_line = keep[index] != 0;
-      line_bins += keep[index];
     }
   }
+  return lines;
+}
+
+bool NodePipeline::Impl::comb_look(int first_unmasked) {
+  // The lines no source owned when the search stopped, minus the bins of the sources added
+  // since (the static look's).
+  gcc.cross_power(gcc.units(), comb_look_keep);
+  for (int s = first_unmasked; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  const std::span<const std::uint8_t> keep = std::as_const(gcc).bin_keep();
+  const int lines = first_unmasked < candidate_count ? count_lines(keep) : comb_look_lines;
   if (lines < node_detail::kMinOwnCombLines) return false;  // its lines are the others'
   gcc.correlate(false, false);
   srp->begin_frame(gcc);
@@ -303,7 +320,7 @@ bool NodePipeline::Impl::comb_look() {
   // averages `lines` independent values per pair, and noise-only lines reach the floor as
   // rarely as the whole band's bins reach theirs (srp_noise_sigma, node_setup.cpp).
   const double floor = params.srp_min_power_sigmas / std::sqrt(2.0 * lines * solver.pair_count());
-  trace_comb_look(line_bins, floor);
+  trace_comb_look(static_cast<int>(std::count(keep.begin(), keep.end(), std::uint8_t{1})), floor);
   SrpPeak peak;
   if (!srp->strongest(peak, floor) || !solve_look(peak, LookKind::comb)) return false;
   Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
