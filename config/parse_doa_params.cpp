@@ -136,6 +136,7 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
       section.boolean("follow_source_tracks", params.follow_source_tracks);
   params.free_look_lobe_choice =
       section.boolean("free_look_lobe_choice", params.free_look_lobe_choice);
+  params.comb_look = section.boolean("comb_look", params.comb_look);
   params.static_null = section.boolean("static_null", params.static_null);
   params.static_null_learn_s =
       section.number("static_null_learn_s", params.static_null_learn_s, 0.2, 600.0);

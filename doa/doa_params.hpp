@@ -149,6 +149,12 @@ struct DoaParams {
   // two-source bench frame's instructions, but the mixed site's D2 RMSE 1.86 -> 1.93 m.
   bool free_look_lobe_choice = false;
 
+  // docs/doa.md stage 7, "The comb look": when the free search stops under the SRP floor, one
+  // more look on the kept bins of the harmonic comb those bins' power shows (a rotor's lines,
+  // chosen by power, not by phase), against the floor for that many bins. A comb whose lines
+  // stand over their noise sums too few bins to clear the floor set for the whole band.
+  bool comb_look = true;
+
   // Static-source null (doa/static_source_null.hpp): sources that stay put at or below the
   // horizon are learned from their constant TDOAs and their band bins dropped before the
   // inverse FFTs, so a drone next to a loud ground source is still found.

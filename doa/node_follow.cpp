@@ -17,12 +17,10 @@ namespace dronetrack::doa {
 // strongest first, each taking its bins before the next.
 void NodePipeline::Impl::follow_tracked_sources() {
   std::array<bool, kMaxSources> tried{};
-  found_combs.fill(FoundComb{});
   const int slots = std::min(source_tracks->slot_count(), kMaxSources);
   const auto pairs = tdoas.size();
   while (candidate_count < params.max_sources) {
-    const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
-                                                     std::max(1, gcc.kept_bin_count()));
+    const double floor = kept_bins_floor();
     int best_slot = -1;
     double best_power = floor;
     for (int slot = 0; slot < slots; ++slot) {

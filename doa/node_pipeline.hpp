@@ -37,6 +37,10 @@ struct NodeDiagnostics {
   // Free looks moved to a neighbouring carrier lobe that aligns the comb's lines better
   // (doa.free_look_lobe_choice).
   std::int64_t free_look_lobes_moved = 0;
+  // After the free search stopped under the floor (doa.comb_look): looks made on a comb's lines,
+  // and the sources they added.
+  std::int64_t comb_looks = 0;
+  std::int64_t comb_look_sources = 0;
   int static_sources_nulled = 0;  // ground sources whose bins are dropped (static_null)
   std::int64_t unposed_doas = 0;  // moving array: DOAs outside the pose track's span (dropped)
 };

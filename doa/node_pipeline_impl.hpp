@@ -85,7 +85,7 @@ struct NodePipeline::Impl {
   bool gate_frame(DetectionInput& detection, double time_s);
   bool sources_to_publish(double time_s, bool detecting);
   void find_candidates();
-  void find_further_sources();
+  bool find_further_sources();  // true: the search stopped under the SRP floor
   // follow_source_tracks: each tracked source the frame has not found yet, measured from its
   // track's lags before the free looks (node_follow.cpp).
   void follow_tracked_sources();
@@ -139,6 +139,17 @@ struct NodePipeline::Impl {
   void shifted_lags(std::span<const PairTdoa> look_tdoas, int lobe, double period_s);
   // lobe_tdoas' moved pairs: each pair's correlation maximum nearest its shifted lag.
   void refine_lobe(std::span<const PairTdoa> look_tdoas);
+  // The SRP floor for the bins the last correlation kept (node_sources.cpp).
+  double kept_bins_floor() const;
+  // A look's peak solved into the next candidate's place; false: refused or a duplicate.
+  bool solve_look(const SrpPeak& peak, LookKind kind);
+  // doa.comb_look: when the free search stops under the floor, the lines of the comb the kept
+  // bins' power shows (comb_look_keep, comb_look_lines; 0 lines: no comb); after the static
+  // look, one look on them minus the bins of the sources found from first_unmasked on; true
+  // when it added a candidate.
+  void mark_comb_look_lines();
+  int count_lines(std::span<const std::uint8_t> keep) const;  // runs of kept bins
+  bool comb_look(int first_unmasked);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();
@@ -181,6 +192,8 @@ struct NodePipeline::Impl {
                   const Eigen::Vector3d* look_direction_array = nullptr);
   void trace_added(LookKind kind, int first_candidate);  // candidates first_candidate.. added
   void trace_search_end(bool under_floor);
+  void trace_comb_look(int line_bins,
+                       double floor);  // after the comb look's correlation, before its search
   void trace_candidates();
   void trace_end(bool sharp, bool detecting);
   void smooth_candidates(double time_s);
@@ -232,6 +245,9 @@ struct NodePipeline::Impl {
   std::vector<double> comb_power;
   std::vector<double> comb_agreement;  // sum over pairs of cos(phase_ij - w tau_ij)
   std::vector<std::uint8_t> comb_lines;
+  std::vector<std::uint8_t> comb_look_keep =
+      std::vector<std::uint8_t>(static_cast<std::size_t>(gcc.band_bin_count()), 0);  // band order
+  int comb_look_lines = 0;
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
   std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped

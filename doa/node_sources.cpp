@@ -3,6 +3,7 @@
 // measured again on its own bins, smoothed over frames, published.
 #include "doa/node_pipeline_impl.hpp"
 
+#include <algorithm>
 #include <numeric>
 
 #include "doa/comb_line_cleaning.hpp"
@@ -173,10 +174,14 @@ void NodePipeline::Impl::find_candidates() {
     ++candidate_count;
   }
   keep_frame_mask();
-  if (srp) find_further_sources();
+  const bool under_floor = srp && find_further_sources();
   const int before_static_look = candidate_count;
   if (static_look) find_static_source();
   trace_added(LookKind::static_look, before_static_look);
+  // After the static look: a source it holds is not one the own looks found (it would lose
+  // its hold on a hovering drone the comb look finds only now and then).
+  if (under_floor && comb_look_lines > 0 && candidate_count < params.max_sources)
+    comb_look(before_static_look);
   // A frame whose looks gave the static null nothing to observe: its own look, before the echo
   // removal rotates the mics' units.
   if (null_wanted && !null_observed) null_own_look();
@@ -187,8 +192,9 @@ void NodePipeline::Impl::find_candidates() {
 // Each source found takes its bins out of the correlations before the next look: what is left is
 // normalised over the bins the louder sources do not own, so a weaker drone's peak is neither
 // buried under the louder one's lobes nor pulled by them.
-void NodePipeline::Impl::find_further_sources() {
+bool NodePipeline::Impl::find_further_sources() {
   if (candidate_count > 0) mask_source(tdoas, null_wanted && !null_observed);
+  found_combs.fill(FoundComb{});  // made when first asked for (the follow, the comb look)
   const int before_follow = candidate_count;
   if (source_tracks && params.follow_source_tracks) follow_tracked_sources();
   trace_added(LookKind::followed, before_follow);
@@ -197,21 +203,12 @@ void NodePipeline::Impl::find_further_sources() {
   // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
   for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
        ++look) {
-    // Incoherent noise over fewer bins correlates more by chance. Nothing under the floor is
-    // used: the search may skip what cannot reach it.
-    const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
-                                                     std::max(1, gcc.kept_bin_count()));
     SrpPeak peak;
-    under_floor = !srp->strongest(peak, floor);
+    under_floor = !srp->strongest(peak, kept_bins_floor());
     if (under_floor) break;
+    const bool duplicate = !solve_look(peak, LookKind::free);
     Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
     const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
-    srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
-    candidate.solution = solver.solve(candidate_tdoas);
-    if (params.free_look_lobe_choice) choose_lobe(candidate_tdoas, candidate.solution);
-    const bool duplicate =
-        !candidate.solution.accepted || already_found(candidate.solution.direction_site);
-    trace_look(LookKind::free, candidate.solution, duplicate, &peak.direction_array);
     if (!duplicate && below_horizon(candidate.solution)) {
       mask_source(candidate_tdoas);
       srp->begin_frame(gcc);
@@ -230,7 +227,114 @@ void NodePipeline::Impl::find_further_sources() {
     }
   }
   trace_search_end(under_floor);
+  comb_look_lines = 0;
+  if (under_floor && own_comb && params.comb_look) mark_comb_look_lines();
   if (candidate_count >= 2) remeasure(0, gcc.units());
+  return under_floor;
+}
+
+// The TDOAs of the correlation maxima nearest a look's lags, solved into the next candidate's
+// place; false when the solver refuses them or they are a source the frame already has.
+bool NodePipeline::Impl::solve_look(const SrpPeak& peak, LookKind kind) {
+  Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+  const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+  srp->tdoas_near(gcc, peak.direction_array, candidate_tdoas);
+  candidate.solution = solver.solve(candidate_tdoas);
+  if (params.free_look_lobe_choice) choose_lobe(candidate_tdoas, candidate.solution);
+  const bool duplicate =
+      !candidate.solution.accepted || already_found(candidate.solution.direction_site);
+  trace_look(kind, candidate.solution, duplicate, &peak.direction_array);
+  return !duplicate;
+}
+
+// Incoherent noise over fewer bins correlates more by chance: the SRP floor for the bins the
+// last correlation kept. Nothing under it is used: the search may skip what cannot reach it.
+double NodePipeline::Impl::kept_bins_floor() const {
+  return srp_noise_floor *
+         std::sqrt(static_cast<double>(gcc.band_bin_count()) / std::max(1, gcc.kept_bin_count()));
+}
+
+// A rotor puts its power into a few dozen line bins. The free look sums the steered cross-power
+// over every kept bin, so a comb whose lines stand far over their noise still peaks under the
+// floor set for the whole band: its lines are a small share of the bins, the rest is noise that
+// only widens the spread. After the search stops there, one more look on the lines alone: the
+// comb the kept bins' power shows (HarmonicCombDetector on the mics' summed |X|^2), its line bins
+// kept, the rest dropped. The lines are chosen by power, which says nothing about the phases the
+// look sums, so noise on them correlates as on any other bins of that count, and a frame without
+// a comb gets no look. The comb is marked when the search stops (mark_comb_look_lines: the bins
+// no source owns then, their power only); the look is made after the static look.
+void NodePipeline::Impl::mark_comb_look_lines() {
+  const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
+  const std::span<const double> powers = gcc.band_powers();
+  const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
+  std::fill(comb_power.begin(), comb_power.end(), 0.0);
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band()) {
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      if (kept[index] == 0) continue;
+      double power = 0.0;
+      for (int c = 0; c < gcc.unit_channels(); ++c)
+        power += powers[static_cast<std::size_t>(c) * bins + index];
+      comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
+    }
+  }
+  const HarmonicComb comb = own_comb->analyse(comb_power);
+  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return;
+  index = 0;
+  for (const BandRun& run : gcc.band())
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
+      comb_look_keep[index] =
+          kept[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0;
+  comb_look_lines = count_lines(comb_look_keep);
+}
+
+// Runs of kept bins in band order: a line is +-1 bin of a peak, and two lines of a comb are at
+// least its lowest spacing (40 Hz, 6 bins) apart.
+int NodePipeline::Impl::count_lines(std::span<const std::uint8_t> keep) const {
+  int lines = 0;
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band()) {
+    bool on_line = false;
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
+      lines += keep[index] != 0 && !on_line ? 1 : 0;
+      on_line = keep[index] != 0;
+    }
+  }
+  return lines;
+}
+
+bool NodePipeline::Impl::comb_look(int first_unmasked) {
+  // The lines no source owned when the search stopped, minus the bins of the sources added
+  // since (the static look's).
+  gcc.cross_power(gcc.units(), comb_look_keep);
+  for (int s = first_unmasked; s < candidate_count; ++s)
+    bin_mask.drop(gcc, std::span<const PairTdoa>(
+                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  const std::span<const std::uint8_t> keep = std::as_const(gcc).bin_keep();
+  const int lines = first_unmasked < candidate_count ? count_lines(keep) : comb_look_lines;
+  if (lines < node_detail::kMinOwnCombLines) return false;  // its lines are the others'
+  gcc.correlate(false, false);
+  srp->begin_frame(gcc);
+  ++diagnostics.comb_looks;
+  // A line's bins (its window's main lobe) hold one phasor per pair, not one per bin: the look
+  // averages `lines` independent values per pair, and noise-only lines reach the floor as
+  // rarely as the whole band's bins reach theirs (srp_noise_sigma, node_setup.cpp).
+  const double floor = params.srp_min_power_sigmas / std::sqrt(2.0 * lines * solver.pair_count());
+  trace_comb_look(static_cast<int>(std::count(keep.begin(), keep.end(), std::uint8_t{1})), floor);
+  SrpPeak peak;
+  if (!srp->strongest(peak, floor) || !solve_look(peak, LookKind::comb)) return false;
+  Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
+  const std::span<const PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
+  // On its lines alone a source correlates as fringes one carrier period apart: a look on a
+  // found source's fringe is that source again, and its bins would be taken from it.
+  if (below_horizon(candidate.solution) ||
+      fringe_of_found(candidate_tdoas, candidate.solution.direction_site))
+    return false;
+  candidate.coherence = mean_coherence(candidate_tdoas);
+  candidate.time_offset_s = 0.0;
+  ++candidate_count;
+  ++diagnostics.comb_look_sources;
+  return true;
 }
 
 // The frame's cross-power again from `units`, minus every other candidate's bins.

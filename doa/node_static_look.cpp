@@ -82,8 +82,7 @@ bool NodePipeline::Impl::search_static_source() {
                            candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
   gcc.correlate(false);
   srp->begin_frame(gcc);
-  const double floor = srp_noise_floor * std::sqrt(static_cast<double>(gcc.band_bin_count()) /
-                                                   std::max(1, gcc.kept_bin_count()));
+  const double floor = kept_bins_floor();
   Candidate& candidate = candidates[static_cast<std::size_t>(candidate_count)];
   const std::span<PairTdoa> candidate_tdoas(candidate.tdoas.data(), tdoas.size());
   for (int look = 0; look < params.static_look.max_looks; ++look) {

@@ -11,6 +11,12 @@ void NodePipeline::Impl::trace_begin(double time_s) {
   trace.detecting = false;
   trace.look_count = 0;
   trace.search_end = SearchEnd::not_run;
+  trace.search_end_floor = 0.0;
+  trace.search_end_best_power = 0.0;
+  trace.search_end_kept_bins = 0;
+  trace.comb_line_bins = 0;
+  trace.comb_look_floor = 0.0;
+  trace.comb_look_best_power = 0.0;
   trace.candidate_count = 0;
   std::fill(trace.kept_after_null.begin(), trace.kept_after_null.end(), std::uint8_t{1});
   std::fill(trace.kept_at_search_end.begin(), trace.kept_at_search_end.end(), std::uint8_t{1});
@@ -60,6 +66,19 @@ void NodePipeline::Impl::trace_search_end(bool under_floor) {
                                                              : SearchEnd::looks_spent;
   const std::span<const std::uint8_t> keep = std::as_const(gcc).bin_keep();
   std::copy(keep.begin(), keep.end(), trace.kept_at_search_end.begin());
+  if (!under_floor) return;
+  trace.search_end_floor = kept_bins_floor();
+  trace.search_end_kept_bins = gcc.kept_bin_count();
+  SrpPeak peak;
+  trace.search_end_best_power = srp->strongest(peak) ? peak.power : 0.0;
+}
+
+void NodePipeline::Impl::trace_comb_look(int line_bins, double floor) {
+  if (!trace_sink) return;
+  trace.comb_line_bins = line_bins;
+  trace.comb_look_floor = floor;
+  SrpPeak peak;
+  trace.comb_look_best_power = srp->strongest(peak) ? peak.power : 0.0;
 }
 
 void NodePipeline::Impl::trace_candidates() {

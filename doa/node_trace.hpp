@@ -12,7 +12,9 @@
 
 namespace dronetrack::doa {
 
-enum class LookKind : std::uint8_t { primary, followed, free, static_look };
+// comb: the look on the kept bins of a harmonic comb, after the free search stopped under the
+// floor (doa.comb_look).
+enum class LookKind : std::uint8_t { primary, followed, free, static_look, comb };
 enum class LookOutcome : std::uint8_t {
   kept,
   refused_pairs,  // the LS solver had too few pairs with a peak
@@ -43,6 +45,15 @@ struct FrameTrace {
   int look_count = 0;
   std::array<LookTrace, kMaxLooks> looks{};
   SearchEnd search_end = SearchEnd::not_run;
+  // When the free search stopped under the floor: the floor for the bins then kept, the highest
+  // SRP power left (searched for the trace only), and the effective count of bins kept.
+  double search_end_floor = 0.0;
+  double search_end_best_power = 0.0;
+  int search_end_kept_bins = 0;
+  // The comb look after it (doa.comb_look; 0 line bins: no comb, no look): the same three.
+  int comb_line_bins = 0;
+  double comb_look_floor = 0.0;
+  double comb_look_best_power = 0.0;
   // After the ground echoes' re-measures, before the per-source regression.
   int candidate_count = 0;
   std::array<Eigen::Vector3d, kMaxCandidates> candidates{};

@@ -276,6 +276,20 @@ TEST(SiteConfig, FreeLookLobeChoiceIsOffUnlessTurnedOn) {
   expect_problem(site, "doa.free_look_lobe_choice: expected true or false, got a string");
 }
 
+// doa.comb_look: on by default, off when the site says so, a boolean or a problem.
+TEST(SiteConfig, CombLookIsOnUnlessTurnedOff) {
+  std::vector<std::string> warnings;
+  EXPECT_TRUE(
+      parse_site_config(two_array_site().dump(), "/data", warnings, no_recordings()).doa.comb_look);
+  json site = two_array_site();
+  site["doa"] = {{"comb_look", false}};
+  const SiteConfig parsed = parse_site_config(site.dump(), "/data", warnings, no_recordings());
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_FALSE(parsed.doa.comb_look);
+  site["doa"]["comb_look"] = 1;
+  expect_problem(site, "doa.comb_look: expected true or false, got a number");
+}
+
 TEST(SiteConfig, GroundMustBeUnderEveryMicForTheEchoModel) {
   json site = two_array_site();
   site["doa"] = {{"ground_height_m", 1.4}};

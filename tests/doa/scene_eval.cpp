@@ -358,6 +358,13 @@ SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,
               comb_share_kept(drone_power.frame(k), bins, trace.kept_after_null, scratch),
               comb_share_kept(drone_power.frame(k), bins, trace.kept_at_search_end, scratch),
               settings.found_within_deg, audibility);
+          if (audibility.cause == MissCause::under_floor) {
+            audibility.kept_bins = trace.search_end_kept_bins;
+            audibility.floor_ratio = trace.search_end_best_power / trace.search_end_floor;
+            audibility.comb_line_bins = trace.comb_line_bins;
+            if (trace.comb_line_bins > 0)
+              audibility.comb_floor_ratio = trace.comb_look_best_power / trace.comb_look_floor;
+          }
         }
         cell.frames.push_back(audibility);
         cell.max_snr_db = std::max(cell.max_snr_db, snr_db);
@@ -420,16 +427,21 @@ std::string format_breakdown_rows(const std::string& scene, const SceneResult& r
     rows += std::string(" ") + miss_cause_name(static_cast<MissCause>(c)) + " |";
   rows +=
       " off: 3-6 / 6-9 / 9-14 / 14-20 deg, median el | off: candidate / primary / followed / free "
-      "/ static kept, refused | drone el |\n|---|---|---|---|---|";
+      "/ static / comb kept, refused | drone el | floor: kept bins, best / floor (medians) | "
+      "floor: comb looks, line bins, best / floor (medians) |\n|---|---|---|---|---|";
   for (std::size_t c = 1; c < kCauses; ++c) rows += "---|";
-  rows += "---|---|---|\n";
+  rows += "---|---|---|---|---|\n";
   char line[128];
   for (const DroneAtArray& cell : result.cells) {
     std::array<int, kCauses> counts{};
     std::array<int, 4> off{};
     std::vector<double> off_elevations;
     std::vector<double> truth_elevations;
-    std::array<int, 6> off_kinds{};
+    std::array<int, 7> off_kinds{};
+    std::vector<double> kept_bins;
+    std::vector<double> floor_ratios;
+    std::vector<double> comb_line_bins;
+    std::vector<double> comb_floor_ratios;
     int heard = 0;
     int found = 0;
     for (const FrameAudibility& frame : cell.frames) {
@@ -440,10 +452,18 @@ std::string format_breakdown_rows(const std::string& scene, const SceneResult& r
         continue;
       }
       ++counts[static_cast<std::size_t>(frame.cause)];
+      if (frame.cause == MissCause::under_floor) {
+        kept_bins.push_back(frame.kept_bins);
+        floor_ratios.push_back(frame.floor_ratio);
+        if (frame.comb_line_bins > 0) {
+          comb_line_bins.push_back(frame.comb_line_bins);
+          comb_floor_ratios.push_back(frame.comb_floor_ratio);
+        }
+      }
       if (frame.cause != MissCause::off_target) continue;
       off[frame.off_deg < 6.0 ? 0 : frame.off_deg < 9.0 ? 1 : frame.off_deg < 14.0 ? 2 : 3] += 1;
       off_elevations.push_back(frame.off_elevation_deg);
-      off_kinds[frame.off_kept ? static_cast<std::size_t>(frame.off_kind + 1) : 5] += 1;
+      off_kinds[frame.off_kept ? static_cast<std::size_t>(frame.off_kind + 1) : 6] += 1;
     }
     for (const FrameAudibility& frame : cell.frames)
       truth_elevations.push_back(frame.truth_elevation_deg);
@@ -457,9 +477,17 @@ std::string format_breakdown_rows(const std::string& scene, const SceneResult& r
     std::snprintf(line, sizeof line, " %d / %d / %d / %d, %+.1f |", off[0], off[1], off[2], off[3],
                   off_elevations.empty() ? 0.0 : percentile(off_elevations, 0.5));
     rows += line;
-    std::snprintf(line, sizeof line, " %d / %d / %d / %d / %d, %d | %.1f-%.1f |\n", off_kinds[0],
+    std::snprintf(line, sizeof line, " %d / %d / %d / %d / %d / %d, %d | %.1f-%.1f |", off_kinds[0],
                   off_kinds[1], off_kinds[2], off_kinds[3], off_kinds[4], off_kinds[5],
-                  percentile(truth_elevations, 0.05), percentile(truth_elevations, 0.95));
+                  off_kinds[6], percentile(truth_elevations, 0.05),
+                  percentile(truth_elevations, 0.95));
+    rows += line;
+    auto median = [](const std::vector<double>& values) {
+      return values.empty() ? 0.0 : percentile(values, 0.5);
+    };
+    std::snprintf(line, sizeof line, " %.0f, %.2f | %zu, %.0f, %.2f |\n", median(kept_bins),
+                  median(floor_ratios), comb_line_bins.size(), median(comb_line_bins),
+                  median(comb_floor_ratios));
     rows += line;
   }
   return rows;

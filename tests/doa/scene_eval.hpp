@@ -65,6 +65,12 @@ struct FrameAudibility {
   int off_kind = -1;
   bool off_kept = true;
   double truth_elevation_deg = 0.0;
+  // under_floor: the free search's end (effective bins kept, the best power left over the floor)
+  // and the comb look's (its line bins, 0: no look; its best power over its floor).
+  int kept_bins = 0;
+  double floor_ratio = 0.0;
+  int comb_line_bins = 0;
+  double comb_floor_ratio = 0.0;
 };
 
 struct DroneAtArray {

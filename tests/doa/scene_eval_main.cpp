@@ -4,7 +4,7 @@
 // docs/doa.md quotes; --audibility adds each drone's frames heard by each audibility rule and the
 // DOA coverage over them; --breakdown (implies --audibility) each missed comb-audible frame's
 // cause in pipeline order (docs/doa.md "Where the drones' frames go"); --follow 0|1 sets
-// doa.follow_source_tracks.
+// doa.follow_source_tracks; --comb-look 0|1 doa.comb_look.
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
-                 "[--audibility] [--breakdown] [--follow 0|1] "
+                 "[--audibility] [--breakdown] [--follow 0|1] [--comb-look 0|1] "
                  "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
@@ -32,7 +32,8 @@ int main(int argc, char** argv) {
     doa::testing::EvaluationSettings settings;
     int static_null = -1;  // -1: as the scene's config says
     bool audibility = false;
-    int follow = -1;  // doa.follow_source_tracks: -1 as the scene's config says
+    int follow = -1;     // doa.follow_source_tracks: -1 as the scene's config says
+    int comb_look = -1;  // doa.comb_look: -1 as the scene's config says
     for (int i = 2; i < argc; ++i) {
       if (argv[i] == std::string("--audible-snr-db") && i + 1 < argc) {
         settings.audible_snr_db = std::stod(argv[++i]);
@@ -51,6 +52,10 @@ int main(int argc, char** argv) {
       }
       if (argv[i] == std::string("--follow") && i + 1 < argc) {
         follow = std::stoi(argv[++i]);
+        continue;
+      }
+      if (argv[i] == std::string("--comb-look") && i + 1 < argc) {
+        comb_look = std::stoi(argv[++i]);
         continue;
       }
       if (argv[i] == std::string("--static-null") && i + 1 < argc) {
@@ -83,6 +88,7 @@ int main(int argc, char** argv) {
       params.tdoa_tracker = tracker;
       if (static_null >= 0) params.static_null = static_null == 1;
       if (follow >= 0) params.follow_source_tracks = follow == 1;
+      if (comb_look >= 0) params.comb_look = comb_look == 1;
       const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);
       std::printf("%s",
                   doa::testing::format_rows(name, doa::tdoa_tracker_name(tracker), result).c_str());
