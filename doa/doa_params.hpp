@@ -151,7 +151,7 @@ struct DoaParams {
 
   // docs/doa.md stage 7, "The comb look": when the free search stops under the SRP floor, one
   // more look on the kept bins of the harmonic comb those bins' power shows (a rotor's lines,
-  // chosen by power, not by phase), against the floor for that many bins. A comb whose lines
+  // chosen by power, not by phase), against the floor for that many lines. A comb whose lines
   // stand over their noise sums too few bins to clear the floor set for the whole band.
   bool comb_look = true;
 

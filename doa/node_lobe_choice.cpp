@@ -114,24 +114,10 @@ void NodePipeline::Impl::refine_lobe(std::span<const PairTdoa> look_tdoas) {
 // sources found so far own the other bins), found and marked by the comb detector
 // keep_own_comb uses. Returns its carrier, 0 when it shows fewer than kMinOwnCombLines lines.
 double NodePipeline::Impl::mark_kept_comb(HarmonicComb& comb) {
-  const std::span<const std::uint8_t> keep = gcc.bin_keep();
-  const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
-  const std::span<const double> powers = gcc.band_powers();
-  std::fill(comb_power.begin(), comb_power.end(), 0.0);
-  std::size_t index = 0;
-  for (const BandRun& run : gcc.band()) {
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index) {
-      if (keep[index] == 0) continue;
-      double power = 0.0;
-      for (int c = 0; c < gcc.unit_channels(); ++c)
-        power += powers[static_cast<std::size_t>(c) * bins + index];
-      comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
-    }
-  }
-  comb = own_comb->analyse(comb_power);
   lobe_line_count = 0;
-  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return 0.0;
-  index = 0;
+  if (kept_bins_comb(comb) < node_detail::kMinOwnCombLines) return 0.0;
+  const std::span<const std::uint8_t> keep = gcc.bin_keep();
+  std::size_t index = 0;
   for (const BandRun& run : gcc.band())
     for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
       if (keep[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0)

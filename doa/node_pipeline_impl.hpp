@@ -148,6 +148,8 @@ struct NodePipeline::Impl {
   // look, one look on them minus the bins of the sources found from first_unmasked on; true
   // when it added a candidate.
   void mark_comb_look_lines();
+  // The comb the kept bins' power shows, its lines in comb_lines; returns how many lines.
+  int kept_bins_comb(HarmonicComb& comb);
   int count_lines(std::span<const std::uint8_t> keep) const;  // runs of kept bins
   bool comb_look(int first_unmasked);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);

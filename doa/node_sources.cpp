@@ -264,6 +264,20 @@ double NodePipeline::Impl::kept_bins_floor() const {
 // a comb gets no look. The comb is marked when the search stops (mark_comb_look_lines: the bins
 // no source owns then, their power only); the look is made after the static look.
 void NodePipeline::Impl::mark_comb_look_lines() {
+  HarmonicComb comb;
+  if (kept_bins_comb(comb) < node_detail::kMinOwnCombLines) return;
+  const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
+  std::size_t index = 0;
+  for (const BandRun& run : gcc.band())
+    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
+      comb_look_keep[index] =
+          kept[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0;
+  comb_look_lines = count_lines(comb_look_keep);
+}
+
+// The comb the kept bins' power shows (the detector on the mics' summed |X|^2; the bins other
+// sources own count as silent), its lines marked in comb_lines; returns how many lines.
+int NodePipeline::Impl::kept_bins_comb(HarmonicComb& comb) {
   const auto bins = static_cast<std::size_t>(gcc.band_bin_count());
   const std::span<const double> powers = gcc.band_powers();
   const std::span<const std::uint8_t> kept = std::as_const(gcc).bin_keep();
@@ -278,14 +292,8 @@ void NodePipeline::Impl::mark_comb_look_lines() {
       comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
     }
   }
-  const HarmonicComb comb = own_comb->analyse(comb_power);
-  if (own_comb->mark_lines(comb, comb_lines) < node_detail::kMinOwnCombLines) return;
-  index = 0;
-  for (const BandRun& run : gcc.band())
-    for (int k = run.first_bin; k <= run.last_bin; ++k, ++index)
-      comb_look_keep[index] =
-          kept[index] != 0 && comb_lines[static_cast<std::size_t>(k - comb_first_bin)] != 0;
-  comb_look_lines = count_lines(comb_look_keep);
+  comb = own_comb->analyse(comb_power);
+  return own_comb->mark_lines(comb, comb_lines);
 }
 
 // Runs of kept bins in band order: a line is +-1 bin of a peak, and two lines of a comb are at
