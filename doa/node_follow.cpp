@@ -59,12 +59,10 @@ void NodePipeline::Impl::follow_tracked_sources() {
     std::copy(best_follow_tdoas.begin(),
               best_follow_tdoas.begin() + static_cast<std::ptrdiff_t>(pairs),
               candidate.tdoas.begin());
-    const std::span<const PairTdoa> candidate_tdoas(candidate.tdoas.data(), pairs);
-    candidate.coherence = mean_coherence(candidate_tdoas);
-    candidate.time_offset_s = 0.0;
-    ++candidate_count;
+    accept_candidate();
     ++diagnostics.followed_sources;
-    if (candidate_count < params.max_sources) mask_source(candidate_tdoas);
+    if (candidate_count < params.max_sources)
+      mask_source(std::span<const PairTdoa>(candidate.tdoas.data(), pairs));
   }
 }
 

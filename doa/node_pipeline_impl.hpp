@@ -143,15 +143,19 @@ struct NodePipeline::Impl {
   double kept_bins_floor() const;
   // A look's peak solved into the next candidate's place; false: refused or a duplicate.
   bool solve_look(const SrpPeak& peak, LookKind kind);
-  // doa.comb_look: when the free search stops under the floor, the lines of the comb the kept
-  // bins' power shows (comb_look_keep, comb_look_lines; 0 lines: no comb); after the static
-  // look, one look on them minus the bins of the sources found from first_unmasked on; true
-  // when it added a candidate.
+  // The next candidate, its solution and TDOAs in place, counted with its mean coherence.
+  void accept_candidate();
+  // Drops the bins of candidates first..last-1 from the correlation's keep mask.
+  void drop_candidates(int first, int last);
+  // doa.comb_look (node_comb_look.cpp): when the free search stops under the floor, the lines of
+  // the comb the kept bins' power shows (comb_look_keep, comb_look_lines; 0 lines: no comb);
+  // after the static look, one look on them minus the bins of the sources found from
+  // first_unmasked on, which may add a candidate.
   void mark_comb_look_lines();
   // The comb the kept bins' power shows, its lines in comb_lines; returns how many lines.
   int kept_bins_comb(HarmonicComb& comb);
   int count_lines(std::span<const std::uint8_t> keep) const;  // runs of kept bins
-  bool comb_look(int first_unmasked);
+  void comb_look(int first_unmasked);
   void mask_source(std::span<const PairTdoa> source_tdoas, bool null_observes = false);
   void null_observe();
   void null_own_look();

@@ -77,9 +77,7 @@ bool NodePipeline::Impl::search_static_source() {
         owners, {candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()});
   if (fused) static_look->load_average(gcc, frame_mask, owners);
   if (!fused) static_look->load_average(gcc, frame_mask);
-  for (int s = 0; s < candidate_count && !fused; ++s)
-    bin_mask.drop(gcc, std::span<const PairTdoa>(
-                           candidates[static_cast<std::size_t>(s)].tdoas.data(), tdoas.size()));
+  if (!fused) drop_candidates(0, candidate_count);
   gcc.correlate(false);
   srp->begin_frame(gcc);
   const double floor = kept_bins_floor();
