@@ -105,6 +105,12 @@ struct EvaluationSettings {
   // Trace every frame (NodePipeline::set_frame_trace) and give each missed frame a MissCause
   // (needs audibility: the drone's comb bins).
   bool breakdown = false;
+  // Print every frame of one array whose centre lies in [frames_from_s, frames_to_s] as the
+  // trace saw it: each look (kind, outcome, direction), why the search stopped, the comb look's
+  // line bins, the candidates, and every source's true direction (empty: none).
+  std::string frames_array;
+  double frames_from_s = 0.0;
+  double frames_to_s = -1.0;
 };
 
 SceneResult evaluate(const RenderedScenario& rendered, const DoaParams& params,

@@ -4,7 +4,8 @@
 // docs/doa.md quotes; --audibility adds each drone's frames heard by each audibility rule and the
 // DOA coverage over them; --breakdown (implies --audibility) each missed comb-audible frame's
 // cause in pipeline order (docs/doa.md "Where the drones' frames go"); --follow 0|1 sets
-// doa.follow_source_tracks; --comb-look 0|1 doa.comb_look.
+// doa.follow_source_tracks; --comb-look 0|1 doa.comb_look; --frames ARRAY FROM_S TO_S prints
+// that array's frames in the window as the node's trace saw them (looks, candidates, truth).
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -21,6 +22,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
                  "[--audibility] [--breakdown] [--follow 0|1] [--comb-look 0|1] "
+                 "[--frames ARRAY FROM_S TO_S] "
                  "[per_frame|bayesian_grid|multi_peak|"
                  "robust_regression ...]\n");
     return 2;
@@ -52,6 +54,12 @@ int main(int argc, char** argv) {
       }
       if (argv[i] == std::string("--follow") && i + 1 < argc) {
         follow = std::stoi(argv[++i]);
+        continue;
+      }
+      if (argv[i] == std::string("--frames") && i + 3 < argc) {
+        settings.frames_array = argv[++i];
+        settings.frames_from_s = std::stod(argv[++i]);
+        settings.frames_to_s = std::stod(argv[++i]);
         continue;
       }
       if (argv[i] == std::string("--comb-look") && i + 1 < argc) {
