@@ -74,10 +74,8 @@ HarmonicCombDetector::HarmonicCombDetector(int first_bin, int bin_count, double 
   autocorrelation_.resize(static_cast<std::size_t>(lag_count()));
 }
 
-void HarmonicCombDetector::autocorrelate(std::span<const double> power,
-                                         std::span<double> autocorrelation) {
+int HarmonicCombDetector::measure_salience(std::span<const double> power) {
   const int n = bin_count_;
-  std::fill(autocorrelation.begin(), autocorrelation.end(), 0.0);
   valid_ = false;
   // Envelope: mean log power of the bins with power within +-W (prefix sums), so the salience
   // is each bin's standing above its neighbourhood in dB.
@@ -93,8 +91,9 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
     prefix_count_[i + 1] = prefix_count_[i] + (valid ? 1 : 0);
     total_power_ += power_[i];
   }
-  if (prefix_count_[n] < 2 * (first_lag_ + 1) || !(total_power_ > 0.0)) return;
+  if (prefix_count_[n] < 2 * (first_lag_ + 1) || !(total_power_ > 0.0)) return 0;
   double salience_sum = 0.0;
+  int salient = 0;
   for (int i = 0; i < n; ++i) {
     if (power_[i] == 0.0) {
       salience_[i] = 0.0;
@@ -106,6 +105,8 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
     const double envelope = (prefix_[high] - prefix_[low]) / std::max(count, 1);
     salience_[i] = static_cast<float>(std::max(0.0, log_power_[i] - envelope));
     salience_sum += salience_[i];
+    // The margin covers the float rounding of the mean-free salience walk_lines() reads.
+    salient += static_cast<double>(salience_[i]) >= settings_.line_salience_db - 1e-3 ? 1 : 0;
   }
   salience_mean_ = salience_sum / n;
   double energy = 0.0;
@@ -113,13 +114,25 @@ void HarmonicCombDetector::autocorrelate(std::span<const double> power,
     salience_[i] -= static_cast<float>(salience_mean_);
     energy += static_cast<double>(salience_[i]) * salience_[i];
   }
-  if (!(energy > 0.0)) return;
-  valid_ = true;
+  valid_ = energy > 0.0;
+  energy_ = energy;
+  return salient;
+}
+
+void HarmonicCombDetector::autocorrelate_salience(std::span<double> autocorrelation) const {
   // Normalised; n / (n - L) undoes the shrinking overlap.
+  const int n = bin_count_;
   for (int lag = first_lag_; lag <= last_lag_; ++lag) {
     autocorrelation[static_cast<std::size_t>(lag - first_lag_)] =
-        simd::lagged_product(salience_.data(), n, lag) / energy * n / static_cast<double>(n - lag);
+        simd::lagged_product(salience_.data(), n, lag) / energy_ * n / static_cast<double>(n - lag);
   }
+}
+
+void HarmonicCombDetector::autocorrelate(std::span<const double> power,
+                                         std::span<double> autocorrelation) {
+  std::fill(autocorrelation.begin(), autocorrelation.end(), 0.0);
+  measure_salience(power);
+  if (valid_) autocorrelate_salience(autocorrelation);
 }
 
 // The most salient bin near each multiple of the fundamental in the last spectrum, where it
@@ -229,6 +242,20 @@ HarmonicComb HarmonicCombDetector::find(std::span<const double> autocorrelation)
 HarmonicComb HarmonicCombDetector::analyse(std::span<const double> power) {
   autocorrelate(power, autocorrelation_);
   return find(autocorrelation_);
+}
+
+// A comb is found with min_harmonics lines, each a bin standing line_salience_db over its
+// envelope; the lines' search windows (a quarter spacing, at least one bin, either side) overlap
+// only at spacings under four bins, and then a bin is in at most two. So a spectrum with fewer
+// than min_harmonics / 2 such bins holds no comb, and the autocorrelation, most of the cost, is
+// skipped: the node asks this of every frame whose search ends under the floor, and a frame of
+// noise has no line.
+HarmonicComb HarmonicCombDetector::detect(std::span<const double> power) {
+  const int salient = measure_salience(power);
+  if (!valid_ || 2 * salient < settings_.min_harmonics) return HarmonicComb{};
+  autocorrelate_salience(autocorrelation_);
+  const HarmonicComb comb = find(autocorrelation_);
+  return comb.found ? comb : HarmonicComb{};
 }
 
 }  // namespace dronetrack::doa

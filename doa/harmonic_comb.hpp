@@ -54,6 +54,9 @@ class HarmonicCombDetector {
   HarmonicComb find(std::span<const double> autocorrelation) const;
   // Both, on one spectrum.
   HarmonicComb analyse(std::span<const double> power);
+  // The comb of one spectrum if one is found, else an empty HarmonicComb (a rejected comb's
+  // strength and lines are not reported): what analyse() finds, for less when there is none.
+  HarmonicComb detect(std::span<const double> power);
   // The bins within one bin of each line of `comb` (found on the last spectrum analysed) set to
   // 1 in on_line (bin_count() values, index i = bin first_bin + i), the rest 0; returns the
   // number of lines.
@@ -68,6 +71,10 @@ class HarmonicCombDetector {
  private:
   template <typename OnLine>
   int walk_lines(double fundamental_hz, OnLine&& on_line) const;
+  // The spectrum's salience (power_, salience_ less its mean, valid_); returns how many bins
+  // stand line_salience_db over their envelope.
+  int measure_salience(std::span<const double> power);
+  void autocorrelate_salience(std::span<double> autocorrelation) const;
 
   HarmonicCombSettings settings_;
   int first_bin_;
@@ -79,6 +86,7 @@ class HarmonicCombDetector {
   bool valid_ = false;  // the last spectrum had enough bins with power
   double salience_mean_ = 0.0;
   double total_power_ = 0.0;
+  double energy_ = 0.0;  // of the mean-free salience
   std::vector<double> power_;
   std::vector<double> log_power_;
   std::vector<double> prefix_;  // prefix sums of log power over valid bins (envelope)

@@ -45,7 +45,7 @@ int NodePipeline::Impl::kept_bins_comb(HarmonicComb& comb) {
       comb_power[static_cast<std::size_t>(k - comb_first_bin)] = power;
     }
   }
-  comb = own_comb->analyse(comb_power);
+  comb = own_comb->detect(comb_power);
   return own_comb->mark_lines(comb, comb_lines);
 }
 

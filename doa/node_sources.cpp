@@ -310,7 +310,7 @@ HarmonicComb NodePipeline::Impl::steered_comb(std::span<const PairTdoa> source_t
   std::fill(comb_agreement.begin(), comb_agreement.end(), 0.0);
   pairs = steer(source_tdoas, units, keep, comb_power, comb_agreement);
   for (double& power : comb_power) power = std::max(power, 0.0);
-  return own_comb->analyse(comb_power);
+  return own_comb->detect(comb_power);
 }
 
 int NodePipeline::Impl::steer(std::span<const PairTdoa> lags, const GccPhat::UnitsView& units,

@@ -260,5 +260,61 @@ TEST(HarmonicComb, MarksTheCombsLinesAndNotTheGaps) {
   EXPECT_EQ(std::count(on_line.begin(), on_line.end(), std::uint8_t{1}), 0);
 }
 
+// detect() skips the autocorrelation when too few bins stand out to make a comb: it must find
+// exactly the combs analyse() finds, with the same lines, on spectra of every kind the node
+// gives it: noise alone, noise with a few strong bins, combs down to the smallest spacing
+// searched (where a bin lies in two lines' windows), lines near the salience threshold, and
+// other sources' bins masked out (power 0).
+TEST(HarmonicComb, DetectFindsExactlyTheCombsAnalyseFinds) {
+  const double bin_hz = 48000.0 / 4096.0;
+  const int first_bin = 9;
+  const int bins = 330;
+  HarmonicCombDetector analysed(first_bin, bins, bin_hz);
+  HarmonicCombDetector detected(first_bin, bins, bin_hz);
+  std::mt19937 random(17);
+  std::gamma_distribution<double> floor(4.0, 1.0);  // four mics' summed |X|^2
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> power(static_cast<std::size_t>(bins));
+  std::vector<std::uint8_t> lines_analysed(static_cast<std::size_t>(bins));
+  std::vector<std::uint8_t> lines_detected(static_cast<std::size_t>(bins));
+  int combs = 0;
+  int skipped_kinds = 0;
+  for (int trial = 0; trial < 600; ++trial) {
+    for (double& p : power) p = floor(random);
+    const int kind = trial % 4;
+    if (kind == 1) {  // a few loud bins, no comb
+      const int loud = static_cast<int>(unit(random) * 3.0);
+      for (int i = 0; i < loud; ++i)
+        power[static_cast<std::size_t>(unit(random) * (bins - 1))] *= 20.0;
+      ++skipped_kinds;
+    }
+    if (kind >= 2) {  // a comb, 2.5-40 bins apart, lines 3-12 dB over the floor
+      const double spacing = 2.5 + unit(random) * 37.5;
+      const double gain = std::pow(10.0, (3.0 + unit(random) * 9.0) / 10.0);
+      for (double bin = spacing * std::ceil(first_bin / spacing); bin < first_bin + bins;
+           bin += spacing)
+        power[static_cast<std::size_t>(std::lround(bin)) - first_bin] *= gain * 2.0;
+    }
+    if (kind == 3) {  // another source's bins taken out
+      const int start = static_cast<int>(unit(random) * (bins - 60));
+      std::fill(power.begin() + start, power.begin() + start + 60, 0.0);
+    }
+    const HarmonicComb expected = analysed.analyse(power);
+    const HarmonicComb comb = detected.detect(power);
+    ASSERT_EQ(comb.found, expected.found) << "trial " << trial;
+    combs += comb.found ? 1 : 0;
+    if (!expected.found) continue;
+    EXPECT_EQ(comb.fundamental_hz, expected.fundamental_hz) << "trial " << trial;
+    EXPECT_EQ(comb.harmonic_count, expected.harmonic_count) << "trial " << trial;
+    EXPECT_EQ(analysed.mark_lines(expected, lines_analysed),
+              detected.mark_lines(comb, lines_detected));
+    EXPECT_EQ(lines_analysed, lines_detected) << "trial " << trial;
+  }
+  // Both branches taken: combs found, and spectra without one.
+  EXPECT_GT(combs, 100);
+  EXPECT_LT(combs, 450);
+  EXPECT_GT(skipped_kinds, 100);
+}
+
 }  // namespace
 }  // namespace dronetrack::doa
