@@ -73,7 +73,7 @@ void TrackClassifier::add_kinematics(TrackEvidence& evidence, const Eigen::Vecto
 // Order matters: kinematics that no small drone shows veto the acoustics (a light aircraft's
 // propeller is a comb too); a track held at ground level is a ground source unless it sounds
 // like a drone (a drone landing or flying low keeps its class); then the rotor comb decides.
-void TrackClassifier::classify(TrackEvidence& evidence) const {
+void TrackClassifier::classify(TrackEvidence& evidence, bool doas_explained_elsewhere) const {
   const ClassifierSettings& s = settings_;
   const double share = evidence.drone_share();
   const bool heard_enough = evidence.all_votes >= s.min_acoustic_votes;
@@ -119,7 +119,15 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
     evidence.confidence = 0.5;
     return;
   }
-  if (sounds_like_drone) {
+  // A comb makes a new drone only where a drone flies: its altitude above ground level and below
+  // an aircraft's, each by more than its own std. A track fixed by far arrays at 3.5 +- 3.3 m
+  // (the passing car's first ticks, mixed site draw 26) or at 148 +- 18 m (the aircraft's ray
+  // from one array, draw 23) is no drone on its comb while its altitude could be either.
+  // A drone keeps its class while its altitude grows uncertain (coasting, far).
+  const bool drone_altitude =
+      evidence.altitude_m - evidence.altitude_std_m > s.ground_max_altitude_m &&
+      evidence.altitude_m + evidence.altitude_std_m < s.aircraft_min_altitude_m;
+  if (sounds_like_drone && (was_drone || (drone_altitude && !doas_explained_elsewhere))) {
     evidence.track_class = TrackClass::drone;
     evidence.confidence = std::clamp(share, 0.5, 1.0);
     return;

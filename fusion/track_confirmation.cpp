@@ -82,12 +82,12 @@ bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> t
              params_.confirm_hits, params_.init_max_speed_mps, speed_of_sound_mps_);
 }
 
-bool TrackConfirmation::explained_by_other_tracks(
-    const Track& track, std::span<const Track> tracks,
-    std::span<const Eigen::Vector3d> centres_m) const {
+template <typename Better>
+bool TrackConfirmation::along_rays_of(const Track& track, std::span<const Track> tracks,
+                                      std::span<const Eigen::Vector3d> centres_m,
+                                      const Better& better) const {
   const Eigen::Vector3d position = position_of(track.filter->mean());
   const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
-  const int support = recent_arrays(track, centres_m.size());
   int supporting = 0;
   for (std::size_t a = 0; a < centres_m.size(); ++a) {
     if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
@@ -96,12 +96,7 @@ bool TrackConfirmation::explained_by_other_tracks(
     const double range_m = std::max(to_track.norm(), 1.0);
     bool explained = false;
     for (const Track& other : tracks) {
-      // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost
-      // and the drone whose ray it shares explain each other from that array; the drone also
-      // has the arrays the ghost lacks).
-      if (&other == &track ||
-          !(other.confirmed || recent_arrays(other, centres_m.size()) > support))
-        continue;
+      if (&other == &track || !better(other)) continue;
       const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[a];
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
@@ -117,6 +112,28 @@ bool TrackConfirmation::explained_by_other_tracks(
     if (!explained) return false;
   }
   return supporting > 0;
+}
+
+bool TrackConfirmation::explained_by_other_tracks(
+    const Track& track, std::span<const Track> tracks,
+    std::span<const Eigen::Vector3d> centres_m) const {
+  // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost and
+  // the drone whose ray it shares explain each other from that array; the drone also has the
+  // arrays the ghost lacks).
+  const int support = recent_arrays(track, centres_m.size());
+  return along_rays_of(track, tracks, centres_m, [&](const Track& other) {
+    return other.confirmed || recent_arrays(other, centres_m.size()) > support;
+  });
+}
+
+bool TrackConfirmation::along_sharper_tracks(const Track& track, std::span<const Track> tracks,
+                                             std::span<const Eigen::Vector3d> centres_m) const {
+  // Between confirmed tracks standing is no test (each explains the other from an array they
+  // share); the one whose position the DOAs fix better is the one they belong to.
+  const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace();
+  return along_rays_of(track, tracks, centres_m, [&](const Track& other) {
+    return other.confirmed && other.filter->covariance().topLeftCorner<3, 3>().trace() < spread_m2;
+  });
 }
 
 bool TrackConfirmation::beneath_another_track(const Track& track,

@@ -45,8 +45,11 @@ struct ClassRun {
   double first_s = -1.0;  // first time in class `wanted`
   double share = 0.0;     // share of the time after first_s in `wanted`
 };
+// altitude_std_at: the altitude std at t, if not the fixed altitude_std_m; explained_at: whether
+// at t the track lies along a better-fixed track's rays from every array (its DOAs are theirs).
 ClassRun run(const Scenario& scenario, double duration_s, TrackClass wanted,
-             double altitude_std_m = 0.5) {
+             double altitude_std_m = 0.5, const std::function<double(double)>& altitude_std_at = {},
+             const std::function<bool(double)>& explained_at = {}) {
   const TrackClassifier classifier(ClassifierSettings{}, 0.0);
   TrackEvidence evidence;
   ClassRun result;
@@ -57,8 +60,9 @@ ClassRun run(const Scenario& scenario, double duration_s, TrackClass wanted,
     const Sample sample = scenario(t);
     classifier.add_acoustic(evidence, sample.features, t);
     classifier.add_acoustic(evidence, sample.features, t);
-    classifier.add_kinematics(evidence, sample.position_m, sample.velocity_mps, altitude_std_m, t);
-    classifier.classify(evidence);
+    classifier.add_kinematics(evidence, sample.position_m, sample.velocity_mps,
+                              altitude_std_at ? altitude_std_at(t) : altitude_std_m, t);
+    classifier.classify(evidence, explained_at && explained_at(t));
     if (evidence.track_class == wanted && result.first_s < 0.0) result.first_s = t;
     if (result.first_s >= 0.0) {
       ++after;
@@ -192,6 +196,54 @@ TEST(TrackClassifier, CombAtUncertainGroundLevelIsNotADrone) {
   EXPECT_GE(drone.first_s, 0.0);
   EXPECT_LE(drone.first_s, 1.0);
   EXPECT_EQ(drone.share, 1.0);
+}
+
+// A comb makes a drone only where a drone flies, by the track's own altitude std: the passing
+// car's first ticks, fixed by far arrays at 3.5 +- 3.3 m (mixed site draw 26, said drone 0.6 s
+// before), and the aircraft's ray from one array at 148 +- 18 m (draw 23, 0.4 s) are not drones
+// on their combs; the same comb at 30 +- 3.3 m and at 100 +- 18 m is a drone at once.
+TEST(TrackClassifier, CombIsADroneOnlyWhereItsAltitudeIsKnownToBeADrones) {
+  const auto comb_at_altitude = [](double altitude_m) -> Scenario {
+    return [altitude_m](double t) {
+      return Sample{{-250 + 5 * t, 130, altitude_m}, {5, 0, 0}, comb_at(154.0, 1.0)};
+    };
+  };
+  // Above ground_max_altitude_m (3 m), so not "low", but within one std of it.
+  EXPECT_LT(run(comb_at_altitude(3.5), 10.0, TrackClass::drone, 3.3).first_s, 0.0);
+  EXPECT_LT(run(comb_at_altitude(6.0), 10.0, TrackClass::drone, 3.3).first_s, 0.0);
+  // Below aircraft_min_altitude_m (150 m), so no aircraft, but within one std of it.
+  const ClassRun high = run(comb_at_altitude(148.0), 10.0, TrackClass::unknown, 18.0);
+  EXPECT_EQ(high.first_s, 0.0);
+  EXPECT_EQ(high.share, 1.0);
+  for (const double altitude_m : {30.0, 100.0}) {
+    const ClassRun drone = run(comb_at_altitude(altitude_m), 10.0, TrackClass::drone, 3.3);
+    EXPECT_GE(drone.first_s, 0.0) << altitude_m;
+    EXPECT_LE(drone.first_s, 1.0) << altitude_m;
+    EXPECT_EQ(drone.share, 1.0) << altitude_m;
+  }
+  // Once a drone, an altitude growing uncertain (a coasting track, std 0.5 m -> 40 m over 10 s)
+  // does not take its class away.
+  const ClassRun coasting = run(comb_at_altitude(30.0), 15.0, TrackClass::drone, 0.5,
+                                [](double t) { return t < 5.0 ? 0.5 : 0.5 + 4.0 * (t - 5.0); });
+  EXPECT_LE(coasting.first_s, 1.0);
+  EXPECT_EQ(coasting.share, 1.0);
+}
+
+// A track whose DOAs, from every array that hears it, lie along a better-fixed confirmed track's
+// rays (mixed site draw 24: N1's rays to D2 crossing N4's to D1) hears their combs, not its own:
+// never a drone on them. A drone already classified keeps its class while another passes through
+// its rays.
+TEST(TrackClassifier, CombOfDoasThatOtherTracksExplainMakesNoDrone) {
+  const Scenario ghost = [](double t) {
+    return Sample{{107 + 5 * t, 11, 41}, {5, 0, 0}, comb_at(147.0, 1.0)};
+  };
+  const ClassRun explained =
+      run(ghost, 10.0, TrackClass::drone, 5.0, {}, [](double) { return true; });
+  EXPECT_LT(explained.first_s, 0.0);
+  const ClassRun crossed =
+      run(ghost, 10.0, TrackClass::drone, 5.0, {}, [](double t) { return t >= 4.0 && t < 6.0; });
+  EXPECT_LE(crossed.first_s, 1.0);
+  EXPECT_EQ(crossed.share, 1.0);
 }
 
 TEST(TrackClassifier, NamesRoundTrip) {
