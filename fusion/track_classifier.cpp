@@ -91,7 +91,14 @@ void TrackClassifier::classify(TrackEvidence& evidence, bool doas_explained_else
   const double altitude_margin = evidence.altitude_m / s.aircraft_min_altitude_m;
   const double speed_margin = evidence.speed_mps / s.aircraft_min_speed_mps;
   const bool altitude_known = evidence.altitude_std_m <= 0.25 * std::max(evidence.altitude_m, 1.0);
-  if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0) {
+  // An aircraft stays one while its altitude could still be an aircraft's: a smoothed altitude
+  // sinking a few metres under the threshold within its std (the aircraft's ray from one array,
+  // range open: mixed site draw 23, 162 +- 13 m -> 148 +- 18 m) is no drone, however rotor-like
+  // its propeller's comb.
+  const bool still_aircraft =
+      evidence.track_class == TrackClass::aircraft &&
+      evidence.altitude_m + evidence.altitude_std_m >= s.aircraft_min_altitude_m;
+  if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0 || still_aircraft) {
     evidence.track_class = TrackClass::aircraft;
     evidence.confidence =
         std::clamp(0.5 + 0.5 * (std::max(altitude_margin, speed_margin) - 1.0) / 0.5, 0.5, 1.0);
@@ -119,15 +126,14 @@ void TrackClassifier::classify(TrackEvidence& evidence, bool doas_explained_else
     evidence.confidence = 0.5;
     return;
   }
-  // A comb makes a new drone only where a drone flies: its altitude above ground level and below
-  // an aircraft's, each by more than its own std. A track fixed by far arrays at 3.5 +- 3.3 m
-  // (the passing car's first ticks, mixed site draw 26) or at 148 +- 18 m (the aircraft's ray
-  // from one array, draw 23) is no drone on its comb while its altitude could be either.
-  // A drone keeps its class while its altitude grows uncertain (coasting, far).
-  const bool drone_altitude =
-      evidence.altitude_m - evidence.altitude_std_m > s.ground_max_altitude_m &&
-      evidence.altitude_m + evidence.altitude_std_m < s.aircraft_min_altitude_m;
-  if (sounds_like_drone && (was_drone || (drone_altitude && !doas_explained_elsewhere))) {
+  // A comb makes a new drone only above ground level by more than the altitude's own std: a
+  // track fixed by far arrays at 3.5 +- 3.3 m (the passing car's first ticks, mixed site draw
+  // 26) is no drone on its comb while it could be on the ground. No such bound under the
+  // aircraft's altitude: a far drone's one-array track, range open, is at 125 +- 72 m
+  // (far_approach scenes) and a drone all the same. A drone keeps its class while its altitude
+  // grows uncertain (coasting, far).
+  const bool above_ground = evidence.altitude_m - evidence.altitude_std_m > s.ground_max_altitude_m;
+  if (sounds_like_drone && (was_drone || (above_ground && !doas_explained_elsewhere))) {
     evidence.track_class = TrackClass::drone;
     evidence.confidence = std::clamp(share, 0.5, 1.0);
     return;

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <utility>
 
 namespace dronetrack::fusion {
 namespace {
@@ -198,11 +199,11 @@ TEST(TrackClassifier, CombAtUncertainGroundLevelIsNotADrone) {
   EXPECT_EQ(drone.share, 1.0);
 }
 
-// A comb makes a drone only where a drone flies, by the track's own altitude std: the passing
-// car's first ticks, fixed by far arrays at 3.5 +- 3.3 m (mixed site draw 26, said drone 0.6 s
-// before), and the aircraft's ray from one array at 148 +- 18 m (draw 23, 0.4 s) are not drones
-// on their combs; the same comb at 30 +- 3.3 m and at 100 +- 18 m is a drone at once.
-TEST(TrackClassifier, CombIsADroneOnlyWhereItsAltitudeIsKnownToBeADrones) {
+// A comb makes a drone only above ground level by more than the track's own altitude std: the
+// passing car's first ticks, fixed by far arrays at 3.5 +- 3.3 m (mixed site draw 26, said drone
+// 0.6 s before) are not a drone on their comb; the same comb at 30 +- 3.3 m is a drone at once,
+// and so is a far drone's one-array track at 125 +- 72 m (far_approach scenes).
+TEST(TrackClassifier, CombIsADroneOnlyWhereItsAltitudeIsKnownToBeAboveTheGround) {
   const auto comb_at_altitude = [](double altitude_m) -> Scenario {
     return [altitude_m](double t) {
       return Sample{{-250 + 5 * t, 130, altitude_m}, {5, 0, 0}, comb_at(154.0, 1.0)};
@@ -211,12 +212,9 @@ TEST(TrackClassifier, CombIsADroneOnlyWhereItsAltitudeIsKnownToBeADrones) {
   // Above ground_max_altitude_m (3 m), so not "low", but within one std of it.
   EXPECT_LT(run(comb_at_altitude(3.5), 10.0, TrackClass::drone, 3.3).first_s, 0.0);
   EXPECT_LT(run(comb_at_altitude(6.0), 10.0, TrackClass::drone, 3.3).first_s, 0.0);
-  // Below aircraft_min_altitude_m (150 m), so no aircraft, but within one std of it.
-  const ClassRun high = run(comb_at_altitude(148.0), 10.0, TrackClass::unknown, 18.0);
-  EXPECT_EQ(high.first_s, 0.0);
-  EXPECT_EQ(high.share, 1.0);
-  for (const double altitude_m : {30.0, 100.0}) {
-    const ClassRun drone = run(comb_at_altitude(altitude_m), 10.0, TrackClass::drone, 3.3);
+  for (const auto& [altitude_m, altitude_std_m] : {std::pair{30.0, 3.3}, std::pair{125.0, 72.0}}) {
+    const ClassRun drone =
+        run(comb_at_altitude(altitude_m), 10.0, TrackClass::drone, altitude_std_m);
     EXPECT_GE(drone.first_s, 0.0) << altitude_m;
     EXPECT_LE(drone.first_s, 1.0) << altitude_m;
     EXPECT_EQ(drone.share, 1.0) << altitude_m;
@@ -227,6 +225,24 @@ TEST(TrackClassifier, CombIsADroneOnlyWhereItsAltitudeIsKnownToBeADrones) {
                                 [](double t) { return t < 5.0 ? 0.5 : 0.5 + 4.0 * (t - 5.0); });
   EXPECT_LE(coasting.first_s, 1.0);
   EXPECT_EQ(coasting.share, 1.0);
+}
+
+// An aircraft stays one while its altitude could still be an aircraft's: the aircraft's ray from
+// one array (mixed site draw 23), at 162 +- 13 m and then, range open, sinking to 148 +- 18 m,
+// was said drone on its propeller's comb for 0.4 s. Once its altitude is known to be under 150 m
+// (148 +- 1 m) it is no aircraft.
+TEST(TrackClassifier, AircraftSinkingUnderTheThresholdWithinItsStdStaysAnAircraft) {
+  const Scenario sinking = [](double t) {
+    const double altitude_m = t < 5.0 ? 162.0 : 148.0;
+    return Sample{{400, 20, altitude_m}, {2, 0, 0}, comb_at(375.0, 0.8)};
+  };
+  const ClassRun aircraft =
+      run(sinking, 15.0, TrackClass::aircraft, 0.0, [](double t) { return t < 5.0 ? 13.0 : 18.0; });
+  EXPECT_LE(aircraft.first_s, 1.0);
+  EXPECT_EQ(aircraft.share, 1.0);
+  const ClassRun known_lower =
+      run(sinking, 15.0, TrackClass::aircraft, 0.0, [](double t) { return t < 5.0 ? 13.0 : 1.0; });
+  EXPECT_EQ(known_lower.per_second.back(), TrackClass::drone);
 }
 
 // A track whose DOAs, from every array that hears it, lie along a better-fixed confirmed track's
