@@ -8,6 +8,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <span>
 
 #include <gtest/gtest.h>
 
@@ -390,23 +391,23 @@ TEST(FusionEngine, TrackAlongSharperTracksRaysIsNoDroneOnTheirCombs) {
   };
   const RunResult result =
       run(FusionParams{}, arrays, sources, 15.0, {0.1, true}, 5, heard, spectrum);
-  int crossing_confirmed = 0;
-  int crossing_drone = 0;
-  int drone_ticks = 0;
-  int ticks = 0;
-  for (std::size_t i = 0; i < result.reports.size(); ++i) {
-    if (result.times[i] < 3.0) continue;
-    ++ticks;
-    for (const TrackReport& track : result.reports[i]) {
-      if (track.status == TrackStatus::tentative) continue;
+  const auto from_3s =
+      std::find_if(result.times.begin(), result.times.end(), [](double t) { return t >= 3.0; });
+  const auto ticks = static_cast<int>(result.times.end() - from_3s);
+  const auto first = static_cast<std::size_t>(from_3s - result.times.begin());
+  int crossing_confirmed = 0;  // confirmed ticks within 5 m of the crossing
+  int crossing_drone = 0;      // of which `drone`
+  int drone_ticks = 0;         // D1's and D2's ticks as `drone`
+  for (const auto& reports : std::span(result.reports).subspan(first)) {
+    for (const TrackReport& track : reports) {
       const bool is_drone = track.track_class == TrackClass::drone;
-      if ((track.position_m - crossing).norm() < 5.0) {
-        ++crossing_confirmed;
-        if (is_drone) ++crossing_drone;
-      }
-      if (((track.position_m - d1).norm() < 3.0 || (track.position_m - d2).norm() < 3.0) &&
-          is_drone)
-        ++drone_ticks;
+      const bool near_crossing = (track.position_m - crossing).norm() < 5.0;
+      const bool at_drone =
+          (track.position_m - d1).norm() < 3.0 || (track.position_m - d2).norm() < 3.0;
+      if (track.status == TrackStatus::tentative) continue;
+      crossing_confirmed += near_crossing ? 1 : 0;
+      crossing_drone += near_crossing && is_drone ? 1 : 0;
+      drone_ticks += at_drone && is_drone ? 1 : 0;
     }
   }
   std::printf("crossing confirmed %d ticks, drone %d; drones %d of %d\n", crossing_confirmed,
