@@ -74,12 +74,18 @@ bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> t
   // beyond the confirmed tracks they hear. An impulsive outlier takes the place of a confirmed
   // track's DOA; a second source adds a DOA to the frame.
   const bool displacing = 2 * track.crowded_updates > updates;
+  // One source, one spectrum: a comb at one array and none at another once each array gave
+  // confirm_hits analysed DOAs; combs of spacings Doppler cannot join from the first DOA each
+  // (mixed draw 29: at 0.1 s N4's ray to D1, comb 150 Hz, crossed N2's to the car, 100 Hz, and
+  // was confirmed at 0.3 s, before N2 gave confirm_hits DOAs).
+  const std::span<const AcousticTally> spectra(track.acoustic_by_array.data(), centres_m.size());
+  const bool two_sources =
+      spectra_disagree(spectra, params_.confirm_hits, params_.init_max_speed_mps,
+                       speed_of_sound_mps_) ||
+      spectra_disagree(spectra, 1, params_.init_max_speed_mps, speed_of_sound_mps_, false);
   return supported && above_ground && hits >= params_.confirm_hits && !displacing &&
          !explained_by_other_tracks(track, tracks, centres_m) &&
-         !beneath_another_track(track, tracks) &&
-         !spectra_disagree(
-             std::span<const AcousticTally>(track.acoustic_by_array.data(), centres_m.size()),
-             params_.confirm_hits, params_.init_max_speed_mps, speed_of_sound_mps_);
+         !beneath_another_track(track, tracks) && !two_sources;
 }
 
 template <typename Better>

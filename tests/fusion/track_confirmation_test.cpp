@@ -132,6 +132,21 @@ TEST(SpectrumAgreement, TwoArraysHearingDifferentSpectraDisagree) {
   EXPECT_TRUE(spectra_disagree(tallies, 5, 30.0, 343.0));
   // Too few analysed DOAs at the second array to say anything.
   EXPECT_FALSE(spectra_disagree(tallies, 10, 30.0, 343.0));
+  // From one analysed DOA each: two combs Doppler cannot join (150 and 100 Hz: mixed draw 29's
+  // birth crossing) are two sources; 150 and 160 Hz (+6.7 %) may be one; a comb and no comb from
+  // one DOA each say nothing (a drone's comb is missed in some analyses).
+  std::vector<AcousticTally> first(2);
+  first[0].add(comb(150.0));
+  first[1].add(comb(100.0));
+  EXPECT_TRUE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  EXPECT_FALSE(spectra_disagree(first, 5, 25.0, 343.0, false));
+  first[1] = {};
+  first[1].add(comb(160.0));
+  EXPECT_FALSE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  first[1] = {};
+  first[1].add(comb(0.0));
+  EXPECT_FALSE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  EXPECT_TRUE(spectra_disagree(first, 1, 25.0, 343.0, true));
   // Features the node could not compute are no vote.
   AcousticTally none;
   none.add(doa::AcousticFeatures{});
