@@ -6,7 +6,7 @@
 namespace dronetrack::fusion {
 
 bool spectra_disagree(std::span<const AcousticTally> by_array, int min_analysed,
-                      double max_speed_mps, double speed_of_sound_mps) {
+                      double max_speed_mps, double speed_of_sound_mps, bool absence_counts) {
   // Only an array that gave the track enough analysed DOAs to say what it hears: a comb in most
   // of them, or in few. A comb found now and then (a weak source near the detector's floor)
   // says neither.
@@ -30,7 +30,7 @@ bool spectra_disagree(std::span<const AcousticTally> by_array, int min_analysed,
     lowest_hz = std::min(lowest_hz, fundamental_hz);
     highest_hz = std::max(highest_hz, fundamental_hz);
   }
-  if (comb_heard && no_comb_heard) return true;
+  if (absence_counts && comb_heard && no_comb_heard) return true;
   return highest_hz > lowest_hz * (1.0 + tolerance);
 }
 

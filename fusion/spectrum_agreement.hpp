@@ -25,8 +25,11 @@ struct AcousticTally {
 
 // True when the arrays' tallies (each with at least min_analysed DOAs) cannot be one source: a
 // comb at one array and none at another, or comb spacings further apart than the Doppler shift
-// of a source at max_speed_mps explains (plus the detector's own spread).
+// of a source at max_speed_mps explains (plus the detector's own spread). absence_counts false:
+// the spacings alone. A comb's spacing is evidence from one analysis (the detector finds a
+// drone's at its own spacing, never a multiple), its absence only from several (it finds a
+// drone's comb in 55-97 % of analyses).
 bool spectra_disagree(std::span<const AcousticTally> by_array, int min_analysed,
-                      double max_speed_mps, double speed_of_sound_mps);
+                      double max_speed_mps, double speed_of_sound_mps, bool absence_counts = true);
 
 }  // namespace dronetrack::fusion

@@ -73,7 +73,7 @@ void TrackClassifier::add_kinematics(TrackEvidence& evidence, const Eigen::Vecto
 // Order matters: kinematics that no small drone shows veto the acoustics (a light aircraft's
 // propeller is a comb too); a track held at ground level is a ground source unless it sounds
 // like a drone (a drone landing or flying low keeps its class); then the rotor comb decides.
-void TrackClassifier::classify(TrackEvidence& evidence) const {
+void TrackClassifier::classify(TrackEvidence& evidence, bool doas_explained_elsewhere) const {
   const ClassifierSettings& s = settings_;
   const double share = evidence.drone_share();
   const bool heard_enough = evidence.all_votes >= s.min_acoustic_votes;
@@ -91,7 +91,14 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
   const double altitude_margin = evidence.altitude_m / s.aircraft_min_altitude_m;
   const double speed_margin = evidence.speed_mps / s.aircraft_min_speed_mps;
   const bool altitude_known = evidence.altitude_std_m <= 0.25 * std::max(evidence.altitude_m, 1.0);
-  if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0) {
+  // An aircraft stays one while its altitude could still be an aircraft's: a smoothed altitude
+  // sinking a few metres under the threshold within its std (the aircraft's ray from one array,
+  // range open: mixed site draw 23, 162 +- 13 m -> 148 +- 18 m) is no drone, however rotor-like
+  // its propeller's comb.
+  const bool still_aircraft =
+      evidence.track_class == TrackClass::aircraft &&
+      evidence.altitude_m + evidence.altitude_std_m >= s.aircraft_min_altitude_m;
+  if ((altitude_margin >= 1.0 && altitude_known) || speed_margin >= 1.0 || still_aircraft) {
     evidence.track_class = TrackClass::aircraft;
     evidence.confidence =
         std::clamp(0.5 + 0.5 * (std::max(altitude_margin, speed_margin) - 1.0) / 0.5, 0.5, 1.0);
@@ -119,7 +126,14 @@ void TrackClassifier::classify(TrackEvidence& evidence) const {
     evidence.confidence = 0.5;
     return;
   }
-  if (sounds_like_drone) {
+  // A comb makes a new drone only above ground level by more than the altitude's own std: a
+  // track fixed by far arrays at 3.5 +- 3.3 m (the passing car's first ticks, mixed site draw
+  // 26) is no drone on its comb while it could be on the ground. No such bound under the
+  // aircraft's altitude: a far drone's one-array track, range open, is at 125 +- 72 m
+  // (far_approach scenes) and a drone all the same. A drone keeps its class while its altitude
+  // grows uncertain (coasting, far).
+  const bool above_ground = evidence.altitude_m - evidence.altitude_std_m > s.ground_max_altitude_m;
+  if (sounds_like_drone && (was_drone || (above_ground && !doas_explained_elsewhere))) {
     evidence.track_class = TrackClass::drone;
     evidence.confidence = std::clamp(share, 0.5, 1.0);
     return;

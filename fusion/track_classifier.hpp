@@ -74,8 +74,11 @@ class TrackClassifier {
   void add_kinematics(TrackEvidence& evidence, const Eigen::Vector3d& position_m,
                       const Eigen::Vector3d& velocity_mps, double altitude_std_m,
                       double time_s) const;
-  // Updates evidence.track_class and .confidence from what it holds.
-  void classify(TrackEvidence& evidence) const;
+  // Updates evidence.track_class and .confidence from what it holds. doas_explained_elsewhere:
+  // from every array that hears it the track lies along a better-fixed confirmed track's ray
+  // (TrackConfirmation::along_sharper_tracks), so its comb is that track's and does not make it
+  // a drone.
+  void classify(TrackEvidence& evidence, bool doas_explained_elsewhere = false) const;
 
   const ClassifierSettings& settings() const { return settings_; }
 

@@ -74,20 +74,26 @@ bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> t
   // beyond the confirmed tracks they hear. An impulsive outlier takes the place of a confirmed
   // track's DOA; a second source adds a DOA to the frame.
   const bool displacing = 2 * track.crowded_updates > updates;
+  // One source, one spectrum: a comb at one array and none at another once each array gave
+  // confirm_hits analysed DOAs; combs of spacings Doppler cannot join from the first DOA each
+  // (mixed draw 29: at 0.1 s N4's ray to D1, comb 150 Hz, crossed N2's to the car, 100 Hz, and
+  // was confirmed at 0.3 s, before N2 gave confirm_hits DOAs).
+  const std::span<const AcousticTally> spectra(track.acoustic_by_array.data(), centres_m.size());
+  const bool two_sources =
+      spectra_disagree(spectra, params_.confirm_hits, params_.init_max_speed_mps,
+                       speed_of_sound_mps_) ||
+      spectra_disagree(spectra, 1, params_.init_max_speed_mps, speed_of_sound_mps_, false);
   return supported && above_ground && hits >= params_.confirm_hits && !displacing &&
          !explained_by_other_tracks(track, tracks, centres_m) &&
-         !beneath_another_track(track, tracks) &&
-         !spectra_disagree(
-             std::span<const AcousticTally>(track.acoustic_by_array.data(), centres_m.size()),
-             params_.confirm_hits, params_.init_max_speed_mps, speed_of_sound_mps_);
+         !beneath_another_track(track, tracks) && !two_sources;
 }
 
-bool TrackConfirmation::explained_by_other_tracks(
-    const Track& track, std::span<const Track> tracks,
-    std::span<const Eigen::Vector3d> centres_m) const {
+template <typename Better>
+bool TrackConfirmation::along_rays_of(const Track& track, std::span<const Track> tracks,
+                                      std::span<const Eigen::Vector3d> centres_m,
+                                      const Better& better) const {
   const Eigen::Vector3d position = position_of(track.filter->mean());
   const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
-  const int support = recent_arrays(track, centres_m.size());
   int supporting = 0;
   for (std::size_t a = 0; a < centres_m.size(); ++a) {
     if (track.last_update_s - track.heard_by_array_s[a] > kContributionMemoryS) continue;
@@ -96,12 +102,7 @@ bool TrackConfirmation::explained_by_other_tracks(
     const double range_m = std::max(to_track.norm(), 1.0);
     bool explained = false;
     for (const Track& other : tracks) {
-      // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost
-      // and the drone whose ray it shares explain each other from that array; the drone also
-      // has the arrays the ghost lacks).
-      if (&other == &track ||
-          !(other.confirmed || recent_arrays(other, centres_m.size()) > support))
-        continue;
+      if (&other == &track || !better(other)) continue;
       const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[a];
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
@@ -117,6 +118,28 @@ bool TrackConfirmation::explained_by_other_tracks(
     if (!explained) return false;
   }
   return supporting > 0;
+}
+
+bool TrackConfirmation::explained_by_other_tracks(
+    const Track& track, std::span<const Track> tracks,
+    std::span<const Eigen::Vector3d> centres_m) const {
+  // Only a track with better standing explains: confirmed, or heard by more arrays (a ghost and
+  // the drone whose ray it shares explain each other from that array; the drone also has the
+  // arrays the ghost lacks).
+  const int support = recent_arrays(track, centres_m.size());
+  return along_rays_of(track, tracks, centres_m, [&](const Track& other) {
+    return other.confirmed || recent_arrays(other, centres_m.size()) > support;
+  });
+}
+
+bool TrackConfirmation::along_sharper_tracks(const Track& track, std::span<const Track> tracks,
+                                             std::span<const Eigen::Vector3d> centres_m) const {
+  // Between confirmed tracks standing is no test (each explains the other from an array they
+  // share); the one whose position the DOAs fix better is the one they belong to.
+  const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace();
+  return along_rays_of(track, tracks, centres_m, [&](const Track& other) {
+    return other.confirmed && other.filter->covariance().topLeftCorner<3, 3>().trace() < spread_m2;
+  });
 }
 
 bool TrackConfirmation::beneath_another_track(const Track& track,

@@ -45,8 +45,19 @@ class TrackConfirmation {
   // meet on the vertical line through the source, below it. A track there, under a confirmed
   // track, is that mixture.
   bool beneath_another_track(const Track& track, std::span<const Track> tracks) const;
+  // The same test for a track of any standing against the confirmed tracks whose positions are
+  // known better than its own: its DOAs are theirs, so what they sound like says nothing of it
+  // (the classifier does not make it a drone on them).
+  bool along_sharper_tracks(const Track& track, std::span<const Track> tracks,
+                            std::span<const Eigen::Vector3d> centres_m) const;
 
  private:
+  // From every array that recently updated `track`, it lies within the gate of the direction to
+  // some track `better` accepts.
+  template <typename Better>
+  bool along_rays_of(const Track& track, std::span<const Track> tracks,
+                     std::span<const Eigen::Vector3d> centres_m, const Better& better) const;
+
   FusionParams params_;
   double floor_variance_rad2_;
   double gate_chi2_;

@@ -27,7 +27,8 @@ void FusionEngine::Impl::life_cycle(double now_s) {
         track.filter->covariance()(StateBlock::position + 2, StateBlock::position + 2), 0.0));
     classifier->add_kinematics(track.evidence, position_of(mean), velocity_of(mean), altitude_std_m,
                                track.time_s);
-    classifier->classify(track.evidence);
+    classifier->classify(track.evidence,
+                         confirmation->along_sharper_tracks(track, tracks, last_centre_m));
   }
   delete_expired(now_s);
 }

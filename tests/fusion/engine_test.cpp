@@ -8,6 +8,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <span>
 
 #include <gtest/gtest.h>
 
@@ -349,6 +350,71 @@ TEST(FusionEngine, CrossingOfRaysToSourcesWithDifferentSpectraIsNotConfirmed) {
   }
   EXPECT_EQ(crossing_ticks, 0);
   EXPECT_EQ(control_ticks, ticks);
+}
+
+// Issue 14's late ghost on the mixed site (draw 24): a track confirmed on comb-less DOAs (N1, N2
+// and N4 hear a source there for 3 s) then holds, from N1 and N4 alone, DOAs along N1's ray to
+// the hovering D2 (comb 205 Hz) and N4's ray to D1 (147 Hz), both tracked by all four arrays. Its
+// comb is theirs: it must not become a drone, while D1 and D2 are drones. Without the test
+// (TrackConfirmation::along_sharper_tracks) it was `drone` in 93 of its 113 confirmed ticks.
+TEST(FusionEngine, TrackAlongSharperTracksRaysIsNoDroneOnTheirCombs) {
+  const auto arrays = square_site(100.0);
+  const Eigen::Vector3d crossing(20, 0, 40);
+  const Eigen::Vector3d centre1 = arrays[0].centre_site_m();
+  const Eigen::Vector3d centre4 = arrays[3].centre_site_m();
+  const Eigen::Vector3d d2 = centre1 + 1.5 * (crossing - centre1);  // beyond it on N1's ray
+  const Eigen::Vector3d d1 = centre4 + 1.4 * (crossing - centre4);  // beyond it on N4's ray
+  // Sources 2 and 3 are the third track's DOAs: before 3 s comb-less at N1, N2 and N4 from a
+  // source 24 m south of the crossing flying to it (8 m/s); from 3 s, at the crossing, at N1 and
+  // N4 alone, D2's comb at N1 and D1's at N4.
+  const Trajectory approach = [crossing](double t) {
+    return Eigen::Vector3d(crossing + Eigen::Vector3d(0, -8.0 * std::max(3.0 - t, 0.0), 0));
+  };
+  const Trajectory at_crossing = [crossing](double) { return crossing; };
+  const std::vector<Trajectory> sources{[d1](double) { return d1; }, [d2](double) { return d2; },
+                                        approach, at_crossing};
+  const Audibility heard = [](int array, int source, double t, std::mt19937_64&) {
+    if (source < 2) return true;
+    if (source == 2) return t < 3.0 && array != 2;
+    return t >= 3.0 && (array == 0 || array == 3);
+  };
+  const Spectrum spectrum = [](int array, int source) {
+    doa::AcousticFeatures features;
+    features.valid = true;
+    features.comb_persistence = 1.0;
+    features.broadband_share = 0.3;
+    const bool d1_comb = source == 0 || (source == 3 && array == 3);
+    const bool d2_comb = source == 1 || (source == 3 && array == 0);
+    features.fundamental_hz = d1_comb ? 147.0 : d2_comb ? 205.0 : 0.0;
+    if (features.fundamental_hz == 0.0) features.comb_persistence = 0.0;
+    return features;
+  };
+  const RunResult result =
+      run(FusionParams{}, arrays, sources, 15.0, {0.1, true}, 5, heard, spectrum);
+  const auto from_3s =
+      std::find_if(result.times.begin(), result.times.end(), [](double t) { return t >= 3.0; });
+  const auto ticks = static_cast<int>(result.times.end() - from_3s);
+  const auto first = static_cast<std::size_t>(from_3s - result.times.begin());
+  int crossing_confirmed = 0;  // confirmed ticks within 5 m of the crossing
+  int crossing_drone = 0;      // of which `drone`
+  int drone_ticks = 0;         // D1's and D2's ticks as `drone`
+  for (const auto& reports : std::span(result.reports).subspan(first)) {
+    for (const TrackReport& track : reports) {
+      const bool is_drone = track.track_class == TrackClass::drone;
+      const bool near_crossing = (track.position_m - crossing).norm() < 5.0;
+      const bool at_drone =
+          (track.position_m - d1).norm() < 3.0 || (track.position_m - d2).norm() < 3.0;
+      if (track.status == TrackStatus::tentative) continue;
+      crossing_confirmed += near_crossing ? 1 : 0;
+      crossing_drone += near_crossing && is_drone ? 1 : 0;
+      drone_ticks += at_drone && is_drone ? 1 : 0;
+    }
+  }
+  std::printf("crossing confirmed %d ticks, drone %d; drones %d of %d\n", crossing_confirmed,
+              crossing_drone, drone_ticks, 2 * ticks);
+  EXPECT_GT(crossing_confirmed, 0);  // the situation arose
+  EXPECT_EQ(crossing_drone, 0);
+  EXPECT_EQ(drone_ticks, 2 * ticks);
 }
 
 // The perimeter situation: a loud drone heard by all four arrays, a quiet one heard only by the

@@ -57,6 +57,47 @@ TEST(TrackConfirmation, ATrackAlongAConfirmedTracksRaysIsExplained) {
   EXPECT_FALSE(rules.explained_by_other_tracks(ghost, tracks, centres));
 }
 
+// Ghost of two drones (mixed site draw 24): array 0's ray to one confirmed drone crosses array 1's
+// ray to the other. The track at the crossing, known worse than either, lies along better-fixed
+// tracks' rays from both arrays that hear it; a third array that hears it there is its own.
+TEST(TrackConfirmation, ACrossingOfTwoSharperTracksRaysIsAlongThem) {
+  const FusionParams params;
+  const TrackConfirmation rules(params, 1e-6, 13.8, 343.0);
+  const std::vector<Eigen::Vector3d> centres{{0, 0, 2}, {100, 0, 2}, {50, -100, 2}};
+  const Eigen::Vector3d crossing(50, 60, 30);
+  // Heard by arrays 0 and 1 within the last second.
+  const auto ghost_at = [&](double position_std_m) {
+    Track ghost = track_at(crossing, position_std_m, true);
+    ghost.last_update_s = 10.0;
+    ghost.heard_by_array_s[0] = 10.0;
+    ghost.heard_by_array_s[1] = 9.5;
+    return ghost;
+  };
+  std::vector<Track> tracks;
+  tracks.push_back(track_at(centres[0] + 1.4 * (crossing - centres[0]), 0.5, true));
+  tracks.push_back(track_at(centres[1] + 0.7 * (crossing - centres[1]), 0.5, true));
+  tracks.push_back(ghost_at(2.0));
+  EXPECT_TRUE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+  // The drones are not along the ghost's rays: it is fixed worse than they are.
+  tracks[0].last_update_s = 10.0;
+  tracks[0].heard_by_array_s[0] = 10.0;
+  EXPECT_FALSE(rules.along_sharper_tracks(tracks[0], tracks, centres));
+  // Fixed better than the tracks whose rays it shares: its DOAs are its own.
+  tracks[2] = ghost_at(0.3);
+  EXPECT_FALSE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+  tracks[2] = ghost_at(2.0);
+  // A tentative track explains nothing.
+  tracks[1].confirmed = false;
+  EXPECT_FALSE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+  tracks[1].confirmed = true;
+  // A third array hears it, 6 degrees off both drones' directions from there.
+  tracks[2].heard_by_array_s[2] = 10.0;
+  EXPECT_FALSE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+  // Heard by no array within the last second: nothing supports it, nothing to explain.
+  tracks[2].last_update_s = 20.0;
+  EXPECT_FALSE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+}
+
 TEST(TrackConfirmation, HeldByOneArrayOnlyWhileNoSecondArrayUpdatedIt) {
   Track track = track_at({0, 50, 20}, 1.0, false);
   track.updates_by_array[0] = 5;
@@ -91,6 +132,21 @@ TEST(SpectrumAgreement, TwoArraysHearingDifferentSpectraDisagree) {
   EXPECT_TRUE(spectra_disagree(tallies, 5, 30.0, 343.0));
   // Too few analysed DOAs at the second array to say anything.
   EXPECT_FALSE(spectra_disagree(tallies, 10, 30.0, 343.0));
+  // From one analysed DOA each: two combs Doppler cannot join (150 and 100 Hz: mixed draw 29's
+  // birth crossing) are two sources; 150 and 160 Hz (+6.7 %) may be one; a comb and no comb from
+  // one DOA each say nothing (a drone's comb is missed in some analyses).
+  std::vector<AcousticTally> first(2);
+  first[0].add(comb(150.0));
+  first[1].add(comb(100.0));
+  EXPECT_TRUE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  EXPECT_FALSE(spectra_disagree(first, 5, 25.0, 343.0, false));
+  first[1] = {};
+  first[1].add(comb(160.0));
+  EXPECT_FALSE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  first[1] = {};
+  first[1].add(comb(0.0));
+  EXPECT_FALSE(spectra_disagree(first, 1, 25.0, 343.0, false));
+  EXPECT_TRUE(spectra_disagree(first, 1, 25.0, 343.0, true));
   // Features the node could not compute are no vote.
   AcousticTally none;
   none.add(doa::AcousticFeatures{});
