@@ -84,8 +84,10 @@ struct DoaParams {
   // Sources per frame (SRP-PHAT peaks, each on the bins the louder ones leave): a capacity, not
   // a design. The search stops at the first look under the detection floor, so a quiet site
   // pays for one failed look; a site with a generator, a road and an aircraft besides two drones
-  // needs all of them (issue 14). Cost per source: docs/doa.md.
-  int max_sources = 4;
+  // needs all of them (issue 14): six sources there, and with 4 the drone the others outshout
+  // at an array lost its frames to the budget (docs/doa.md "The remaining misses", session 19).
+  // Cost per source: docs/doa.md.
+  int max_sources = 6;
   double detection_snr_db = 0.0;  // in-band level over the adaptive noise floor to publish
 
   // Added with the DSP (issue 4); all optional keys of the "doa" config section.

@@ -39,6 +39,10 @@ namespace dronetrack::doa {
 namespace node_detail {
 
 inline constexpr int kMaxSources = 8;
+// The free SRP looks of a frame, found or cancelled (max_sources 4 and two spare: the budget
+// before max_sources went to 6; with 8 looks a skewed channel's frames found spurious second
+// sources and lost the health checks' one-source frames, ArrayHealthNode.SkewedChannelNamed).
+inline constexpr int kMaxFreeLooks = 6;
 // With SNR weighting the static null observes a plain-PHAT look every this many frames (0.1 s
 // at the default hop; it learns over static_null_learn_s = 3 s). Every 4th frame left the
 // generator of the ground-interferer scene un-nulled at A2 for 10 s instead of 3 s.

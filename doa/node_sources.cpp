@@ -212,9 +212,11 @@ bool NodePipeline::Impl::find_further_sources() {
   trace_added(LookKind::followed, before_follow);
   srp->begin_frame(gcc);
   bool under_floor = false;
-  // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped.
-  for (int look = 0; look < params.max_sources + 2 && candidate_count < params.max_sources;
-       ++look) {
+  // A few more looks than sources: a look whose TDOAs do not fit is cancelled and skipped. At
+  // most kMaxFreeLooks in all, whatever max_sources: on a faulty array (a skewed channel) most
+  // looks are cancelled, and every further one is a further chance for a spurious source.
+  const int looks = std::min(params.max_sources + 2, node_detail::kMaxFreeLooks);
+  for (int look = 0; look < looks && candidate_count < params.max_sources; ++look) {
     SrpPeak peak;
     under_floor = !srp->strongest(peak, kept_bins_floor());
     if (under_floor) break;
