@@ -291,8 +291,8 @@ TEST(HarmonicComb, DetectFindsExactlyTheCombsAnalyseFinds) {
     if (kind >= 2) {  // a comb, 2.5-40 bins apart, lines 3-12 dB over the floor
       const double spacing = 2.5 + unit(random) * 37.5;
       const double gain = std::pow(10.0, (3.0 + unit(random) * 9.0) / 10.0);
-      for (double bin = spacing * std::ceil(first_bin / spacing); bin < first_bin + bins;
-           bin += spacing)
+      for (double bin = spacing * std::ceil(first_bin / spacing);
+           std::lround(bin) < first_bin + bins; bin += spacing)
         power[static_cast<std::size_t>(std::lround(bin)) - first_bin] *= gain * 2.0;
     }
     if (kind == 3) {  // another source's bins taken out
