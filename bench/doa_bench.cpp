@@ -9,7 +9,10 @@
 // ratio pipeline / kernel from the same run.
 // --simd-target=NAME (AVX3 or AVX512, AVX2, SSE4, NEON, EMU128, ...) forces the kernels' vector
 // code (Highway's dispatch) before any benchmark runs; the run ends with the target taken and how
-// many kernel calls it served (counts: proof of the path taken, also under emulation).
+// many kernel calls it served (counts: proof of the path taken, also under emulation). A target
+// of two lanes or fewer also keeps FFTW off its AVX codelets, as on a CPU without AVX (the
+// kernel and the pipeline's FFTs alike; bench/fftw_codelets.hpp); --fftw-follows-target=0 leaves
+// FFTW on what the CPU has (the figures before session 20).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -22,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/fftw_codelets.hpp"
 #include "doa/acoustic_features.hpp"
 #include "doa/array_health.hpp"
 #include "doa/channel_health.hpp"
@@ -398,9 +402,18 @@ class RecordingReporter : public benchmark::ConsoleReporter {
 int main(int argc, char** argv) {
   // Our flag out of argv before Google Benchmark sees (and rejects) it.
   constexpr const char* kTargetFlag = "--simd-target=";
+  constexpr const char* kFollowFlag = "--fftw-follows-target=";
+  bool fftw_follows_target = true;
   int kept = 1;
   for (int a = 1; a < argc; ++a) {
-    if (std::strncmp(argv[a], kTargetFlag, std::strlen(kTargetFlag)) == 0) {
+    if (std::strncmp(argv[a], kFollowFlag, std::strlen(kFollowFlag)) == 0) {
+      const std::string value = argv[a] + std::strlen(kFollowFlag);
+      if (value != "0" && value != "1") {
+        std::fprintf(stderr, "doa_bench: %s wants 0 or 1, not '%s'\n", kFollowFlag, value.c_str());
+        return 2;
+      }
+      fftw_follows_target = value == "1";
+    } else if (std::strncmp(argv[a], kTargetFlag, std::strlen(kTargetFlag)) == 0) {
       try {
         set_simd_target(argv[a] + std::strlen(kTargetFlag));
       } catch (const std::invalid_argument& error) {
@@ -412,6 +425,8 @@ int main(int argc, char** argv) {
     }
   }
   argc = kept;
+  // Before any plan is made: FFTW chooses its codelets when planning.
+  dronetrack::bench::allow_fftw_avx(!fftw_follows_target || simd_double_lanes() > 2);
   benchmark::Initialize(&argc, argv);
   RecordingReporter reporter;
   benchmark::RunSpecifiedBenchmarks(&reporter);
@@ -470,5 +485,10 @@ int main(int argc, char** argv) {
               target.c_str(), simd_double_lanes(),
               static_cast<unsigned long long>(simd_dispatch_count(target)),
               static_cast<unsigned long long>(simd_dispatch_count()));
+  const DoaParams params;
+  const int fft_size = fftw_friendly_size(static_cast<int>(params.frame_s * kRate + 0.5));
+  std::printf("FFTW codelets of the frame's r2c (%d points): %s%s\n", fft_size,
+              dronetrack::bench::fftw_codelet_set(fft_size).c_str(),
+              fftw_follows_target ? "" : " (--fftw-follows-target=0)");
   return 0;
 }
