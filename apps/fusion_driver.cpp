@@ -120,9 +120,10 @@ void FusionDriver::advance_to(double now_s) {
   for (auto* observer : observers_) observer->on_time(now_s);
 }
 
-void FusionDriver::finish() {
+void FusionDriver::finish(double heard_until_s) {
   if (!tracking_) return;
   if (first_tick_index_ < 0) first_tick_index_ = 0;  // nothing arrived: the one tick at 0
+  if (std::isfinite(heard_until_s)) latest_time_s_ = std::max(latest_time_s_, heard_until_s);
   while (next_tick_s_ <= latest_time_s_ + kTimeEpsilon_s) emit_tick(next_tick_s_);
   engine_.advance_to(latest_time_s_ + reorder_window_s_);
   report_mirror_swaps();

@@ -3,6 +3,7 @@
 // stream time, and emits track reports at the output rate plus zone events. Shared by
 // `replay` (in-process) and `fusion` (DDS), so both paths produce the same outputs.
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -34,9 +35,12 @@ class FusionDriver {
   void mark_fusion_findings(doa::NodeStatus& status) const;
   // The stream has reached now_s: every output tick up to now_s - reorder window is emitted.
   void advance_to(double now_s);
-  // End of stream: emits the remaining ticks up to the last time seen. Not beyond it, to the
-  // recording's end: those reports would be predictions past the last DOA (docs/fusion.md).
-  void finish();
+  // End of stream: emits the remaining ticks up to the last time seen, or up to heard_until_s
+  // when later: the end of the audio the nodes analysed (a replay of recordings). The last DOA
+  // is stamped a node's output latency (half a frame and the per-source regression's delay,
+  // ~0.3 s) before the audio it was made from ends, and a live fusion would go on reporting
+  // the tracks over those last moments; a DOA file knows no such end (docs/fusion.md).
+  void finish(double heard_until_s = -std::numeric_limits<double>::infinity());
 
   const fusion::FusionEngine& engine() const { return engine_; }
   // False when no observer wants tracks: DOAs are then only checked (FusionEngine::admit), no

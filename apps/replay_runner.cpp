@@ -194,7 +194,8 @@ ReplaySummary run_replay(const config::SiteConfig& site,
                           std::to_string(lane.node.time_s()) +
                           " s, before its header's end (truncated while being read)";
   }
-  driver.finish();
+  // Up to the end of the audio analysed: the last DOAs are stamped a node's latency before it.
+  driver.finish(summary.stream_s);
   if (options.incidents) options.incidents->service(true);
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();

@@ -21,7 +21,9 @@ struct TruthSource {
   std::map<std::string, std::vector<Eigen::Vector3d>> direction_by_array;
 
   bool alive_at(double t) const {
-    return !time_s.empty() && t >= time_s.front() && t <= time_s.back();
+    // Within rounding: an eval tick k * step may land a few ulps past the last truth sample.
+    constexpr double kSlack_s = 1e-9;
+    return !time_s.empty() && t >= time_s.front() - kSlack_s && t <= time_s.back() + kSlack_s;
   }
   Eigen::Vector3d position_at(double t) const;  // linear interpolation, clamped
   // Interpolated and normalised; nullopt if this array has no truth directions.

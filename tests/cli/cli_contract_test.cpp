@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -168,6 +169,25 @@ std::string last_line(const std::string& text) {
 }
 
 // --- 1. A failing run keeps earlier good outputs ---------------------------------------------
+
+// The last time a file's JSON lines carry ("t").
+double last_time_s(const fs::path& file) {
+  std::istringstream lines(read_text(file));
+  std::string line;
+  double last_s = -1.0;
+  while (std::getline(lines, line)) last_s = std::max(last_s, json::parse(line)["t"].get<double>());
+  return last_s;
+}
+
+// A replay of recordings reports its tracks up to the audio's end (3 s), past the last DOA,
+// which a node stamps its output latency (half a frame, the regression's delay) earlier; a DOA
+// file knows no audio end, so the fusion alone stops at its last DOA.
+TEST_F(CliContract, AudioReplayReportsTracksToTheRecordingsEnd) {
+  const double last_doa_s = last_time_s(scene_ / "doa.jsonl");
+  EXPECT_LT(last_doa_s, 2.8);
+  EXPECT_NEAR(last_time_s(scene_ / "tracks.jsonl"), 3.0, 1e-9);
+  EXPECT_LE(last_time_s(scene_ / "fused.jsonl"), last_doa_s);
+}
 
 TEST_F(CliContract, TruncatedRecordingKeepsEarlierOutputs) {
   const fs::path cut = dir_ / "cut.wav";

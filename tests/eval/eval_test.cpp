@@ -65,6 +65,22 @@ TEST(EvalMetrics, KnownOffsetGivesKnownErrors) {
   EXPECT_EQ(report.sources[0].errors[50].track_id, 7);
 }
 
+// The tick is the tracks' step, a difference of times as read (59.9 - 59.8 is 0.1 + 1.4e-15), so
+// the 601st tick lands a few ulps past the truth's last sample at 60 s. It is still that sample,
+// and a track reported there follows the source, not nothing.
+TEST(EvalMetrics, TheLastTickIsWithinTheTruthDespiteRounding) {
+  Truth truth;
+  truth.sources.push_back(moving_source("D1", {10, 0, 20}, {2, 0, 0}, 60.0));
+  EvalOptions options;
+  options.tick_s = 59.9 - 59.8;
+  ASSERT_GT(600 * options.tick_s, truth.sources[0].time_s.back());
+  const auto tracks = follow(truth.sources[0], 3, {0.3, 0.4, 0.0}, 0.0, 60.0);
+  const EvalReport report = evaluate(truth, tracks, {}, options);
+  EXPECT_EQ(report.position.samples, 601);
+  EXPECT_NEAR(report.coverage, 1.0, 1e-9);
+  EXPECT_NEAR(report.false_track_time_s, 0.0, 1e-12);
+}
+
 TEST(EvalMetrics, PercentageFitErrorRelativeToArrayCentroid) {
   Truth truth;
   TruthSource hover;
