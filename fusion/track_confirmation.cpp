@@ -83,8 +83,21 @@ bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> t
       spectra_disagree(spectra, params_.confirm_hits, params_.init_max_speed_mps,
                        speed_of_sound_mps_) ||
       spectra_disagree(spectra, 1, params_.init_max_speed_mps, speed_of_sound_mps_, false);
+  // Nor a track that no second array fed after the moment its rays met: three rays meeting at one
+  // moment fixed it, within gates widened for the source's motion between the rays' emission
+  // times (at the run's start or at long range, tens of metres), and a source that several arrays
+  // hear keeps giving them DOAs there; a crossing of one source's ray with others' does not
+  // (issue 14, mixed draw 28: N4's ray to D1 met N2's to the car and N3's to D1, 7 degrees off, at
+  // 0.085 s; only N4 fed it after, N3's DOAs went to D1's own track, N2's to the car's; confirmed
+  // at 0.235 s on its birth's three arrays and N4's hits, then `drone` for 5.9 s).
+  int fed_since_birth = 0;
+  for (std::size_t a = 0; a < centres_m.size(); ++a) {
+    const int at_birth = static_cast<int>((track.birth_arrays >> a) & 1u);
+    if (track.updates_by_array[a] > at_birth) ++fed_since_birth;
+  }
+  const bool one_array_since_birth = !track.one_array && fed_since_birth < 2;
   return supported && above_ground && hits >= params_.confirm_hits && !displacing &&
-         !explained_by_other_tracks(track, tracks, centres_m) &&
+         !one_array_since_birth && !explained_by_other_tracks(track, tracks, centres_m) &&
          !beneath_another_track(track, tracks) && !two_sources;
 }
 

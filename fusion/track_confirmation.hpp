@@ -29,9 +29,10 @@ class TrackConfirmation {
   TrackConfirmation(const FusionParams& params, double floor_variance_rad2, double gate_chi2,
                     double speed_of_sound_mps);
 
-  // Every rule below passes: M of N hits, enough arrays (or continuity), above the ground, not
-  // outlier-born, no ghost, no echo, one spectrum. centres_m: each array's centre at its newest
-  // frame (site order); tracks: every live track (`track` among them).
+  // Every rule below passes: M of N hits, enough arrays (or continuity), a second array feeding
+  // it after its birth, above the ground, not outlier-born, no ghost, no echo, one spectrum.
+  // centres_m: each array's centre at its newest frame (site order); tracks: every live track
+  // (`track` among them).
   bool confirmable(const Track& track, std::span<const Track> tracks,
                    std::span<const Eigen::Vector3d> centres_m) const;
 

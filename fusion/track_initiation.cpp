@@ -212,6 +212,7 @@ bool FusionEngine::Impl::try_initiate(int array, std::size_t recent_index, doubl
   track.heard_by_array_s.fill(kNeverS);
   const auto seed_support = [this, &track, time_s](int supporting_array, const RecentDoa& doa) {
     record_update(track, supporting_array, doa.acoustic, time_s);
+    track.birth_arrays |= std::uint64_t{1} << supporting_array;
   };
   seed_support(array, seed);
   seed_support(best.partner_array, partner);

@@ -129,6 +129,9 @@ struct Track {
   TrackEvidence evidence;  // drone or not
   std::array<AcousticTally, kMaxArrays> acoustic_by_array{};
   double confirmed_at_s = 0.0;
+  // The arrays whose DOAs started it (a pair and the arrays agreeing then; bit per array): what
+  // each array gave it since is its updates less that one.
+  std::uint64_t birth_arrays = 0;
   // Started from one array's DOAs (issue 15) and not yet handed to the default filter: its
   // range rests on hypotheses or the platform's motion, not on a triangulation.
   bool one_array = false;

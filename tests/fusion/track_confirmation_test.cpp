@@ -1,6 +1,8 @@
 // The confirmation rules on their own, on tracks placed at known positions.
 #include "fusion/track_confirmation.hpp"
 
+#include <algorithm>
+#include <cstdint>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -96,6 +98,42 @@ TEST(TrackConfirmation, ACrossingOfTwoSharperTracksRaysIsAlongThem) {
   // Heard by no array within the last second: nothing supports it, nothing to explain.
   tracks[2].last_update_s = 20.0;
   EXPECT_FALSE(rules.along_sharper_tracks(tracks[2], tracks, centres));
+}
+
+// Mixed site draw 28 at 0.085 s: N4's ray to a drone met N2's ray to a passing car and N3's ray
+// to the drone (7 degrees off, within the gate widened for the motion between the emission
+// times) at 22 m up, 40 m short of the drone. Only N4 fed the track after that moment; N3's
+// DOAs went to the drone's own track, N2's to the car's. Three arrays at one moment and one
+// array's continuity do not confirm it; a second array feeding it after that moment does.
+TEST(TrackConfirmation, ATrackOnlyOneArrayFedSinceItsBirthIsNotConfirmed) {
+  FusionParams params;
+  params.ground_altitude_m = 0.0;
+  const TrackConfirmation rules(params, 1e-6, 13.8, 343.0);
+  const std::vector<Eigen::Vector3d> centres{
+      {-100, -100, 2}, {100, -100, 2}, {100, 100, 2}, {-100, 100, 2}};
+  constexpr std::size_t n2 = 1;
+  constexpr std::size_t n3 = 2;
+  constexpr std::size_t n4 = 3;
+  std::vector<Track> tracks;
+  tracks.push_back(track_at({-257, 131, 0.5}, 3.0, true));  // the car, N2 and N3
+  tracks.push_back(track_at({-152, 8, 36}, 2.0, false));    // the drone's own, N3 and N4
+  tracks.push_back(track_at({-130.6, 45.8, 21.9}, 2.0, false));
+  Track& crossing = tracks[2];
+  const auto feed = [&](std::size_t array, double time_s) {
+    crossing.hits_by_array[array] = (crossing.hits_by_array[array] << 1) | 1u;
+    ++crossing.updates_by_array[array];
+    crossing.heard_by_array_s[array] = time_s;
+    crossing.last_update_s = std::max(crossing.last_update_s, time_s);
+  };
+  for (const std::size_t array : {n4, n2, n3}) {
+    feed(array, 0.085);
+    crossing.birth_arrays |= std::uint64_t{1} << array;
+  }
+  for (int frame = 1; frame <= 4; ++frame) feed(n4, 0.085 + 0.05 * frame);
+  EXPECT_FALSE(rules.confirmable(crossing, tracks, centres));
+  // N3 feeds it after its birth too: two arrays agree beyond one moment.
+  feed(n3, 0.285);
+  EXPECT_TRUE(rules.confirmable(crossing, tracks, centres));
 }
 
 TEST(TrackConfirmation, HeldByOneArrayOnlyWhileNoSecondArrayUpdatedIt) {
