@@ -29,6 +29,7 @@ struct FusionCounters {
   std::int64_t filter_repairs = 0;         // covariances repaired (eigenvalue clamp)
   std::int64_t filter_failures = 0;        // updates refused as non-finite/unrepairable
   std::int64_t manoeuvres_followed = 0;    // tracks widened by the manoeuvre onset test
+  std::int64_t duplicates_pruned = 0;      // confirmed tracks deleted as duplicates along a ray
 };
 
 class FusionEngine {

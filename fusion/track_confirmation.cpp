@@ -155,6 +155,42 @@ bool TrackConfirmation::along_sharper_tracks(const Track& track, std::span<const
   });
 }
 
+bool TrackConfirmation::duplicate_along_ray(const Track& track, std::span<const Track> tracks,
+                                            std::span<const Eigen::Vector3d> centres_m) const {
+  if (!track.confirmed || recent_arrays(track, centres_m.size()) != 1) return false;
+  const double since_s = track.last_update_s - kContributionMemoryS;
+  std::size_t feeding = 0;
+  while (feeding < centres_m.size() && track.heard_by_array_s[feeding] < since_s) ++feeding;
+  // Only the spread across the ray moves the direction: a one-array track's spread lies along
+  // its ray (its range is open), which widens no angular gate.
+  const auto across_variance_rad2 = [&](const Track& of, const Eigen::Vector3d& to_m) {
+    const double range_m = std::max(to_m.norm(), 1.0);
+    const Eigen::Vector3d along = to_m / range_m;
+    const Eigen::Matrix3d spread = of.filter->covariance().topLeftCorner<3, 3>();
+    return std::max(spread.trace() - along.dot(spread * along), 0.0) / 2.0 / (range_m * range_m);
+  };
+  const Eigen::Vector3d to_track = position_of(track.filter->mean()) - centres_m[feeding];
+  const double spread_m2 = track.filter->covariance().topLeftCorner<3, 3>().trace();
+  for (const Track& other : tracks) {
+    if (&other == &track || !other.confirmed ||
+        !(other.filter->covariance().topLeftCorner<3, 3>().trace() < spread_m2) ||
+        other.heard_by_array_s[feeding] == track.heard_by_array_s[feeding])
+      continue;
+    bool fed_by_others = false;
+    for (std::size_t a = 0; a < centres_m.size(); ++a)
+      if (a != feeding && other.heard_by_array_s[a] >= since_s) fed_by_others = true;
+    if (!fed_by_others) continue;
+    const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[feeding];
+    const double cosine =
+        to_track.dot(to_other) / (std::max(to_track.norm(), 1.0) * std::max(to_other.norm(), 1.0));
+    const double angle_rad = std::acos(std::clamp(cosine, -1.0, 1.0));
+    const double variance_rad2 = floor_variance_rad2_ + across_variance_rad2(track, to_track) +
+                                 across_variance_rad2(other, to_other);
+    if (angle_rad * angle_rad <= gate_chi2_ * variance_rad2) return true;
+  }
+  return false;
+}
+
 bool TrackConfirmation::beneath_another_track(const Track& track,
                                               std::span<const Track> tracks) const {
   const Eigen::Vector3d position = position_of(track.filter->mean());

@@ -51,6 +51,14 @@ class TrackConfirmation {
   // (the classifier does not make it a drone on them).
   bool along_sharper_tracks(const Track& track, std::span<const Track> tracks,
                             std::span<const Eigen::Vector3d> centres_m) const;
+  // Duplicate test (issue 14 item 6): one array alone fed the confirmed `track` in the last
+  // kContributionMemoryS, and from that array it lies along the ray of a confirmed track with a
+  // smaller position spread that other arrays feed, and to which that array's latest frame gave
+  // no DOA of its own: the array hears one source there (each frame's DOA goes to one of the two;
+  // two sources it resolves give both a DOA in one frame), and cannot tell where along its ray:
+  // `track` says nothing the sharper track does not, and holds that array's DOAs from it.
+  bool duplicate_along_ray(const Track& track, std::span<const Track> tracks,
+                           std::span<const Eigen::Vector3d> centres_m) const;
 
  private:
   // From every array that recently updated `track`, it lies within the gate of the direction to

@@ -11,6 +11,10 @@
 
 namespace dronetrack::fusion {
 
+namespace {
+constexpr double kDuplicateDwellS = 1.0;
+}  // namespace
+
 void FusionEngine::Impl::confirm_tracks(double now_s) {
   for (Track& track : tracks) {
     if (track.confirmed || !confirmation->confirmable(track, tracks, last_centre_m)) continue;
@@ -29,6 +33,10 @@ void FusionEngine::Impl::life_cycle(double now_s) {
                                track.time_s);
     classifier->classify(track.evidence,
                          confirmation->along_sharper_tracks(track, tracks, last_centre_m));
+    if (!confirmation->duplicate_along_ray(track, tracks, last_centre_m))
+      track.duplicate_since_s = kNeverS;
+    else if (track.duplicate_since_s == kNeverS)
+      track.duplicate_since_s = now_s;
   }
   delete_expired(now_s);
 }
@@ -39,6 +47,13 @@ void FusionEngine::Impl::delete_expired(double now_s) {
     const bool unconfirmed_expired =
         !track.confirmed && now_s - track.last_update_s > params.tentative_timeout_s;
     if (unconfirmed_expired) ++counters.ghosts_rejected;
+    // A real source one array alone hears may cross another track's ray from it; a duplicate
+    // stays on that ray, held there by that array's DOAs of the sharper track's source.
+    if (track.confirmed && track.duplicate_since_s != kNeverS &&
+        now_s - track.duplicate_since_s >= kDuplicateDwellS) {
+      ++counters.duplicates_pruned;
+      return true;
+    }
     const Eigen::Vector3d variance =
         track.filter->covariance().diagonal().segment<3>(StateBlock::position);
     if (!variance.allFinite()) return true;

@@ -129,6 +129,9 @@ struct Track {
   TrackEvidence evidence;  // drone or not
   std::array<AcousticTally, kMaxArrays> acoustic_by_array{};
   double confirmed_at_s = 0.0;
+  // Since when it has been a duplicate along a sharper track's ray (duplicate_along_ray), else
+  // kNeverS.
+  double duplicate_since_s = kNeverS;
   // The arrays whose DOAs started it (a pair and the arrays agreeing then; bit per array): what
   // each array gave it since is its updates less that one.
   std::uint64_t birth_arrays = 0;

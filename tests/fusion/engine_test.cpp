@@ -690,39 +690,59 @@ TEST(FusionEngine, TentativeTrackOneArrayFeedsDoesNotKeepTheDroneFromStarting) {
   EXPECT_EQ(result.counters.tracks_started, 2);  // the ghost, then the drone's own
 }
 
-// Issue 14 item 6 from DOAs (mixed draw 28's situation): in the first frame two one-frame sounds,
-// heard by N2 and N3, lie on rays that cross N4's ray to a hovering drone (comb 151 Hz) at one
-// point 40 m short of it. The three rays start a track there, and for the next second only N4
-// feeds it (the drone's DOAs): it must not be confirmed there (without session 20's rule: 9 of
-// the 10 ticks before 1 s, from two frames after its birth). From 1 s N1 and N3 hear the drone: a
-// confirmed `drone` on it from 2.5 s.
-TEST(FusionEngine, ThreeRaysMeetingOnceThenOneArrayConfirmNoTrack) {
-  const std::vector<doa::ArrayGeometry> arrays = square_site(100.0);
-  const Eigen::Vector3d crossing(-130, 46, 22);
-  const Eigen::Vector3d centre2 = arrays[1].centre_site_m();
-  const Eigen::Vector3d centre3 = arrays[2].centre_site_m();
-  const Eigen::Vector3d centre4 = arrays[3].centre_site_m();
+// Mixed draws 28 and 33's geometry: two sounds N2 and N3 hear at the start (sources 1 and 2) lie
+// on rays that cross N4's ray to a hovering drone (source 0, comb 151 Hz) at one point 40 m short
+// of it. `n3_sound_s`: how long N3 hears source 2; `drone_heard_from_s`: when N1 and N3 start
+// hearing the drone; `n3_comb`: whether N3's DOAs of source 2 carry the drone's comb (draw 33: they
+// were the drone's, a few degrees off).
+struct CrossingScene {
+  std::vector<doa::ArrayGeometry> arrays = square_site(100.0);
+  Eigen::Vector3d crossing{-130, 46, 22};
+  Eigen::Vector3d drone;
+  RunResult result;
+};
+
+CrossingScene run_crossing(double n3_sound_s, double drone_heard_from_s, bool n3_comb,
+                           double duration_s) {
+  CrossingScene scene;
+  const Eigen::Vector3d centre2 = scene.arrays[1].centre_site_m();
+  const Eigen::Vector3d centre3 = scene.arrays[2].centre_site_m();
+  const Eigen::Vector3d centre4 = scene.arrays[3].centre_site_m();
+  const Eigen::Vector3d crossing = scene.crossing;
   const Eigen::Vector3d drone = centre4 + 1.6 * (crossing - centre4);  // beyond it on N4's ray
+  scene.drone = drone;
   const Eigen::Vector3d beyond2 = centre2 + 1.3 * (crossing - centre2);
   const Eigen::Vector3d beyond3 = centre3 + 1.2 * (crossing - centre3);
   const std::vector<Trajectory> sources{[drone](double) { return drone; },
                                         [beyond2](double) { return beyond2; },
                                         [beyond3](double) { return beyond3; }};
-  const Audibility heard = [](int array, int source, double t, std::mt19937_64&) {
+  const Audibility heard = [=](int array, int source, double t, std::mt19937_64&) {
     if (source == 1) return array == 1 && t < 0.03;  // N2: one frame
-    if (source == 2) return array == 2 && t < 0.03;  // N3: one frame
-    return array == 3 || ((array == 0 || array == 2) && t >= 1.0);
+    if (source == 2) return array == 2 && t < n3_sound_s;
+    return array == 3 || ((array == 0 || array == 2) && t >= drone_heard_from_s);
   };
-  const Spectrum spectrum = [](int, int source) {
+  const Spectrum spectrum = [n3_comb](int, int source) {
+    const bool comb = source == 0 || (source == 2 && n3_comb);
     doa::AcousticFeatures features;
     features.valid = true;
-    features.comb_persistence = source == 0 ? 1.0 : 0.0;
-    features.fundamental_hz = source == 0 ? 151.0 : 0.0;
-    features.broadband_share = source == 0 ? 0.2 : 0.95;
+    features.comb_persistence = comb ? 1.0 : 0.0;
+    features.fundamental_hz = comb ? 151.0 : 0.0;
+    features.broadband_share = comb ? 0.2 : 0.95;
     return features;
   };
-  const RunResult result =
-      run(FusionParams{}, arrays, sources, 6.0, {0.2, true}, 28, heard, spectrum);
+  scene.result =
+      run(FusionParams{}, scene.arrays, sources, duration_s, {0.2, true}, 28, heard, spectrum);
+  return scene;
+}
+
+// Issue 14 item 6 from DOAs (mixed draw 28's situation): N2 and N3 hear their sounds one frame.
+// The three rays start a track at the crossing, and for the next second only N4 feeds it (the
+// drone's DOAs): it must not be confirmed there (without session 20's rule: 9 of the 10 ticks
+// before 1 s, from two frames after its birth). From 1 s N1 and N3 hear the drone: a confirmed
+// `drone` on it from 2.5 s.
+TEST(FusionEngine, ThreeRaysMeetingOnceThenOneArrayConfirmNoTrack) {
+  const CrossingScene scene = run_crossing(0.03, 1.0, false, 6.0);
+  const RunResult& result = scene.result;
   // Confirmed ticks within 10 m of the crossing while N4 alone feeds it (from 1 s N1's and N3's
   // DOAs of the drone may pull it there: it is then the drone's track).
   int crossing_ticks = 0;
@@ -732,8 +752,9 @@ TEST(FusionEngine, ThreeRaysMeetingOnceThenOneArrayConfirmNoTrack) {
     bool drone_seen = false;
     for (const TrackReport& track : result.reports[i]) {
       if (track.status == TrackStatus::tentative) continue;
-      if (result.times[i] < 1.0 && (track.position_m - crossing).norm() < 10.0) ++crossing_ticks;
-      if ((track.position_m - drone).norm() < 3.0 && track.track_class == TrackClass::drone)
+      if (result.times[i] < 1.0 && (track.position_m - scene.crossing).norm() < 10.0)
+        ++crossing_ticks;
+      if ((track.position_m - scene.drone).norm() < 3.0 && track.track_class == TrackClass::drone)
         drone_seen = true;
     }
     if (result.times[i] < 2.5) continue;
@@ -744,6 +765,46 @@ TEST(FusionEngine, ThreeRaysMeetingOnceThenOneArrayConfirmNoTrack) {
               drone_ticks, ticks);
   EXPECT_EQ(crossing_ticks, 0);
   EXPECT_EQ(drone_ticks, ticks);
+}
+
+// Duplicate along a ray (issue 14 item 6, mixed draw 33's situation): N3 hears its sound (with the
+// drone's comb) for 0.3 s, so the crossing is confirmed (a second array fed it after its birth);
+// then N4 alone feeds it. From 0.35 s N1 and N3 hear the drone: its own track, sharper, lies on
+// N4's ray to the crossing, and N4's one DOA a frame goes now to one, now to the other. The
+// crossing's track is pruned a second after it became such a duplicate (without the rule it
+// stays confirmed, sliding along N4's ray: 19 of the 23 ticks from 3.5 s); the drone's stays,
+// `drone`.
+TEST(FusionEngine, AOneArrayTrackOnASharperTracksRayIsPruned) {
+  const CrossingScene scene = run_crossing(0.33, 0.35, true, 6.0);
+  const RunResult& result = scene.result;
+  int early_crossing_ticks = 0;  // before 1 s: the crossing was confirmed (the premise)
+  int duplicate_ticks = 0;       // from 3.5 s, confirmed tracks 5 m or more off the drone
+  int drone_ticks = 0;           // from 3.5 s, a confirmed `drone` within 3 m of the drone
+  int ticks = 0;
+  for (std::size_t i = 0; i < result.reports.size(); ++i) {
+    const bool late = result.times[i] >= 3.5;
+    bool drone_seen = false;
+    for (const TrackReport& track : result.reports[i]) {
+      if (track.status == TrackStatus::tentative) continue;
+      const double off_drone_m = (track.position_m - scene.drone).norm();
+      if (result.times[i] < 1.0 && (track.position_m - scene.crossing).norm() < 10.0)
+        ++early_crossing_ticks;
+      if (late && off_drone_m >= 5.0) ++duplicate_ticks;
+      if (off_drone_m < 3.0 && track.track_class == TrackClass::drone) drone_seen = true;
+    }
+    if (!late) continue;
+    ++ticks;
+    drone_ticks += drone_seen ? 1 : 0;
+  }
+  std::printf(
+      "crossing confirmed %d ticks before 1 s; from 3.5 s %d duplicate ticks, drone %d "
+      "of %d ticks; %lld pruned\n",
+      early_crossing_ticks, duplicate_ticks, drone_ticks, ticks,
+      static_cast<long long>(result.counters.duplicates_pruned));
+  EXPECT_GT(early_crossing_ticks, 0);
+  EXPECT_EQ(duplicate_ticks, 0);
+  EXPECT_EQ(drone_ticks, ticks);
+  EXPECT_EQ(result.counters.duplicates_pruned, 1);
 }
 
 // The ground echo of a drone comes from its image under the ground; a node that reports it as a

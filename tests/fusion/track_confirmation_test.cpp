@@ -2,7 +2,9 @@
 #include "fusion/track_confirmation.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -189,6 +191,85 @@ TEST(SpectrumAgreement, TwoArraysHearingDifferentSpectraDisagree) {
   AcousticTally none;
   none.add(doa::AcousticFeatures{});
   EXPECT_EQ(none.analysed, 0);
+}
+
+// A sharper confirmed track on a source 60 m out that array 1 fed at 10 s, and three arrays.
+struct SharpSource {
+  TrackConfirmation rules{FusionParams{}, 1e-6, 13.8, 343.0};
+  std::vector<Eigen::Vector3d> centres{{0, 0, 2}, {100, 0, 2}, {50, -100, 2}};
+  Eigen::Vector3d source{50, 60, 30};
+  std::vector<Track> tracks;
+  SharpSource() {
+    tracks.push_back(track_at(source, 0.5, true));
+    tracks[0].last_update_s = 10.0;
+    tracks[0].heard_by_array_s[1] = 10.0;
+  }
+  // A confirmed track array 0 alone fed at 10 s, `along_std_m` along array 0's ray and 0.3 m
+  // across it, `angle_deg` off its ray to the source.
+  Track one_array_track(double angle_deg, double along_std_m) const {
+    const Eigen::Vector3d ray = (source - centres[0]).normalized();
+    const Eigen::Vector3d across = ray.cross(Eigen::Vector3d::UnitZ()).normalized();
+    const double angle_rad = angle_deg * 3.14159265358979 / 180.0;
+    const Eigen::Vector3d direction = std::cos(angle_rad) * ray + std::sin(angle_rad) * across;
+    Track track = track_at(centres[0] + 120.0 * direction, 0.3, true);
+    StateCovariance covariance = track.filter->covariance();
+    covariance.topLeftCorner<3, 3>() +=
+        along_std_m * along_std_m * direction * direction.transpose();
+    track.filter->initialise(track.filter->mean(), covariance);
+    track.last_update_s = 10.0;
+    track.heard_by_array_s[0] = 10.0;
+    return track;
+  }
+};
+
+// Duplicate along a ray (issue 14 item 6, mixed draw 33): a confirmed track array 0 alone fed in
+// the last second, on array 0's ray to a sharper confirmed track that arrays 1 and 2 feed: array
+// 0 hears one source there, which the sharper track already places.
+TEST(TrackConfirmation, AOneArrayTrackOnASharperTracksRayIsADuplicate) {
+  SharpSource site;
+  std::vector<Track>& tracks = site.tracks;
+  tracks[0].heard_by_array_s[2] = 9.8;
+  tracks.push_back(site.one_array_track(0.0, 5.0));
+  Track& duplicate = tracks[1];
+  duplicate.heard_by_array_s[1] = 8.5;  // before the last second
+  const auto is_duplicate = [&] {
+    return site.rules.duplicate_along_ray(duplicate, tracks, site.centres);
+  };
+  EXPECT_TRUE(is_duplicate());
+  EXPECT_FALSE(site.rules.duplicate_along_ray(tracks[0], tracks, site.centres));
+  // Array 0's latest frame gave each a DOA: it hears two sources along that ray.
+  tracks[0].heard_by_array_s[0] = 10.0;
+  EXPECT_FALSE(is_duplicate());
+  // Its frames' one DOA went now to one, now to the other: one source.
+  tracks[0].heard_by_array_s[0] = 9.95;
+  EXPECT_TRUE(is_duplicate());
+  tracks[0].heard_by_array_s[0] = kNeverS;
+  // A second array fed it in the last second: that array places it elsewhere.
+  duplicate.heard_by_array_s[1] = 9.5;
+  EXPECT_FALSE(is_duplicate());
+  duplicate.heard_by_array_s[1] = 8.5;
+  // Nor when no other array fed the sharper track in the last second.
+  tracks[0].heard_by_array_s[1] = 8.0;
+  tracks[0].heard_by_array_s[2] = 8.0;
+  EXPECT_FALSE(is_duplicate());
+  tracks[0].heard_by_array_s[1] = 10.0;
+  // Nor along a track that is not confirmed.
+  tracks[0].confirmed = false;
+  EXPECT_FALSE(is_duplicate());
+  tracks[0].confirmed = true;
+  EXPECT_TRUE(is_duplicate());
+}
+
+// A track one array alone hears has its spread along that array's ray (its range is open): that
+// spread does not widen the angle within which it is taken for another track's duplicate. 30 m
+// std along the ray: 3 degrees off the sharper track's ray it is a second source, on it a
+// duplicate.
+TEST(TrackConfirmation, AOneArrayTrackBesideASharperTracksRayIsKept) {
+  SharpSource site;
+  site.tracks.push_back(site.one_array_track(3.0, 30.0));
+  EXPECT_FALSE(site.rules.duplicate_along_ray(site.tracks[1], site.tracks, site.centres));
+  site.tracks[1] = site.one_array_track(0.0, 30.0);
+  EXPECT_TRUE(site.rules.duplicate_along_ray(site.tracks[1], site.tracks, site.centres));
 }
 
 }  // namespace
