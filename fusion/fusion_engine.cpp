@@ -175,6 +175,7 @@ void FusionEngine::Impl::feed_until(double cutoff_s) {
     delete_expired(frame_time_s);
     process_frame(begin, end);
     confirm_tracks(frame_time_s);
+    mark_duplicates(frame_time_s);
     begin = end;
   }
   queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(begin));

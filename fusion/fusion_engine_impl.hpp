@@ -233,6 +233,10 @@ struct FusionEngine::Impl {
   // life_cycle (at each advance) deletes up to that time and updates the classifier.
   void life_cycle(double now_s);
   void confirm_tracks(double now_s);
+  // After each frame (at its time, so that the tracks do not depend on how the caller batches
+  // advance_to): since when each track has been a duplicate along a sharper track's ray
+  // (TrackConfirmation::duplicate_along_ray); delete_expired prunes it after kDuplicateDwellS.
+  void mark_duplicates(double now_s);
   void delete_expired(double now_s);
   std::optional<TrackConfirmation> confirmation;  // the rules confirm_tracks applies
   // A position spread beyond max_position_std_m is a lost track, except along the ray of an array

@@ -24,6 +24,15 @@ void FusionEngine::Impl::confirm_tracks(double now_s) {
   }
 }
 
+void FusionEngine::Impl::mark_duplicates(double now_s) {
+  for (Track& track : tracks) {
+    if (!confirmation->duplicate_along_ray(track, tracks, last_centre_m))
+      track.duplicate_since_s = kNeverS;
+    else if (track.duplicate_since_s == kNeverS)
+      track.duplicate_since_s = now_s;
+  }
+}
+
 void FusionEngine::Impl::life_cycle(double now_s) {
   for (Track& track : tracks) {
     const StateVector& mean = track.filter->mean();
@@ -33,10 +42,6 @@ void FusionEngine::Impl::life_cycle(double now_s) {
                                track.time_s);
     classifier->classify(track.evidence,
                          confirmation->along_sharper_tracks(track, tracks, last_centre_m));
-    if (!confirmation->duplicate_along_ray(track, tracks, last_centre_m))
-      track.duplicate_since_s = kNeverS;
-    else if (track.duplicate_since_s == kNeverS)
-      track.duplicate_since_s = now_s;
   }
   delete_expired(now_s);
 }
