@@ -125,9 +125,12 @@ std::string FusionMetrics::text() const {
                     "Triangulated candidate points refused, by reason", "reason", candidates);
   const Counts track_events[] = {{"started", engine_.tracks_started},
                                  {"confirmed", engine_.tracks_confirmed},
-                                 {"deleted", engine_.tracks_deleted}};
+                                 {"deleted", engine_.tracks_deleted},
+                                 {"duplicate_pruned", engine_.duplicates_pruned}};
   labelled_counters(out, "dronetrack_fusion_track_events_total",
-                    "Tracks started, confirmed and deleted", "event", track_events);
+                    "Tracks started, confirmed and deleted (duplicate_pruned: of the deleted, "
+                    "duplicates along a sharper track's ray)",
+                    "event", track_events);
   out.family("dronetrack_fusion_ticks_total", Type::counter, "Track output ticks emitted");
   out.sample("dronetrack_fusion_ticks_total", static_cast<double>(ticks_));
 

@@ -159,8 +159,12 @@ bool TrackConfirmation::duplicate_along_ray(const Track& track, std::span<const 
                                             std::span<const Eigen::Vector3d> centres_m) const {
   if (!track.confirmed || recent_arrays(track, centres_m.size()) != 1) return false;
   const double since_s = track.last_update_s - kContributionMemoryS;
+  // The one array recent_arrays() counted, by its own test.
   std::size_t feeding = 0;
-  while (feeding < centres_m.size() && track.heard_by_array_s[feeding] < since_s) ++feeding;
+  while (feeding < centres_m.size() &&
+         track.last_update_s - track.heard_by_array_s[feeding] > kContributionMemoryS)
+    ++feeding;
+  if (feeding == centres_m.size()) return false;
   // Only the spread across the ray moves the direction: a one-array track's spread lies along
   // its ray (its range is open), which widens no angular gate.
   const auto across_variance_rad2 = [&](const Track& of, const Eigen::Vector3d& to_m) {

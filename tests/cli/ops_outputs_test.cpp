@@ -212,6 +212,10 @@ TEST_F(OpsOutputs, MetricsMatchTheRunsOwnOutputs) {
   }
   EXPECT_GE(metrics.value("dronetrack_fusion_track_events_total{event=\"confirmed\"}"),
             static_cast<double>(ids.size()));
+  // Duplicates pruned are among the deleted (NaN, absent, fails both).
+  EXPECT_GE(metrics.value("dronetrack_fusion_track_events_total{event=\"duplicate_pruned\"}"), 0.0);
+  EXPECT_LE(metrics.value("dronetrack_fusion_track_events_total{event=\"duplicate_pruned\"}"),
+            metrics.value("dronetrack_fusion_track_events_total{event=\"deleted\"}"));
 }
 
 TEST_F(OpsOutputs, ReplayPlotDrawsEveryTrackAndArray) {
