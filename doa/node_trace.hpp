@@ -27,7 +27,8 @@ enum class SearchEnd : std::uint8_t {
   not_run,      // not sharp, no SRP, or the primary was the only look
   capacity,     // max_sources found
   under_floor,  // no direction of what was left cleared the SRP noise floor
-  looks_spent,  // max_sources + 2 looks made, the last ones refused or duplicates
+  looks_spent,  // every free look made (max_sources + 2, at most kMaxFreeLooks), the last ones
+                // refused or duplicates
 };
 
 struct LookTrace {

@@ -31,6 +31,15 @@ bool held_by_one_array(const Track& track, std::size_t array_count, int confirm_
   return holding == 1;
 }
 
+namespace {
+// The angle at an array between the directions to two points (vectors from its centre), each
+// range floored at 1 m.
+double angle_between_rad(const Eigen::Vector3d& to_a, const Eigen::Vector3d& to_b) {
+  const double cosine = to_a.dot(to_b) / (std::max(to_a.norm(), 1.0) * std::max(to_b.norm(), 1.0));
+  return std::acos(std::clamp(cosine, -1.0, 1.0));
+}
+}  // namespace
+
 TrackConfirmation::TrackConfirmation(const FusionParams& params, double floor_variance_rad2,
                                      double gate_chi2, double speed_of_sound_mps)
     : params_(params),
@@ -119,8 +128,7 @@ bool TrackConfirmation::along_rays_of(const Track& track, std::span<const Track>
       const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[a];
       const double other_range_m = std::max(to_other.norm(), 1.0);
       const double other_spread_m2 = other.filter->covariance().topLeftCorner<3, 3>().trace() / 3.0;
-      const double angle_rad =
-          std::acos(std::clamp(to_track.dot(to_other) / (range_m * other_range_m), -1.0, 1.0));
+      const double angle_rad = angle_between_rad(to_track, to_other);
       const double variance_rad2 = floor_variance_rad2_ + spread_m2 / (range_m * range_m) +
                                    other_spread_m2 / (other_range_m * other_range_m);
       if (angle_rad * angle_rad <= gate_chi2_ * variance_rad2) {
@@ -185,9 +193,7 @@ bool TrackConfirmation::duplicate_along_ray(const Track& track, std::span<const 
       if (a != feeding && other.heard_by_array_s[a] >= since_s) fed_by_others = true;
     if (!fed_by_others) continue;
     const Eigen::Vector3d to_other = position_of(other.filter->mean()) - centres_m[feeding];
-    const double cosine =
-        to_track.dot(to_other) / (std::max(to_track.norm(), 1.0) * std::max(to_other.norm(), 1.0));
-    const double angle_rad = std::acos(std::clamp(cosine, -1.0, 1.0));
+    const double angle_rad = angle_between_rad(to_track, to_other);
     const double variance_rad2 = floor_variance_rad2_ + across_variance_rad2(track, to_track) +
                                  across_variance_rad2(other, to_other);
     if (angle_rad * angle_rad <= gate_chi2_ * variance_rad2) return true;

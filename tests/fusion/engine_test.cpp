@@ -764,6 +764,7 @@ TEST(FusionEngine, ThreeRaysMeetingOnceThenOneArrayConfirmNoTrack) {
   std::printf("crossing confirmed %d ticks; drone %d of %d ticks from 2.5 s\n", crossing_ticks,
               drone_ticks, ticks);
   EXPECT_EQ(crossing_ticks, 0);
+  EXPECT_GT(ticks, 0);
   EXPECT_EQ(drone_ticks, ticks);
 }
 
@@ -803,6 +804,7 @@ TEST(FusionEngine, AOneArrayTrackOnASharperTracksRayIsPruned) {
       static_cast<long long>(result.counters.duplicates_pruned));
   EXPECT_GT(early_crossing_ticks, 0);
   EXPECT_EQ(duplicate_ticks, 0);
+  EXPECT_GT(ticks, 0);
   EXPECT_EQ(drone_ticks, ticks);
   EXPECT_EQ(result.counters.duplicates_pruned, 1);
 }
