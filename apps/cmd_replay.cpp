@@ -7,6 +7,7 @@
 #include "apps/replay_session.hpp"
 #include "common/log.hpp"
 #include "config/site_config.hpp"
+#include "eval/readers.hpp"
 
 namespace dronetrack::apps {
 namespace {
@@ -59,6 +60,13 @@ void register_replay(CLI::App& root, CommandTable& table) {
               "recordings")
           ->check(CLI::ExistingFile)
           ->excludes(realtime);
+  command
+      ->add_option("--audio-end-s", arguments->session.doa_in_audio_end_s,
+                   "With --doa-in: the end of the audio the DOAs were made from, seconds on the "
+                   "DOAs' clock; the tracks are reported up to it, as a replay of that audio "
+                   "does (default: up to the last DOA)")
+      ->check(finite_in(-eval::kMaxAbsoluteTime_s, eval::kMaxAbsoluteTime_s))
+      ->needs(doa_in);
   auto* outliers =
       command
           ->add_option("--doa-outliers", arguments->session.doa_outliers.share,

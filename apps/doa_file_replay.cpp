@@ -127,7 +127,7 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
 ReplaySummary replay_doas(const config::SiteConfig& site,
                           const std::vector<doa::DoaMeasurement>& doas,
                           const std::vector<FusionObserver*>& observers,
-                          const std::atomic<bool>* stop) {
+                          const std::atomic<bool>* stop, double audio_end_s) {
   const auto wall_start = std::chrono::steady_clock::now();
   FusionDriver driver(site, observers);
   ReplaySummary summary;
@@ -140,7 +140,8 @@ ReplaySummary replay_doas(const config::SiteConfig& site,
     if (driver.on_doa(doa) == fusion::DoaVerdict::accepted) ++summary.doas_accepted;
     if (std::isfinite(doa.time_s)) summary.stream_s = std::max(summary.stream_s, doa.time_s);
   }
-  driver.finish();
+  driver.finish(audio_end_s);
+  if (std::isfinite(audio_end_s)) summary.stream_s = std::max(summary.stream_s, audio_end_s);
   summary.ticks = driver.ticks_emitted();
   summary.counters = driver.engine().counters();
   // Only an estimate is news: a fixed e is the config's.
@@ -154,6 +155,22 @@ ReplaySummary replay_doas(const config::SiteConfig& site,
   summary.wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return summary;
+}
+
+std::string audio_end_problem(const std::vector<doa::DoaMeasurement>& doas, double audio_end_s) {
+  if (!std::isfinite(audio_end_s) || doas.empty()) return "";
+  const std::string option = "--audio-end-s " + config::format_number(audio_end_s);
+  // The DOAs are in time order: the first and last are the file's span.
+  if (audio_end_s < doas.back().time_s) {
+    return option + " is before the last DOA (t " + config::format_number(doas.back().time_s) +
+           " s): the audio cannot end before a DOA made from it";
+  }
+  if (audio_end_s - doas.front().time_s > kMaxDoaSpan_s) {
+    return option + " is " + config::format_number(audio_end_s - doas.front().time_s) +
+           " s after the first DOA; one replay spans at most " +
+           config::format_number(kMaxDoaSpan_s) + " s (24 h)";
+  }
+  return "";
 }
 
 }  // namespace dronetrack::apps

@@ -4,6 +4,8 @@
 // fusion on a long recording then takes seconds instead of re-running every array's DSP.
 #include <atomic>
 #include <filesystem>
+#include <limits>
+#include <string>
 #include <vector>
 
 #include "apps/fusion_observer.hpp"
@@ -23,10 +25,17 @@ std::vector<doa::DoaMeasurement> read_doa_measurements(const std::filesystem::pa
                                                        const config::SiteConfig& site,
                                                        double default_std_deg = 0.5);
 
-// Feeds the DOAs (time order) to a FusionDriver with these observers, as the replay would.
+// Feeds the DOAs (time order) to a FusionDriver with these observers, as the replay would, and
+// reports the tracks up to audio_end_s (the end of the audio the DOAs were made from) or, when
+// it is not finite, up to the last DOA: a DOA file alone does not say when its audio ended.
 ReplaySummary replay_doas(const config::SiteConfig& site,
                           const std::vector<doa::DoaMeasurement>& doas,
                           const std::vector<FusionObserver*>& observers,
-                          const std::atomic<bool>* stop = nullptr);
+                          const std::atomic<bool>* stop = nullptr,
+                          double audio_end_s = std::numeric_limits<double>::quiet_NaN());
+
+// "" when audio_end_s can end a replay of these DOAs (time order), else the problem, naming
+// the option: before the last DOA, or more than kMaxDoaSpan_s after the first.
+std::string audio_end_problem(const std::vector<doa::DoaMeasurement>& doas, double audio_end_s);
 
 }  // namespace dronetrack::apps

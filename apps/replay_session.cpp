@@ -69,7 +69,11 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
   RecordingAlignment alignment;
   if (options.doa_in.empty()) alignment = align_recordings(site);
   std::vector<doa::DoaMeasurement> recorded_doas;
-  if (!options.doa_in.empty()) recorded_doas = read_doa_measurements(options.doa_in, site);
+  if (!options.doa_in.empty()) {
+    recorded_doas = read_doa_measurements(options.doa_in, site);
+    const std::string problem = audio_end_problem(recorded_doas, options.doa_in_audio_end_s);
+    if (!problem.empty()) throw std::runtime_error(problem);
+  }
   if (options.doa_outliers.share > 0.0) {
     const sim::AlphaStable& law = options.doa_outliers.law_deg;
     const std::size_t perturbed = sim::add_doa_outliers(recorded_doas, options.doa_outliers);
@@ -154,7 +158,8 @@ int run_replay_session(const config::SiteConfig& site, const ReplaySessionOption
 
   ReplaySummary summary;
   if (!options.doa_in.empty()) {
-    summary = replay_doas(site, recorded_doas, observers, &install_stop_handlers());
+    summary = replay_doas(site, recorded_doas, observers, &install_stop_handlers(),
+                          options.doa_in_audio_end_s);
     log::info("replay: ", summary.doas, " DOAs of ", options.doa_in, " (", summary.stream_s,
               " s) through the fusion in ", summary.wall_s, " s (", summary.doas_accepted,
               " accepted), ", summary.ticks, " track ticks");

@@ -1,6 +1,7 @@
 #pragma once
 // A whole replay as `replay` and `demo` run it: outputs opened, optionally served over HTTP,
 // nodes and fusion run, summary logged, then (when serving) kept up until Ctrl-C.
+#include <limits>
 #include <string>
 
 #include "config/site_config.hpp"
@@ -15,6 +16,9 @@ struct ReplaySessionOptions {
   std::string alerts_out;  // zone alerts and class changes as JSON lines; "" for none
   std::string plot_out;    // HTML page of the tracks and DOAs (docs/plots.md); "" for none
   std::string doa_in;      // DOA lines to run the fusion alone on, instead of the recordings
+  // With doa_in: the end of the audio the DOAs were made from (seconds, the DOAs' clock). The
+  // tracks are reported up to it, as a replay of that audio does; NaN: up to the last DOA.
+  double doa_in_audio_end_s = std::numeric_limits<double>::quiet_NaN();
   sim::DoaOutlierSettings
       doa_outliers;  // impulsive errors added to the doa_in lines (share 0: none)
   std::string http;  // ADDR:PORT to serve on; "" for none

@@ -31,6 +31,54 @@ enum class SearchEnd : std::uint8_t {
                 // refused or duplicates
 };
 
+// Names for printing a trace. A switch with no default: -Wswitch names an enumerator added
+// without one.
+constexpr const char* name(LookKind kind) {
+  switch (kind) {
+    case LookKind::primary:
+      return "primary";
+    case LookKind::followed:
+      return "followed";
+    case LookKind::free:
+      return "free";
+    case LookKind::static_look:
+      return "static";
+    case LookKind::comb:
+      return "comb";
+  }
+  return "?";
+}
+constexpr const char* name(LookOutcome outcome) {
+  switch (outcome) {
+    case LookOutcome::kept:
+      return "kept";
+    case LookOutcome::refused_pairs:
+      return "refused pairs";
+    case LookOutcome::refused_norm:
+      return "refused norm";
+    case LookOutcome::refused_chi2:
+      return "refused chi2";
+    case LookOutcome::duplicate:
+      return "duplicate";
+    case LookOutcome::below_horizon:
+      return "below horizon";
+  }
+  return "?";
+}
+constexpr const char* name(SearchEnd end) {
+  switch (end) {
+    case SearchEnd::not_run:
+      return "not run";
+    case SearchEnd::capacity:
+      return "capacity";
+    case SearchEnd::under_floor:
+      return "under floor";
+    case SearchEnd::looks_spent:
+      return "looks spent";
+  }
+  return "?";
+}
+
 struct LookTrace {
   LookKind kind = LookKind::primary;
   LookOutcome outcome = LookOutcome::kept;

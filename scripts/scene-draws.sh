@@ -3,8 +3,9 @@
 # each draw's DOAs with each DOA likelihood: the per-draw spread that one bundled draw hides
 # (docs/fusion.md "Why it is not the default yet": the mixed site's D2 moves by tens of points
 # between draws and with unrelated settings). Per draw: `sim` with the seed, one
-# `replay --doa-out` (the DOAs), then per likelihood `replay --doa-in` on a copy of the site
-# whose fusion section names it (plus --fusion JSON, e.g. '{"imm_turn_mode": false}') and `eval`.
+# `replay --doa-out` (the DOAs), then per likelihood `replay --doa-in --audio-end-s` on a copy of
+# the site whose fusion section names it (plus --fusion JSON, e.g. '{"imm_turn_mode": false}')
+# and `eval`.
 # --doa JSON is merged into the site's doa section for the node replay (e.g.
 # '{"follow_source_tracks": true}'); its DOAs and tracks are kept apart from the default's.
 # Prints one Markdown row per draw and likelihood: each drone's coverage and RMSE, id switches,
@@ -80,8 +81,12 @@ fusion["likelihood"] = sys.argv[3]
 fusion.update(json.loads(sys.argv[4]))
 json.dump(site, open(sys.argv[2], "w"), indent=1)
 PY
-    "$binary" replay "$site" --doa-in "$doas" --tracks-out "$dir/tracks-$likelihood$variant.jsonl" \
-      2>"$dir/replay-$likelihood$variant.log"
+    # The sim's recordings run from 0 to the scenario's duration: the tracks are reported to
+    # there, as the node replay that made the DOAs would.
+    audio_end_s=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["duration_s"])' \
+      "$dir/scenario.json")
+    "$binary" replay "$site" --doa-in "$doas" --audio-end-s "$audio_end_s" \
+      --tracks-out "$dir/tracks-$likelihood$variant.jsonl" 2>"$dir/replay-$likelihood$variant.log"
     "$binary" eval --truth "$dir/truth.json" --tracks "$dir/tracks-$likelihood$variant.jsonl" \
       --json "$dir/eval-$likelihood$variant.json" >/dev/null
     python3 - "$dir/eval-$likelihood$variant.json" "$seed" "$likelihood" <<'PY'

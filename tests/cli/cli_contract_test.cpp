@@ -189,6 +189,49 @@ TEST_F(CliContract, AudioReplayReportsTracksToTheRecordingsEnd) {
   EXPECT_LE(last_time_s(scene_ / "fused.jsonl"), last_doa_s);
 }
 
+// Told the audio's end, the fusion alone reports its tracks up to it, as the audio replay did.
+TEST_F(CliContract, FusionAloneToldTheAudioEndReportsTracksToIt) {
+  const Outcome fused = run({"replay", site().string(), "--doa-in", (scene_ / "doa.jsonl").string(),
+                             "--tracks-out", (dir_ / "t.jsonl").string(), "--audio-end-s", "3"},
+                            dir_);
+  ASSERT_EQ(fused.exit_code, 0) << fused.err;
+  EXPECT_NEAR(last_time_s(dir_ / "t.jsonl"), 3.0, 1e-9);
+  // The same track lines, to the DOA lines' printed precision (4 decimals of a direction).
+  std::istringstream fused_lines(read_text(dir_ / "t.jsonl"));
+  std::istringstream audio_lines(read_text(scene_ / "tracks.jsonl"));
+  std::string fused_line;
+  std::string audio_line;
+  int lines = 0;
+  while (std::getline(audio_lines, audio_line)) {
+    ASSERT_TRUE(std::getline(fused_lines, fused_line)) << "fused ends before line " << lines + 1;
+    const json fused_track = json::parse(fused_line);
+    const json audio_track = json::parse(audio_line);
+    EXPECT_EQ(fused_track["t"], audio_track["t"]) << fused_line;
+    EXPECT_EQ(fused_track["id"], audio_track["id"]) << fused_line;
+    EXPECT_EQ(fused_track["class"], audio_track["class"]) << fused_line;
+    for (int axis = 0; axis < 3; ++axis)
+      EXPECT_NEAR(fused_track["position_m"][axis].get<double>(),
+                  audio_track["position_m"][axis].get<double>(), 0.05)
+          << fused_line;
+    ++lines;
+  }
+  EXPECT_FALSE(std::getline(fused_lines, fused_line)) << "fused has more lines: " << fused_line;
+  EXPECT_GT(lines, 20);
+}
+
+TEST_F(CliContract, AudioEndBeforeTheLastDoaKeepsEarlierOutputs) {
+  write_earlier_results();
+  const Outcome outcome =
+      run({"replay", site().string(), "--doa-in", (scene_ / "doa.jsonl").string(), "--tracks-out",
+           (dir_ / "t.jsonl").string(), "--audio-end-s", "1"},
+          dir_);
+  EXPECT_EQ(outcome.exit_code, 1);
+  EXPECT_NE(last_line(outcome.err).find("--audio-end-s 1 is before the last DOA"),
+            std::string::npos)
+      << outcome.err;
+  expect_earlier_results_kept();
+}
+
 TEST_F(CliContract, TruncatedRecordingKeepsEarlierOutputs) {
   const fs::path cut = dir_ / "cut.wav";
   fs::copy_file(recording(0), cut);

@@ -127,29 +127,14 @@ class TraceCollector final : public FrameTraceSink {
   void frame(const FrameTrace& trace) override { frames.push_back(trace); }
 };
 
-// In the enums' order (doa/node_trace.hpp).
-const char* look_kind_name(LookKind kind) {
-  static constexpr std::array<const char*, 5> kNames{"primary", "followed", "free", "static",
-                                                     "comb"};
-  return kNames[static_cast<std::size_t>(kind)];
-}
-
-const char* look_outcome_name(LookOutcome outcome) {
-  static constexpr std::array<const char*, 6> kNames{
-      "kept", "refused pairs", "refused norm", "refused chi2", "duplicate", "below horizon"};
-  return kNames[static_cast<std::size_t>(outcome)];
-}
-
 // --frames: one array's frames in a window as the trace saw them, against the truth.
 void print_traced_frames(const std::vector<FrameTrace>& frames, const sim::Truth& truth,
                          std::size_t array, const EvaluationSettings& settings) {
-  static constexpr std::array<const char*, 4> kSearchEnds{"not run", "capacity", "under floor",
-                                                          "looks spent"};
   for (const FrameTrace& trace : frames) {
     if (trace.time_s < settings.frames_from_s || trace.time_s > settings.frames_to_s) continue;
     std::printf("frame %.4f s%s%s, search %s, comb look line bins %d\n", trace.time_s,
                 trace.sharp ? "" : " (not sharp)", trace.detecting ? "" : " (gate closed)",
-                kSearchEnds[static_cast<std::size_t>(trace.search_end)], trace.comb_line_bins);
+                name(trace.search_end), trace.comb_line_bins);
     for (const sim::SourceTruth& source : truth.sources) {
       const Eigen::Vector3d direction = truth_direction(source, array, trace.time_s);
       std::printf("  truth %-4s az %8.2f el %6.2f\n", source.id.c_str(), azimuth_deg(direction),
@@ -157,9 +142,8 @@ void print_traced_frames(const std::vector<FrameTrace>& frames, const sim::Truth
     }
     for (int l = 0; l < trace.look_count; ++l) {
       const LookTrace& look = trace.looks[static_cast<std::size_t>(l)];
-      std::printf("  look %-8s %-13s az %8.2f el %6.2f\n", look_kind_name(look.kind),
-                  look_outcome_name(look.outcome), azimuth_deg(look.direction_site),
-                  elevation_deg(look.direction_site));
+      std::printf("  look %-8s %-13s az %8.2f el %6.2f\n", name(look.kind), name(look.outcome),
+                  azimuth_deg(look.direction_site), elevation_deg(look.direction_site));
     }
     for (int c = 0; c < trace.candidate_count; ++c) {
       const Eigen::Vector3d& direction = trace.candidates[static_cast<std::size_t>(c)];
