@@ -23,6 +23,8 @@ void parse_acoustic_settings(ObjectReader& section, doa::AcousticSettings& setti
   settings.history_s = section.number("history_s", settings.history_s, 0.2, 60.0);
   settings.min_bin_coherence =
       section.number("min_bin_coherence", settings.min_bin_coherence, 0.0, 1.0);
+  settings.line_direction_tolerance_deg = section.number(
+      "line_direction_tolerance_deg", settings.line_direction_tolerance_deg, 0.0, 30.0);
   HarmonicCombSettings& comb = settings.comb;
   comb.min_fundamental_hz =
       section.number("min_fundamental_hz", comb.min_fundamental_hz, 5.0, 5000.0);

@@ -62,6 +62,15 @@ class AcousticFeatureExtractor {
     AcousticFeatures features;
   };
   void assign_bins(const MultichannelFft& fft, int sources);
+  // Whether the harmonics of `comb` point at `source`: their steered power over the bands'
+  // broadband peaks within line_direction_tolerance_deg of its direction (rings out to 20 deg).
+  // Leaves the harmonics' bins in line_bins_.
+  bool lines_point_at(const MultichannelFft& fft, const HarmonicComb& comb, int source);
+  // line_bins_' cross-spectral matrices less their off-line neighbours' mean, into line_excess_.
+  void line_excess(const MultichannelFft& fft);
+  double line_power(const Eigen::Vector3d& direction) const;
+  // line_bins_ set to the source's background in its spectrum `power`.
+  void drop_lines(std::span<double> power);
   void update_history(History& history, const HarmonicComb& comb, double level_db);
 
   AcousticSettings settings_;
@@ -82,6 +91,13 @@ class AcousticFeatureExtractor {
   std::vector<double> sorted_power_;               // for the median
   std::array<double, kMaxSources> owned_power_{};  // per source: its own bins' power
   std::vector<double> frame_autocorrelation_;
+  std::vector<double> mean_before_;  // a slot's mean autocorrelation before this analysis
+  std::array<Eigen::Vector3d, kMaxSources> source_directions_{};  // this analysis's, site frame
+  std::vector<std::uint8_t> on_line_;  // per feature-band bin: on the comb being checked
+  std::vector<int> line_bins_;         // those bins (FFT bin minus first_bin_)
+  std::vector<std::complex<double>> line_excess_;  // per line bin: M x M, upper triangle
+  double typical_power_ = 0.0;                     // the frame's median mic power over the band
+  double line_tolerance_rad_ = 0.0;                // line_direction_tolerance_deg
   std::array<History, kMaxSlots> histories_;
   AcousticFeatures none_;
 };

@@ -28,6 +28,12 @@ struct AcousticSettings {
   // A bin is a source's when steering to it makes the mics' phasors this coherent (|sum|^2 over
   // M sum |X|^2: 1 for one plane wave, 1/M for incoherent noise) and no other source's more.
   double min_bin_coherence = 0.5;
+  // A comb found on a source's bins is its evidence only when its lines, steered together, peak
+  // within this of the source's direction; otherwise they are another source's (one the frame
+  // did not find) whose beam overlaps this one's, and are taken out of its spectrum. 4 deg is
+  // srp_min_separation_deg's default: two directions closer than that are one source for the
+  // node. 0: no check.
+  double line_direction_tolerance_deg = 4.0;
   HarmonicCombSettings comb;
 };
 
