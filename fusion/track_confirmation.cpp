@@ -18,17 +18,20 @@ int recent_arrays(const Track& track, std::size_t array_count) {
   return count;
 }
 
+std::uint64_t arrays_fed_since_birth(const Track& track, std::size_t array_count) {
+  std::uint64_t fed = 0;
+  for (std::size_t a = 0; a < array_count; ++a) {
+    const int at_birth = static_cast<int>((track.birth_arrays >> a) & 1u);
+    if (track.updates_by_array[a] > at_birth) fed |= std::uint64_t{1} << a;
+  }
+  return fed;
+}
+
 bool held_by_one_array(const Track& track, std::size_t array_count, int confirm_hits) {
   if (track.confirmed || track.one_array) return false;
-  int holding = 0;
-  for (std::size_t a = 0; a < array_count; ++a) {
-    if (track.updates_by_array[a] >= confirm_hits) {
-      ++holding;
-    } else if (track.updates_by_array[a] > 1) {
-      return false;  // a second array did update it after its birth
-    }
-  }
-  return holding == 1;
+  const std::uint64_t fed = arrays_fed_since_birth(track, array_count);
+  return std::has_single_bit(fed) &&
+         track.updates_by_array[static_cast<std::size_t>(std::countr_zero(fed))] >= confirm_hits;
 }
 
 namespace {
@@ -99,12 +102,8 @@ bool TrackConfirmation::confirmable(const Track& track, std::span<const Track> t
   // (issue 14, mixed draw 28: N4's ray to D1 met N2's to the car and N3's to D1, 7 degrees off, at
   // 0.085 s; only N4 fed it after, N3's DOAs went to D1's own track, N2's to the car's; confirmed
   // at 0.235 s on its birth's three arrays and N4's hits, then `drone` for 5.9 s).
-  int fed_since_birth = 0;
-  for (std::size_t a = 0; a < centres_m.size(); ++a) {
-    const int at_birth = static_cast<int>((track.birth_arrays >> a) & 1u);
-    if (track.updates_by_array[a] > at_birth) ++fed_since_birth;
-  }
-  const bool one_array_since_birth = !track.one_array && fed_since_birth < 2;
+  const bool one_array_since_birth =
+      !track.one_array && std::popcount(arrays_fed_since_birth(track, centres_m.size())) < 2;
   return supported && above_ground && hits >= params_.confirm_hits && !displacing &&
          !one_array_since_birth && !explained_by_other_tracks(track, tracks, centres_m) &&
          !beneath_another_track(track, tracks) && !two_sources;

@@ -3,6 +3,7 @@
 // 17): whether a tentative track may be confirmed, judged against the other tracks. Pure reads
 // of the tracker's records; the engine marks and counts.
 #include <cstddef>
+#include <cstdint>
 #include <span>
 
 #include <Eigen/Core>
@@ -14,6 +15,10 @@ namespace dronetrack::fusion {
 
 // Arrays that updated the track within kContributionMemoryS of its last update.
 int recent_arrays(const Track& track, std::size_t array_count);
+
+// The arrays (bit a: array a) that updated the track after the DOAs it was born from
+// (Track::birth_arrays).
+std::uint64_t arrays_fed_since_birth(const Track& track, std::size_t array_count);
 
 // A tentative track (not a one-array track) that one array has updated confirm_hits times while
 // no other array updated it after its birth: nothing but its first pair ever said where along

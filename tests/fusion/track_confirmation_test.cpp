@@ -140,14 +140,23 @@ TEST(TrackConfirmation, ATrackOnlyOneArrayFedSinceItsBirthIsNotConfirmed) {
 
 TEST(TrackConfirmation, HeldByOneArrayOnlyWhileNoSecondArrayUpdatedIt) {
   Track track = track_at({0, 50, 20}, 1.0, false);
+  track.birth_arrays = 0b011;  // its birth pair, arrays 0 and 1
   track.updates_by_array[0] = 5;
-  track.updates_by_array[1] = 1;  // its birth pair
-  EXPECT_TRUE(held_by_one_array(track, 2, 5));
-  track.updates_by_array[1] = 2;
-  EXPECT_FALSE(held_by_one_array(track, 2, 5));
   track.updates_by_array[1] = 1;
+  EXPECT_TRUE(held_by_one_array(track, 3, 5));
+  track.updates_by_array[0] = 4;  // array 0 not yet confirm_hits times
+  EXPECT_FALSE(held_by_one_array(track, 3, 5));
+  track.updates_by_array[0] = 5;
+  track.updates_by_array[1] = 2;  // its birth partner fed it again
+  EXPECT_FALSE(held_by_one_array(track, 3, 5));
+  track.updates_by_array[1] = 1;
+  // One DOA of an array that was not at its birth is a second array after its birth, as for
+  // confirmation (the rule once counted only arrays with two updates).
+  track.updates_by_array[2] = 1;
+  EXPECT_FALSE(held_by_one_array(track, 3, 5));
+  track.updates_by_array[2] = 0;
   track.confirmed = true;
-  EXPECT_FALSE(held_by_one_array(track, 2, 5));
+  EXPECT_FALSE(held_by_one_array(track, 3, 5));
 }
 
 doa::AcousticFeatures comb(double fundamental_hz) {
