@@ -32,8 +32,9 @@ struct AcousticSettings {
   // within this of the source's direction; otherwise they are another source's (one the frame
   // did not find) whose beam overlaps this one's, and are taken out of its spectrum. 4 deg is
   // srp_min_separation_deg's default: two directions closer than that are one source for the
-  // node. 0: no check.
-  double line_direction_tolerance_deg = 4.0;
+  // node (a site sets 4 to check). 0: no check, the default: with the check the non-drones'
+  // tracks are confirmed more often (docs/classification.md "Whose lines").
+  double line_direction_tolerance_deg = 0.0;
   HarmonicCombSettings comb;
 };
 

@@ -138,12 +138,13 @@ TEST(AcousticFeatures, ACombFromAnotherDirectionIsNotTheBroadbandSourcesEvidence
 
   AcousticSettings unchecked;
   unchecked.line_direction_tolerance_deg = 0.0;
+  AcousticSettings checked;
+  checked.line_direction_tolerance_deg = 4.0;
   const CombSeen car_unchecked = combs_seen(recording, geometry, {car}, unchecked)[0];
-  const CombSeen car_checked = combs_seen(recording, geometry, {car}, AcousticSettings{})[0];
+  const CombSeen car_checked = combs_seen(recording, geometry, {car}, checked)[0];
   // The drone found 1.5 deg off (a DOA's error at range): its own comb is kept.
   const Eigen::Vector3d drone_found = direction_from_azel_deg(158.0, 6.0);
-  const std::vector<CombSeen> both =
-      combs_seen(recording, geometry, {drone_found, car}, AcousticSettings{});
+  const std::vector<CombSeen> both = combs_seen(recording, geometry, {drone_found, car}, checked);
   std::printf("car alone, lines unchecked: comb in %d of %d analyses (last %.1f Hz)\n",
               car_unchecked.with_comb, car_unchecked.analyses, car_unchecked.last_fundamental_hz);
   std::printf("car alone, lines checked: comb in %d of %d analyses\n", car_checked.with_comb,
