@@ -218,14 +218,7 @@ void BM_PipelineStage(benchmark::State& state) {
   const ArrayGeometry geometry = testing::tetrahedron(30.0);
   const int frame_length = static_cast<int>(params.frame_s * kRate + 0.5);
   MultichannelFft fft(4, frame_length, fftw_friendly_size(frame_length));
-  std::vector<MicPairSpec> pairs;
-  for (int i = 0; i < 4; ++i)
-    for (int j = i + 1; j < 4; ++j)
-      pairs.push_back({i, j,
-                       (geometry.mics_m[static_cast<std::size_t>(i)] -
-                        geometry.mics_m[static_cast<std::size_t>(j)])
-                               .norm() /
-                           343.0});
+  const std::vector<MicPairSpec> pairs = testing::all_pairs(geometry);
   GccPhat gcc(fft.fft_size(), frame_length, kRate, params.bands_hz, pairs, params.lag_interpolation,
               params.correlation_oversample);
   SourceBinMask mask(gcc);

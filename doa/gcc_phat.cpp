@@ -303,6 +303,20 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
   pair_phasors(units(), false, false);
 }
 
+void GccPhat::set_bin_spectrum(int band_index, std::span<const std::complex<double>> spectrum) {
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  for (int mic = 0; mic < unit_channels_; ++mic) {
+    const std::size_t index =
+        static_cast<std::size_t>(mic) * bins + static_cast<std::size_t>(band_index);
+    const std::complex<double> x = spectrum[static_cast<std::size_t>(mic)];
+    const double level = std::abs(x);
+    levels_[index] = level;
+    unit_re_[index] = level > 0.0 ? x.real() / level : 0.0;
+    unit_im_[index] = level > 0.0 ? x.imag() / level : 0.0;
+  }
+  prepared_ = false;
+}
+
 void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted,
                            const std::complex<double>* given) {
   // W_ij = u_i u_j* and |G_ij| = |X_i| |X_j| from whiten()'s per-mic rows; `masked`: bins

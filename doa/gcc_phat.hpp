@@ -158,6 +158,11 @@ class GccPhat {
   // |X_i| |X_j| without a square root per bin).
   std::span<const double> band_levels() const { return levels_; }
   int unit_channels() const { return unit_channels_; }
+  // Rewrites whiten()'s unit and level of every mic in one band bin from the given spectrum (mic
+  // order): a stage that changes the frame's spectra in place (StaticSourceCancel's projection).
+  // band_powers() stays whiten()'s (the in-band level and the channels' health are the mics'
+  // own); the pairs see the change at the next cross_power().
+  void set_bin_spectrum(int band_index, std::span<const std::complex<double>> spectrum);
   std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
   std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
   // The band-limited cross-power of every pair from the given units under the given mask:

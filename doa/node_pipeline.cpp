@@ -58,6 +58,7 @@ void NodePipeline::Impl::whiten(const FrameView& frame, double time_s) {
   if (static_look) static_look->accumulate(gcc);
   if (snr_weight) snr_weight->update(gcc.band_powers(), gcc.unit_channels(), gcc.bin_weight());
   if (static_null) static_null->mask(time_s, gcc);
+  if (static_cancel) static_cancel->apply(gcc);
 }
 
 // Every pair's correlation and peaks, and what the detection gate will judge of them.

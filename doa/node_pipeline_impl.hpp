@@ -30,6 +30,7 @@
 #include "doa/source_tracks.hpp"
 #include "doa/spectral_frame.hpp"
 #include "doa/srp_phat.hpp"
+#include "doa/static_source_cancel.hpp"
 #include "doa/static_source_look.hpp"
 #include "doa/static_source_null.hpp"
 #include "doa/tdoa_tracker.hpp"
@@ -260,8 +261,9 @@ struct NodePipeline::Impl {
   int comb_look_lines = 0;
   double min_elevation_sine = std::sin(params.min_elevation_deg * std::numbers::pi / 180.0);
   double separation_cosine = std::cos(params.srp_min_separation_deg * std::numbers::pi / 180.0);
-  std::unique_ptr<StaticSourceNull> static_null;  // static ground sources' bins dropped
-  std::unique_ptr<StaticSourceLook> static_look;  // static sources under louder ones
+  std::unique_ptr<StaticSourceNull> static_null;      // static ground sources' bins dropped
+  std::unique_ptr<StaticSourceCancel> static_cancel;  // ... or kept with the source projected out
+  std::unique_ptr<StaticSourceLook> static_look;      // static sources under louder ones
   std::array<Eigen::Vector3d, kMaxSources> found_directions{};  // the own looks', for it
   std::unique_ptr<BinSnrWeight> snr_weight;                     // noise-only bins faded
   std::unique_ptr<AcousticFeatureExtractor> acoustic;           // each source's spectral features

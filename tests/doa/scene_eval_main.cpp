@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: doa_scene_eval SCENARIO.json [--audible-snr-db DB] [--static-null 0|1] "
+                 "[--static-cancel 0|1] "
                  "[--audibility] [--breakdown] [--follow 0|1] [--comb-look 0|1] "
                  "[--frames ARRAY FROM_S TO_S] "
                  "[per_frame|bayesian_grid|multi_peak|"
@@ -32,7 +33,8 @@ int main(int argc, char** argv) {
     const sim::Scenario scenario = sim::load_scenario(argv[1], warnings);
     std::vector<doa::TdoaTracker> trackers;
     doa::testing::EvaluationSettings settings;
-    int static_null = -1;  // -1: as the scene's config says
+    int static_null = -1;    // -1: as the scene's config says
+    int static_cancel = -1;  // doa.static_null_cancel: -1 as the scene's config says
     bool audibility = false;
     int follow = -1;     // doa.follow_source_tracks: -1 as the scene's config says
     int comb_look = -1;  // doa.comb_look: -1 as the scene's config says
@@ -66,6 +68,10 @@ int main(int argc, char** argv) {
         comb_look = std::stoi(argv[++i]);
         continue;
       }
+      if (argv[i] == std::string("--static-cancel") && i + 1 < argc) {
+        static_cancel = std::stoi(argv[++i]) != 0 ? 1 : 0;
+        continue;
+      }
       if (argv[i] == std::string("--static-null") && i + 1 < argc) {
         static_null = std::stoi(argv[++i]) != 0 ? 1 : 0;
         continue;
@@ -95,6 +101,7 @@ int main(int argc, char** argv) {
       doa::DoaParams params = scenario.site.doa;
       params.tdoa_tracker = tracker;
       if (static_null >= 0) params.static_null = static_null == 1;
+      if (static_cancel >= 0) params.static_null_cancel = static_cancel == 1;
       if (follow >= 0) params.follow_source_tracks = follow == 1;
       if (comb_look >= 0) params.comb_look = comb_look == 1;
       const doa::testing::SceneResult result = doa::testing::evaluate(rendered, params, settings);

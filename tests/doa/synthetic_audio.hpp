@@ -8,12 +8,15 @@
 #include <complex>
 #include <numbers>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "doa/array_geometry.hpp"
 #include "doa/audio_block.hpp"
+#include "doa/doa_measurement.hpp"
+#include "doa/gcc_phat.hpp"
 
 namespace dronetrack::doa::testing {
 
@@ -125,6 +128,44 @@ inline void add_sensor_noise(Recording& recording, double sample_rate_hz, double
                           seed + 7919U * static_cast<unsigned>(mic + 1));
     recording.add(mic, noise.delayed(0.0, rms));
   }
+}
+
+// Every mic pair (i < j) with its physical lag limit |p_i - p_j| / c.
+inline std::vector<MicPairSpec> all_pairs(const ArrayGeometry& geometry,
+                                          double speed_of_sound_mps = 343.0) {
+  std::vector<MicPairSpec> pairs;
+  for (int i = 0; i < static_cast<int>(geometry.mic_count()); ++i)
+    for (int j = i + 1; j < static_cast<int>(geometry.mic_count()); ++j)
+      pairs.push_back({i, j,
+                       (geometry.mics_m[static_cast<std::size_t>(i)] -
+                        geometry.mics_m[static_cast<std::size_t>(j)])
+                               .norm() /
+                           speed_of_sound_mps});
+  return pairs;
+}
+
+// Frames (hop_s apart, centred from 0) in [from_s, to_s] with a DOA within `within_deg` of
+// `direction_site`: {found, frames}.
+inline std::pair<int, int> frames_found(const std::vector<DoaMeasurement>& doas,
+                                        const Eigen::Vector3d& direction_site, double within_deg,
+                                        double from_s, double to_s, double hop_s) {
+  const auto count = static_cast<std::size_t>(std::lround(to_s / hop_s)) + 1;
+  std::vector<bool> found(count, false);
+  for (const DoaMeasurement& doa : doas) {
+    if (doa.time_s < from_s || angle_between_deg(doa.direction, direction_site) > within_deg)
+      continue;
+    const auto frame = static_cast<std::size_t>(std::lround(doa.time_s / hop_s));
+    if (frame < count) found[frame] = true;
+  }
+  int frames = 0;
+  int hits = 0;
+  for (std::size_t f = 0; f < count; ++f) {
+    const double time_s = static_cast<double>(f) * hop_s;
+    if (time_s < from_s || time_s > to_s) continue;
+    ++frames;
+    hits += found[f] ? 1 : 0;
+  }
+  return {hits, frames};
 }
 
 inline ArrayGeometry tetrahedron(double yaw_deg = 0.0, const std::string& id = "A1") {

@@ -1,0 +1,86 @@
+#include "doa/static_source_cancel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace dronetrack::doa {
+
+StaticSourceCancel::StaticSourceCancel(const GccPhat& gcc, StaticCancelSettings settings)
+    : settings_(settings), mics_(gcc.unit_channels()), bins_(gcc.band_bin_count()) {
+  if (!(settings_.hop_s > 0.0) || !(settings_.learn_s > 0.0) || settings_.min_updates < 1)
+    throw std::invalid_argument("StaticSourceCancel: hop, learning time and updates must be > 0");
+  const auto per_bin = static_cast<std::size_t>(mics_);
+  const auto bins = static_cast<std::size_t>(bins_);
+  covariance_.assign(bins * per_bin * per_bin, {0.0, 0.0});
+  steering_.assign(bins * per_bin, {0.0, 0.0});
+  updates_.assign(bins, 0);
+  spectrum_.assign(per_bin, {0.0, 0.0});
+  iterated_.assign(per_bin, {0.0, 0.0});
+}
+
+void StaticSourceCancel::apply(GccPhat& gcc) {
+  cancelled_share_ = 0.0;
+  const std::span<std::uint8_t> keep = gcc.bin_keep();
+  const GccPhat::UnitsView units = gcc.units();
+  const std::span<const double> levels = gcc.band_levels();
+  const auto per_bin = static_cast<std::size_t>(mics_);
+  // Running mean over the first frames, then an average over ~learn_s (as the null's TDOAs).
+  const double max_weight_frames = std::max(1.0, settings_.learn_s / settings_.hop_s);
+  int cancelled = 0;
+  for (int k = 0; k < bins_; ++k) {
+    const auto bin = static_cast<std::size_t>(k);
+    if (keep[bin] != 0) continue;
+    double norm2 = 0.0;
+    for (int m = 0; m < mics_; ++m) {
+      const std::size_t index = static_cast<std::size_t>(m) * static_cast<std::size_t>(bins_) + bin;
+      spectrum_[static_cast<std::size_t>(m)] =
+          levels[index] * std::complex<double>(units.real[index], units.imag[index]);
+      norm2 += std::norm(spectrum_[static_cast<std::size_t>(m)]);
+    }
+    if (!(norm2 > 0.0)) continue;
+    // Each frame counts by its direction, not its level: a loud frame must not outvote the
+    // steady ones (the bin's level swings by tens of dB with a drone's harmonic passing).
+    std::complex<double>* covariance = covariance_.data() + bin * per_bin * per_bin;
+    std::complex<double>* steering = steering_.data() + bin * per_bin;
+    int& updates = updates_[bin];
+    ++updates;
+    const double weight = 1.0 / std::min<double>(updates, max_weight_frames);
+    for (std::size_t i = 0; i < per_bin; ++i)
+      for (std::size_t j = 0; j < per_bin; ++j)
+        covariance[i * per_bin + j] +=
+            weight * (spectrum_[i] * std::conj(spectrum_[j]) / norm2 - covariance[i * per_bin + j]);
+    // One power-iteration step from the last estimate (the first: this frame's vector) follows
+    // the leading eigenvector as the average settles.
+    if (updates == 1)
+      for (std::size_t i = 0; i < per_bin; ++i) steering[i] = spectrum_[i] / std::sqrt(norm2);
+    double iterated_norm2 = 0.0;
+    for (std::size_t i = 0; i < per_bin; ++i) {
+      std::complex<double> sum{0.0, 0.0};
+      for (std::size_t j = 0; j < per_bin; ++j) sum += covariance[i * per_bin + j] * steering[j];
+      iterated_[i] = sum;
+      iterated_norm2 += std::norm(sum);
+    }
+    if (!(iterated_norm2 > 0.0)) continue;
+    const double scale = 1.0 / std::sqrt(iterated_norm2);
+    for (std::size_t i = 0; i < per_bin; ++i) steering[i] = iterated_[i] * scale;
+    if (updates < settings_.min_updates) continue;
+    // x - a (a^H x): what is left of the bin with its owner cancelled.
+    std::complex<double> along{0.0, 0.0};
+    for (std::size_t i = 0; i < per_bin; ++i) along += std::conj(steering[i]) * spectrum_[i];
+    double residual2 = 0.0;
+    for (std::size_t i = 0; i < per_bin; ++i) {
+      spectrum_[i] -= along * steering[i];
+      residual2 += std::norm(spectrum_[i]);
+    }
+    if (residual2 < settings_.min_residual_share * norm2) continue;
+    gcc.set_bin_spectrum(k, spectrum_);
+    keep[bin] = 1;
+    ++cancelled;
+  }
+  if (cancelled == 0) return;
+  cancelled_share_ = static_cast<double>(cancelled) / bins_;
+  gcc.cross_power(gcc.units(), keep);
+}
+
+}  // namespace dronetrack::doa

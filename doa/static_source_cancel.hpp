@@ -1,0 +1,75 @@
+#pragma once
+// Static-source cancellation (doa.static_null_cancel): where the static null (StaticSourceNull)
+// drops the band bins a learned ground source owns, keep them with that source projected out.
+// A drone 2-8 dB under a generator in its own comb bins loses those bins to the null's drop;
+// the generator's spatial signature in each bin is steady (it does not move), so it can be
+// cancelled there instead: each bin's mic vector x is replaced by P x, P = I - a a^H, a the unit
+// steering vector of the bin's owner, and the drone's share of the bin survives.
+//
+// The steering vector is learned per bin, not modelled: the principal eigenvector of the bin's
+// spatial covariance averaged over the frames the null gave the bin to a static source (one
+// power-iteration step a frame from the last estimate). A generator 5 m away is in the near
+// field and its own ground reflection bends its phases; the covariance carries both, a plane-wave
+// model neither. A moving source in the same bins turns its phases from frame to frame and
+// averages out of the covariance's leading direction.
+//
+// Localising on P x: for a source with steering vector b the projected data is P b. Its pair
+// cross-spectra hold b_i b_j* at half weight, plus terms whose phase wanders with frequency
+// (they sum incoherently over bins), so the pair correlations still peak at the source's lags
+// and every later stage (GCC peaks, SRP looks, re-measures, ground echoes) runs unchanged on the
+// projected units. The steered power |v^H P x|^2 = |(P v)^H x|^2 is what a search on projected
+// steering vectors P v sums, without their normalisation |P v|^2 (docs/doa.md, stage 3c).
+//
+// Per frame: apply() right after StaticSourceNull::mask(), before any correlation. Everything is
+// sized in the constructor; nothing is allocated per frame.
+#include <complex>
+#include <cstdint>
+#include <vector>
+
+#include "doa/gcc_phat.hpp"
+
+namespace dronetrack::doa {
+
+struct StaticCancelSettings {
+  double hop_s = 0.05;   // time between frames
+  double learn_s = 3.0;  // the covariance's averaging time (the null's learning time)
+  int min_updates = 10;  // frames a bin must have been owned before it is cancelled
+  // A cancelled bin is kept only when what the projection leaves holds this share of the bin's
+  // power: with the owner alone in it, noise and the steering vector's error leave a few percent,
+  // which PHAT would lift to a full bin's weight of noise in every correlation.
+  double min_residual_share = 0.1;
+};
+
+class StaticSourceCancel {
+ public:
+  // `gcc` fixes the mics and the band.
+  StaticSourceCancel(const GccPhat& gcc, StaticCancelSettings settings);
+
+  // After StaticSourceNull::mask(), before any correlation: every band bin the mask dropped
+  // teaches its owner's covariance; once learned it is projected orthogonal to the owner's
+  // steering vector (gcc's units and levels of that bin rewritten), kept again, and every pair's
+  // cross-power remade. Bins the mask kept are untouched.
+  void apply(GccPhat& gcc);
+
+  // Share of the band bins cancelled (kept after projection) in the last apply().
+  double cancelled_share() const { return cancelled_share_; }
+  // The learned unit steering vector of one band bin (mic order), for tests.
+  std::complex<double> steering(int band_index, int mic) const {
+    return steering_[static_cast<std::size_t>(band_index * mics_ + mic)];
+  }
+
+ private:
+  StaticCancelSettings settings_;
+  int mics_ = 0;
+  int bins_ = 0;
+  // Per band bin: the mics' covariance (row-major mics x mics), the unit steering vector, and
+  // how many frames taught it.
+  std::vector<std::complex<double>> covariance_;
+  std::vector<std::complex<double>> steering_;
+  std::vector<int> updates_;
+  std::vector<std::complex<double>> spectrum_;  // one bin's mic vector
+  std::vector<std::complex<double>> iterated_;  // R a
+  double cancelled_share_ = 0.0;
+};
+
+}  // namespace dronetrack::doa
