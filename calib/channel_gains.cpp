@@ -3,16 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "calib/site_calibration.hpp"
+
 namespace dronetrack::calib {
-namespace {
-
-double median(std::vector<double> values) {
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
-
-}  // namespace
 
 std::vector<Estimate> estimate_channel_gains(const std::vector<std::vector<double>>& levels_db,
                                              double floor_db) {

@@ -26,6 +26,17 @@ endif()
 # includes are complete on its own).
 option(DRONETRACK_PCH "Precompiled headers for our libraries, executables and tests" ON)
 
+# Unity builds (CI time): a library's or the executable's files compiled in batches, so that the
+# template code most of them instantiate alike (Eigen's decompositions in doa/ and fusion/,
+# nlohmann-json, and CLI11 2.1, which is header-only and compiles its whole App in every file
+# that includes it: ~15 s of CPU per file under ASan) is compiled once per batch, not once per
+# file. The arithmetic is unchanged (no -march, so no FMA contraction outside the Highway
+# kernels, which are not batched: they include themselves once per vector target). A file
+# that must compile alone: set_source_files_properties(... SKIP_UNITY_BUILD_INCLUSION ON).
+# Off: -DDRONETRACK_UNITY=OFF (e.g. to check that each file's includes are complete alone).
+option(DRONETRACK_UNITY "Compile our libraries and the executable in batches of files" ON)
+set(DRONETRACK_UNITY_BATCH_SIZE 8 CACHE STRING "Files per unity batch")
+
 # The targets of directory `dir` and below.
 function(_dronetrack_targets_below dir out)
   get_property(targets DIRECTORY ${dir} PROPERTY BUILDSYSTEM_TARGETS)
@@ -38,6 +49,19 @@ function(_dronetrack_targets_below dir out)
 endfunction()
 
 function(dronetrack_build_speed)
+  if(DRONETRACK_UNITY)
+    _dronetrack_targets_below(${PROJECT_SOURCE_DIR} unity_targets)
+    foreach(target IN LISTS unity_targets)
+      get_target_property(type ${target} TYPE)
+      get_target_property(links ${target} LINK_LIBRARIES)
+      # Not the tests: their files share names (kRate, make_scene) in their anonymous namespaces.
+      if(type MATCHES "^(STATIC_LIBRARY|EXECUTABLE)$" AND "dronetrack_options" IN_LIST links
+         AND NOT "GTest::gtest_main" IN_LIST links)
+        set_target_properties(${target} PROPERTIES UNITY_BUILD ON
+                              UNITY_BUILD_BATCH_SIZE ${DRONETRACK_UNITY_BATCH_SIZE})
+      endif()
+    endforeach()
+  endif()
   # GCC only: it reads the headers as text where a PCH does not fit a target's flags; Clang
   # refuses such a PCH (e.g. a fuzz target's -fsanitize=fuzzer), so Clang builds go without.
   if(NOT DRONETRACK_PCH OR NOT CMAKE_CXX_COMPILER_ID STREQUAL "GNU")

@@ -9,7 +9,7 @@
 namespace dronetrack::sim {
 namespace {
 // Stream kinds beside noise.cpp's 10-14.
-enum StreamKind : std::uint64_t { kBurstSlots = 15, kBurstSamples = 16 };
+enum ImpulsiveStream : std::uint64_t { kBurstSlots = 15, kBurstSamples = 16 };
 }  // namespace
 
 ImpulsiveCounts add_impulsive_noise(const ImpulsiveNoise& spec, double rms, double sample_rate_hz,

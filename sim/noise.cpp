@@ -13,7 +13,13 @@ namespace dronetrack::sim {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-enum StreamKind : std::uint64_t { kSensor = 10, kWind = 11, kGust = 12, kCommon = 13, kLocal = 14 };
+enum NoiseStream : std::uint64_t {
+  kSensor = 10,
+  kWind = 11,
+  kGust = 12,
+  kCommon = 13,
+  kLocal = 14
+};
 
 // RBJ cookbook with Q = 1/sqrt(2): the bilinear-transformed Butterworth, whose low- and
 // high-pass of one corner are power complementary (|L|^2 + |H|^2 = 1).

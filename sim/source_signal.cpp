@@ -18,7 +18,7 @@ namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Stream kinds (random.hpp): each component of each source draws from its own stream.
-enum StreamKind : std::uint64_t { kRotorParameters = 1, kBroadband = 2, kTones = 3, kChirps = 4 };
+enum SourceStream : std::uint64_t { kRotorParameters = 1, kBroadband = 2, kTones = 3, kChirps = 4 };
 
 std::int64_t floor_div(std::int64_t a, std::int64_t b) {
   return a / b - ((a % b != 0) && ((a < 0) != (b < 0)) ? 1 : 0);
