@@ -47,8 +47,12 @@ constexpr double kSeconds = 12.0;
 // 2 h sin(elevation) / c at the centre), so that the ground-echo removal runs as in the field.
 // With `rotor`, also a rotor's harmonic comb (150 Hz lines, as loud) from another direction, so
 // that a frame has two sources and each re-measure looks for its own comb (doa.own_comb_bins,
-// stage 7c): band noise alone has no comb and that path never runs.
-testing::Recording make_scene(bool ground, bool rotor) {
+// stage 7c): band noise alone has no comb and that path never runs. With `generator`, also a
+// static broadband source below the horizon (a generator on the ground, ~6 dB over the source in
+// every band bin), so that the static null learns it (after static_null_learn_s) and the
+// cancellation (stage 3c) projects it out of the bins the null drops: the source under it keeps
+// a tenth or more of each bin's power, so most band bins are cancelled and kept.
+testing::Recording make_scene(bool ground, bool rotor, bool generator = false) {
   const ArrayGeometry geometry = testing::tetrahedron(30.0);
   const auto frames = static_cast<std::size_t>(kSeconds * kRate);
   testing::Recording out = testing::silent_recording(4, frames);
@@ -67,13 +71,21 @@ testing::Recording make_scene(bool ground, bool rotor) {
         testing::BandNoise::comb(static_cast<int>(frames), kRate, 150.0, 500.0, 6000.0, 3);
     testing::add_source(out, geometry, direction_from_azel_deg(200.0, 15.0), comb, 0.05);
   }
+  if (generator) {
+    const testing::BandNoise engine(static_cast<int>(frames), kRate, 100.0, 6000.0, 4);
+    testing::add_source(out, geometry, direction_from_azel_deg(-126.0, -10.0), engine, 0.1);
+  }
   testing::add_sensor_noise(out, kRate, 100.0, 12000.0, 0.03, 2);
   return out;
 }
 
-enum class Scene { ground, no_ground, rotor };
+enum class Scene { ground, no_ground, rotor, generator };
 const testing::Recording& scene(Scene kind = Scene::ground) {
   // Each made on first use only: synthesising one takes a while.
+  if (kind == Scene::generator) {
+    static const testing::Recording with_generator = make_scene(true, false, true);
+    return with_generator;
+  }
   if (kind == Scene::no_ground) {
     static const testing::Recording without_ground = make_scene(false, false);
     return without_ground;
@@ -134,9 +146,13 @@ BENCHMARK(BM_FftCrossSpectrumKernel)->Unit(benchmark::kMicrosecond);
 // beside the source (two sources a frame: the own-comb re-measures run); 9: the same without
 // own_comb_bins (that path's cost is /8 minus /9); 10: /8 with follow_source_tracks (the followed
 // sources and their fringe judgement run); 11: /8 with free_look_lobe_choice (its cost is /11
-// minus /8).
+// minus /8); 12: default DoaParams on the scene with a ground generator beside the source (the
+// static null learns it in the untimed warm-up, the cancellation keeps the bins it drops); 13:
+// /12 without static_null_cancel (the null's drop alone: the cancellation's cost is /12 minus
+// /13).
 void BM_NodePipeline(benchmark::State& state) {
   DoaParams params;
+  if (state.range(0) == 13) params.static_null_cancel = false;
   if (state.range(0) == 9) params.own_comb_bins = false;
   if (state.range(0) == 10) params.follow_source_tracks = true;
   if (state.range(0) == 11) params.free_look_lobe_choice = true;
@@ -150,26 +166,37 @@ void BM_NodePipeline(benchmark::State& state) {
   if (state.range(0) == 2) params.tdoa_tracker = TdoaTracker::per_frame;
   NodePipeline pipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
   const int hop = pipeline.hop_samples();
-  const testing::Recording& audio = state.range(0) == 3   ? scene(Scene::no_ground)
+  const bool generator = state.range(0) >= 12;
+  const testing::Recording& audio = generator             ? scene(Scene::generator)
+                                    : state.range(0) == 3 ? scene(Scene::no_ground)
                                     : state.range(0) >= 8 ? scene(Scene::rotor)
                                                           : scene();
   std::vector<DoaMeasurement> out;
   out.reserve(1 << 16);
-  // Warm up: fill the first frame and let the noise floor settle.
+  // Warm up, untimed: fill the first frame; with the generator, also learn it (the null's
+  // learning time and the cancellation's first updates), so every timed frame cancels.
+  const auto learned_samples =
+      static_cast<std::size_t>(generator ? (params.static_null_learn_s + 1.0) * kRate : 0.0);
   std::size_t next = 0;
-  pipeline.process(audio.view(0, static_cast<std::size_t>(pipeline.frame_length_samples())), out);
-  next = static_cast<std::size_t>(pipeline.frame_length_samples());
-  std::int64_t published_before = pipeline.diagnostics().doas_published;
-  std::int64_t frames_before = pipeline.diagnostics().frames_processed;
+  std::int64_t published_before = 0;
+  std::int64_t frames_before = 0;
+  const auto warm_up = [&] {
+    next = static_cast<std::size_t>(pipeline.frame_length_samples());
+    pipeline.process(audio.view(0, next), out);
+    for (; next < learned_samples; next += static_cast<std::size_t>(hop)) {
+      AudioBlockView block = audio.view(next, static_cast<std::size_t>(hop));
+      block.first_sample = static_cast<std::int64_t>(next);
+      pipeline.process(block, out);
+    }
+    published_before = pipeline.diagnostics().doas_published;
+    frames_before = pipeline.diagnostics().frames_processed;
+  };
+  warm_up();
   for (auto _ : state) {
     if (next + static_cast<std::size_t>(hop) > audio.frames()) {
       state.PauseTiming();
       pipeline = NodePipeline(testing::tetrahedron(30.0), 0, params, kRate, 343.0);
-      pipeline.process(audio.view(0, static_cast<std::size_t>(pipeline.frame_length_samples())),
-                       out);
-      next = static_cast<std::size_t>(pipeline.frame_length_samples());
-      published_before = pipeline.diagnostics().doas_published;
-      frames_before = pipeline.diagnostics().frames_processed;
+      warm_up();
       state.ResumeTiming();
     }
     AudioBlockView block = audio.view(next, static_cast<std::size_t>(hop));
@@ -181,6 +208,7 @@ void BM_NodePipeline(benchmark::State& state) {
   const auto frames = pipeline.diagnostics().frames_processed - frames_before;
   state.counters["doas_per_frame"] =
       frames > 0 ? double(pipeline.diagnostics().doas_published - published_before) / frames : 0.0;
+  state.counters["nulled"] = pipeline.diagnostics().static_sources_nulled;
 }
 BENCHMARK(BM_NodePipeline)
     ->Arg(0)
@@ -195,6 +223,8 @@ BENCHMARK(BM_NodePipeline)
     ->Arg(9)
     ->Arg(10)
     ->Arg(11)
+    ->Arg(12)
+    ->Arg(13)
     ->Unit(benchmark::kMicrosecond);
 
 // The bench scene's first frame (channel-major, as the Framer gives it) through `fft`.
@@ -462,16 +492,23 @@ int main(int argc, char** argv) {
           "us/frame)\n",
           no_static_look->second / kernel->second,
           (pipeline->second - no_static_look->second) * 1e6);
-    const auto rotor = reporter.seconds.find("BM_NodePipeline/8");
-    if (rotor != reporter.seconds.end())
-      std::printf("  pipeline / kernel:           %8.2f   (beside a rotor: two sources a frame)\n",
-                  rotor->second / kernel->second);
-    const auto rotor_no_comb = reporter.seconds.find("BM_NodePipeline/9");
-    if (rotor != reporter.seconds.end() && rotor_no_comb != reporter.seconds.end())
-      std::printf(
-          "  pipeline / kernel:           %8.2f   (the same without own_comb_bins: they add "
-          "%.1f us/frame)\n",
-          rotor_no_comb->second / kernel->second, (rotor->second - rotor_no_comb->second) * 1e6);
+    // A scene's ratio, then the same scene without one stage and what that stage adds.
+    const auto scene_and_stage = [&](const char* with, const char* scene_label, const char* without,
+                                     const char* stage_label) {
+      const auto found = reporter.seconds.find(with);
+      if (found == reporter.seconds.end()) return;
+      std::printf("  pipeline / kernel:           %8.2f   (%s)\n", found->second / kernel->second,
+                  scene_label);
+      const auto other = reporter.seconds.find(without);
+      if (other != reporter.seconds.end())
+        std::printf("  pipeline / kernel:           %8.2f   (%s %.1f us/frame)\n",
+                    other->second / kernel->second, stage_label,
+                    (found->second - other->second) * 1e6);
+    };
+    scene_and_stage("BM_NodePipeline/8", "beside a rotor: two sources a frame", "BM_NodePipeline/9",
+                    "the same without own_comb_bins: they add");
+    scene_and_stage("BM_NodePipeline/12", "beside a ground generator, cancelled",
+                    "BM_NodePipeline/13", "the same, its bins dropped: the cancellation adds");
   }
   const std::string target = simd_target_name();
   std::printf("SIMD target %s (%d doubles per vector): %llu kernel calls on it, %llu on all\n",

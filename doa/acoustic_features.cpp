@@ -113,6 +113,7 @@ void AcousticFeatureExtractor::analyse(const MultichannelFft& fft,
       std::min<int>({static_cast<int>(directions_site.size()), static_cast<int>(slots.size()),
                      static_cast<int>(generations.size()), kMaxSources});
   if (sources == 0 || fft.channels() != mic_count_) return;
+  lines_fundamental_hz_ = 0.0;  // a new frame: no comb's lines made yet
   for (int s = 0; s < sources; ++s)
     source_directions_[static_cast<std::size_t>(s)] = directions_site[static_cast<std::size_t>(s)];
   for (int s = 0; s < sources; ++s)
@@ -235,29 +236,15 @@ void AcousticFeatureExtractor::line_excess(const MultichannelFft& fft) {
 // across bins, is in every line bin too and would pull the peak to it).
 bool AcousticFeatureExtractor::lines_point_at(const MultichannelFft& fft, const HarmonicComb& comb,
                                               int source) {
-  // Every harmonic of the comb's spacing in the band, each at the loudest bin (mean over the mics)
-  // within 2 bins of it, +-1 bin: not only the lines that stand out in this source's bins, which
-  // are chosen by their coherence along its steering.
-  std::fill(on_line_.begin(), on_line_.end(), std::uint8_t{0});
-  const double bin_hz = bin_omega_ / (2.0 * std::numbers::pi);
-  for (int harmonic = 1;; ++harmonic) {
-    const int centre =
-        static_cast<int>(std::lround(harmonic * comb.fundamental_hz / bin_hz)) - first_bin_;
-    if (centre - 2 >= bin_count_) break;
-    if (centre + 2 < 0) continue;
-    int peak = -1;
-    for (int i = std::max(0, centre - 2); i <= std::min(bin_count_ - 1, centre + 2); ++i)
-      if (peak < 0 ||
-          mic_power_[static_cast<std::size_t>(i)] > mic_power_[static_cast<std::size_t>(peak)])
-        peak = i;
-    for (int i = std::max(0, peak - 1); i <= std::min(bin_count_ - 1, peak + 1); ++i)
-      on_line_[static_cast<std::size_t>(i)] = 1;
+  // Every harmonic of the comb's spacing, not only the lines that stand out in this source's
+  // bins, which are chosen by their coherence along its steering (make_lines). The lines and their
+  // cross-spectra depend on the frame and the spacing only, not on the source: the frame's comb
+  // and the remembered one (and other sources' combs) often share a spacing, made once for it.
+  if (comb.fundamental_hz != lines_fundamental_hz_) {
+    make_lines(fft, comb.fundamental_hz);
+    lines_fundamental_hz_ = comb.fundamental_hz;
   }
-  line_bins_.clear();
-  for (int i = 0; i < bin_count_; ++i)
-    if (on_line_[static_cast<std::size_t>(i)] != 0) line_bins_.push_back(i);
   if (line_bins_.empty()) return true;
-  line_excess(fft);
   const Eigen::Vector3d& centre = source_directions_[static_cast<std::size_t>(source)];
   const Eigen::Vector3d helper =
       std::abs(centre.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
@@ -283,6 +270,30 @@ bool AcousticFeatureExtractor::lines_point_at(const MultichannelFft& fft, const 
     }
   }
   return outside <= inside;
+}
+
+// Every harmonic of `fundamental_hz` in the band, each at the loudest bin (mean over the mics)
+// within 2 bins of it, +-1 bin, into line_bins_, and their cross-spectra's excess.
+void AcousticFeatureExtractor::make_lines(const MultichannelFft& fft, double fundamental_hz) {
+  std::fill(on_line_.begin(), on_line_.end(), std::uint8_t{0});
+  const double bin_hz = bin_omega_ / (2.0 * std::numbers::pi);
+  for (int harmonic = 1;; ++harmonic) {
+    const int centre =
+        static_cast<int>(std::lround(harmonic * fundamental_hz / bin_hz)) - first_bin_;
+    if (centre - 2 >= bin_count_) break;
+    if (centre + 2 < 0) continue;
+    int peak = -1;
+    for (int i = std::max(0, centre - 2); i <= std::min(bin_count_ - 1, centre + 2); ++i)
+      if (peak < 0 ||
+          mic_power_[static_cast<std::size_t>(i)] > mic_power_[static_cast<std::size_t>(peak)])
+        peak = i;
+    for (int i = std::max(0, peak - 1); i <= std::min(bin_count_ - 1, peak + 1); ++i)
+      on_line_[static_cast<std::size_t>(i)] = 1;
+  }
+  line_bins_.clear();
+  for (int i = 0; i < bin_count_; ++i)
+    if (on_line_[static_cast<std::size_t>(i)] != 0) line_bins_.push_back(i);
+  if (!line_bins_.empty()) line_excess(fft);
 }
 
 void AcousticFeatureExtractor::drop_lines(std::span<double> power) {

@@ -66,6 +66,8 @@ class AcousticFeatureExtractor {
   // broadband peaks within line_direction_tolerance_deg of its direction (rings out to 20 deg).
   // Leaves the harmonics' bins in line_bins_.
   bool lines_point_at(const MultichannelFft& fft, const HarmonicComb& comb, int source);
+  // The harmonics of `fundamental_hz` into line_bins_ (on_line_) and their line_excess().
+  void make_lines(const MultichannelFft& fft, double fundamental_hz);
   // line_bins_' cross-spectral matrices less their off-line neighbours' mean, into line_excess_.
   void line_excess(const MultichannelFft& fft);
   double line_power(const Eigen::Vector3d& direction) const;
@@ -95,6 +97,7 @@ class AcousticFeatureExtractor {
   std::array<Eigen::Vector3d, kMaxSources> source_directions_{};  // this analysis's, site frame
   std::vector<std::uint8_t> on_line_;  // per feature-band bin: on the comb being checked
   std::vector<int> line_bins_;         // those bins (FFT bin minus first_bin_)
+  double lines_fundamental_hz_ = 0.0;  // the spacing line_bins_ were made for this frame (0: none)
   std::vector<std::complex<double>> line_excess_;  // per line bin: M x M, upper triangle
   double typical_power_ = 0.0;                     // the frame's median mic power over the band
   double line_tolerance_rad_ = 0.0;                // line_direction_tolerance_deg

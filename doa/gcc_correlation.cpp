@@ -76,6 +76,7 @@ bool GccPhat::prepare(bool weighted) {
   // Phasors made under this mask and weighting (pair_phasors()) came with their sums.
   const bool summed = !scale && masked_already && sums_weighted_ && *sums_weighted_ == weighted;
   if (scale || !summed) scale_and_sum(scale, weighted);
+  if (scale) whitened_ = false;
   weights_applied_ = weighted;
   sums_weighted_ = weighted;
   enough_bins_ = enough_bins;

@@ -257,6 +257,7 @@ void GccPhat::cross_power_from(std::span<const std::complex<double>> given_phaso
   weights_applied_ = true;
   sums_weighted_ = true;
   prepared_ = false;
+  whitened_ = false;
   std::copy(keep_.begin(), keep_.end(), phasor_keep_.begin());
 }
 
@@ -273,6 +274,7 @@ void GccPhat::redirect_phasor(int pair, int band_index, std::complex<double> cro
     floats[2 * static_cast<std::size_t>(band_index) + 1] = static_cast<float>(phasor.imag());
   }
   refined_index_[static_cast<std::size_t>(pair)] = -1;
+  whitened_ = false;
 }
 
 void GccPhat::process(const MultichannelFft& spectra) {
@@ -301,6 +303,7 @@ void GccPhat::whiten(const MultichannelFft& spectra) {
   }
   std::fill(keep_.begin(), keep_.end(), std::uint8_t{1});
   pair_phasors(units(), false, false);
+  whitened_ = true;
 }
 
 void GccPhat::set_bin_spectrum(int band_index, std::span<const std::complex<double>> spectrum) {
@@ -314,6 +317,49 @@ void GccPhat::set_bin_spectrum(int band_index, std::span<const std::complex<doub
     unit_re_[index] = level > 0.0 ? x.real() / level : 0.0;
     unit_im_[index] = level > 0.0 ? x.imag() / level : 0.0;
   }
+  prepared_ = false;
+}
+
+void GccPhat::remake_bins(std::span<const std::uint8_t> changed) {
+  if (!whitened_)
+    throw std::logic_error("GccPhat::remake_bins: the phasors are no longer whiten()'s");
+  const auto bins = static_cast<std::size_t>(band_bins_);
+  std::fill(refined_index_.begin(), refined_index_.end(), -1);
+  // Runs of changed bins, each through the whitening's own kernel: the same products per bin
+  // (the kernel's arithmetic is lane by lane, wherever a run starts). A short gap between two
+  // runs is remade with them: its bins' units are unchanged, so are their products, and one
+  // call is cheaper than two (a projection keeps bins scattered over the band).
+  constexpr std::size_t kJoinedGap = 16;
+  std::size_t first = 0;
+  while (first < bins) {
+    if (changed[first] == 0) {
+      ++first;
+      continue;
+    }
+    std::size_t end = first + 1;
+    for (std::size_t next = end; next < bins && next < end + kJoinedGap; ++next)
+      if (changed[next] != 0) end = next + 1;
+    for (std::size_t p = 0; p < pairs_.size(); ++p) {
+      const std::size_t row_i = static_cast<std::size_t>(pairs_[p].mic_i) * bins + first;
+      const std::size_t row_j = static_cast<std::size_t>(pairs_[p].mic_j) * bins + first;
+      float* floats = phasor_floats(p);
+      simd::pair_products({{unit_re_.data() + row_i, unit_im_.data() + row_i},
+                           {unit_re_.data() + row_j, unit_im_.data() + row_j},
+                           levels_.data() + row_i,
+                           levels_.data() + row_j,
+                           nullptr,
+                           nullptr,
+                           end - first,
+                           kSilentBin,
+                           nullptr,
+                           reinterpret_cast<double*>(phasors_.data() + p * bins + first),
+                           floats != nullptr ? floats + 2 * first : nullptr,
+                           magnitudes_.data() + p * bins + first});
+    }
+    first = end;
+  }
+  // The magnitudes' sums are whiten()'s no more: the next correlation sums them again.
+  sums_weighted_.reset();
   prepared_ = false;
 }
 
@@ -356,6 +402,7 @@ void GccPhat::pair_phasors(const UnitsView& units, bool masked, bool weighted,
   }
   weights_applied_ = weighted;
   prepared_ = false;
+  whitened_ = false;  // whiten() sets it again after this
   sums_weighted_ = weighted;
   // The mask the phasors now carry: prepare() need not scale them again for it.
   if (masked)

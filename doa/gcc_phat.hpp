@@ -163,6 +163,12 @@ class GccPhat {
   // band_powers() stays whiten()'s (the in-band level and the channels' health are the mics'
   // own); the pairs see the change at the next cross_power().
   void set_bin_spectrum(int band_index, std::span<const std::complex<double>> spectrum);
+  // Every pair's phasor and magnitude of the band bins flagged in `changed` (order of
+  // bin_keep()) made again from the units and levels, as whiten() made them (no mask, no
+  // weights): after set_bin_spectrum() on a few bins, the rest of the band's products stay.
+  // Only while the phasors are whiten()'s (no cross-power or correlation since: std::logic_error
+  // otherwise); the next correlation applies bin_keep() and the weights to them as to the rest.
+  void remake_bins(std::span<const std::uint8_t> changed);
   std::span<const double> unit_real(int mic) const { return units().real_row(mic); }
   std::span<const double> unit_imag(int mic) const { return units().imag_row(mic); }
   // The band-limited cross-power of every pair from the given units under the given mask:
@@ -270,6 +276,7 @@ class GccPhat {
   bool weights_applied_ = false;     // the phasors carry weights_ (last correlate() weighted)
   bool enough_bins_ = false;         // the last prepare() kept enough bins for a correlation
   bool prepared_ = false;  // prepare() has run since the phasors, mask or weights last changed
+  bool whitened_ = false;  // the phasors are whiten()'s, unmasked and unweighted (remake_bins())
   std::vector<std::uint8_t> keep_;         // per band bin
   std::vector<std::uint8_t> phasor_keep_;  // the mask the phasors carry (its dropped bins zero)
   double taylor_bound_ = 0.0;              // w_top sum_kept w^4: bounds the fifth derivative of R

@@ -17,6 +17,7 @@ StaticSourceCancel::StaticSourceCancel(const GccPhat& gcc, StaticCancelSettings 
   updates_.assign(bins, 0);
   spectrum_.assign(per_bin, {0.0, 0.0});
   iterated_.assign(per_bin, {0.0, 0.0});
+  cancelled_bins_.assign(bins, 0);
 }
 
 void StaticSourceCancel::apply(GccPhat& gcc) {
@@ -28,6 +29,7 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
   // Running mean over the first frames, then an average over ~learn_s (as the null's TDOAs).
   const double max_weight_frames = std::max(1.0, settings_.learn_s / settings_.hop_s);
   int cancelled = 0;
+  std::fill(cancelled_bins_.begin(), cancelled_bins_.end(), std::uint8_t{0});
   for (int k = 0; k < bins_; ++k) {
     const auto bin = static_cast<std::size_t>(k);
     if (keep[bin] != 0) continue;
@@ -46,10 +48,24 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
     int& updates = updates_[bin];
     ++updates;
     const double weight = 1.0 / std::min<double>(updates, max_weight_frames);
-    for (std::size_t i = 0; i < per_bin; ++i)
-      for (std::size_t j = 0; j < per_bin; ++j)
-        covariance[i * per_bin + j] +=
-            weight * (spectrum_[i] * std::conj(spectrum_[j]) / norm2 - covariance[i * per_bin + j]);
+    // The covariance is Hermitian: its upper triangle is updated and mirrored (an element below
+    // the diagonal, x_j x_i* updated alike, is the conjugate of its mirror to the last bit). The
+    // products written out as std::complex forms them (x_i x_j* = (ac + bd, bc - ad)), without
+    // its check for infinities per product.
+    for (std::size_t i = 0; i < per_bin; ++i) {
+      const double a = spectrum_[i].real();
+      const double b = spectrum_[i].imag();
+      for (std::size_t j = i; j < per_bin; ++j) {
+        const double c = spectrum_[j].real();
+        const double d = spectrum_[j].imag();
+        std::complex<double>& upper = covariance[i * per_bin + j];
+        const double real = (a * c + b * d) / norm2;
+        const double imag = (b * c - a * d) / norm2;
+        upper = {upper.real() + weight * (real - upper.real()),
+                 upper.imag() + weight * (imag - upper.imag())};
+        if (j != i) covariance[j * per_bin + i] = std::conj(upper);
+      }
+    }
     // One power-iteration step from the last estimate (the first: this frame's vector) follows
     // the leading eigenvector as the average settles.
     if (updates == 1)
@@ -76,11 +92,13 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
     if (residual2 < settings_.min_residual_share * norm2) continue;
     gcc.set_bin_spectrum(k, spectrum_);
     keep[bin] = 1;
+    cancelled_bins_[bin] = 1;
     ++cancelled;
   }
   if (cancelled == 0) return;
   cancelled_share_ = static_cast<double>(cancelled) / bins_;
-  gcc.cross_power(gcc.units(), keep);
+  // Only the cancelled bins' pair products changed: the rest stay whiten()'s.
+  gcc.remake_bins(cancelled_bins_);
 }
 
 }  // namespace dronetrack::doa

@@ -48,7 +48,7 @@ class StaticSourceCancel {
   // After StaticSourceNull::mask(), before any correlation: every band bin the mask dropped
   // teaches its owner's covariance; once learned it is projected orthogonal to the owner's
   // steering vector (gcc's units and levels of that bin rewritten), kept again, and every pair's
-  // cross-power remade. Bins the mask kept are untouched.
+  // cross-power of that bin remade. Bins the mask kept are untouched.
   void apply(GccPhat& gcc);
 
   // Share of the band bins cancelled (kept after projection) in the last apply().
@@ -69,6 +69,7 @@ class StaticSourceCancel {
   std::vector<int> updates_;
   std::vector<std::complex<double>> spectrum_;  // one bin's mic vector
   std::vector<std::complex<double>> iterated_;  // R a
+  std::vector<std::uint8_t> cancelled_bins_;    // per band bin: 1 = projected this frame
   double cancelled_share_ = 0.0;
 };
 

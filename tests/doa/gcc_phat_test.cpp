@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
+#include <cstdint>
 #include <cstdio>
 #include <initializer_list>
 #include <span>
@@ -245,14 +248,12 @@ TEST(GccPhat, FftAndDirectSumsBothGiveTheCorrelationOnAWideBandAndLongBaseline) 
   EXPECT_NEAR(gcc.pair(0).peak.lag_s, delay_samples / kRate, 0.5 / kRate);
 }
 
-// Every SIMD target this CPU has (Highway's dispatch forced to each in turn: AVX-512, AVX2,
-// SSE4 on x86-64; NEON on arm64) gives the same grid, peaks and coherence on one frame of two
-// sources, with every bin kept (the FFT or, with wide vectors, direct sums) and with few kept
-// (direct sums everywhere); and the calls land on the target forced (counts).
-TEST(GccPhat, EverySimdTargetAgrees) {
+// Two band-noise sources on four mics, each exactly delayed per mic, and sensor noise (seeds
+// `seed` to `seed` + 2): two frames' worth.
+testing::Recording two_sources_on_four_mics(unsigned seed) {
   const int length = 2 * 8192;
-  const testing::BandNoise first(length, kRate, 1500.0, 3500.0, 21);
-  const testing::BandNoise second(length, kRate, 1500.0, 3500.0, 22);
+  const testing::BandNoise first(length, kRate, 1500.0, 3500.0, seed);
+  const testing::BandNoise second(length, kRate, 1500.0, 3500.0, seed + 1);
   testing::Recording recording = testing::silent_recording(4, length);
   recording.add(0, first.delayed(3.3 / kRate, 0.1));
   recording.add(1, first.delayed(0.0, 0.1));
@@ -260,12 +261,27 @@ TEST(GccPhat, EverySimdTargetAgrees) {
   recording.add(3, first.delayed(9.1 / kRate, 0.1));
   recording.add(0, second.delayed(-2.0 / kRate, 0.05));
   recording.add(3, second.delayed(1.5 / kRate, 0.05));
-  testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, 23);
-  MultichannelFft fft(4, kFrame, fftw_friendly_size(kFrame));
+  testing::add_sensor_noise(recording, kRate, 1000.0, 4000.0, 0.01, seed + 2);
+  return recording;
+}
+
+// Every pair of four mics at most 0.8 m apart.
+std::vector<MicPairSpec> four_mic_pairs() {
   const double max_lag_s = 0.8 / 343.0;
   std::vector<MicPairSpec> pairs;
   for (int i = 0; i < 4; ++i)
     for (int j = i + 1; j < 4; ++j) pairs.push_back({i, j, max_lag_s});
+  return pairs;
+}
+
+// Every SIMD target this CPU has (Highway's dispatch forced to each in turn: AVX-512, AVX2,
+// SSE4 on x86-64; NEON on arm64) gives the same grid, peaks and coherence on one frame of two
+// sources, with every bin kept (the FFT or, with wide vectors, direct sums) and with few kept
+// (direct sums everywhere); and the calls land on the target forced (counts).
+TEST(GccPhat, EverySimdTargetAgrees) {
+  const testing::Recording recording = two_sources_on_four_mics(21);
+  MultichannelFft fft(4, kFrame, fftw_friendly_size(kFrame));
+  const std::vector<MicPairSpec> pairs = four_mic_pairs();
   struct Look {
     std::vector<std::vector<double>> grids;
     std::vector<PairCorrelation> pairs;
@@ -329,6 +345,66 @@ TEST(GccPhat, EverySimdTargetAgrees) {
 
 // The grid-less re-measure (refine_from) finds the peak correlate() + refine()
 // find, from a start a fraction of a grid step off, and gives up beyond its reach.
+// A stage that rewrites a few bins' spectra in place (StaticSourceCancel) remakes only those
+// bins' pair products (remake_bins): the correlation afterwards is, to the last bit, the one a
+// cross_power() of the whole band under the same mask gives. Bins dropped, some of them
+// rewritten and kept again (scattered and a run, so runs start and end inside vectors), SNR
+// weights on, as in the node.
+TEST(GccPhat, RemadeBinsGiveWhatTheWholeCrossPowerGives) {
+  const testing::Recording recording = two_sources_on_four_mics(31);
+  MultichannelFft fft(4, kFrame, fftw_friendly_size(kFrame));
+  const std::vector<MicPairSpec> pairs = four_mic_pairs();
+  // Weighted (the node's first look) and plain (the products' single-precision copy is read
+  // as remade: a weighted look writes it again).
+  for (const bool weighted : {true, false}) {
+    GccPhat remade(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
+    GccPhat whole(fft.fft_size(), kFrame, kRate, {FrequencyBand{}}, pairs);
+    ASSERT_NO_FATAL_FAILURE(whiten_frame(recording, 2000, fft, {&remade, &whole}));
+    const int bins = remade.band_bin_count();
+    ASSERT_GT(bins, 260);
+    std::vector<std::uint8_t> changed(static_cast<std::size_t>(bins), 0);
+    std::vector<std::complex<double>> spectrum(4);
+    for (GccPhat* gcc : {&remade, &whole}) {
+      for (int k = 0; k < bins; ++k)
+        gcc->bin_weight()[static_cast<std::size_t>(k)] = 0.3 + 0.7 * std::fmod(0.37 * k, 1.0);
+      const std::span<std::uint8_t> keep = gcc->bin_keep();
+      for (int k = 0; k < bins; ++k) {
+        const bool dropped = (k >= 20 && k < 120 && k % 3 != 0) || (k >= 201 && k < 243);
+        if (!dropped) continue;
+        keep[static_cast<std::size_t>(k)] = 0;
+        if (k % 5 == 0) continue;  // dropped and left dropped
+        // Rewritten as a projection would: each mic's bin turned and scaled its own way.
+        for (int m = 0; m < 4; ++m) {
+          const auto at = static_cast<std::size_t>(m * bins + k);
+          spectrum[static_cast<std::size_t>(m)] =
+              std::polar(0.4 * gcc->band_levels()[at], 0.3 * (m + 1)) *
+              std::complex<double>(gcc->units().real[at], gcc->units().imag[at]);
+        }
+        gcc->set_bin_spectrum(k, spectrum);
+        keep[static_cast<std::size_t>(k)] = 1;
+        changed[static_cast<std::size_t>(k)] = 1;
+      }
+    }
+    remade.remake_bins(changed);
+    whole.cross_power(whole.units(), whole.bin_keep());
+    remade.correlate(true, weighted);
+    whole.correlate(true, weighted);
+    for (int p = 0; p < remade.pair_count(); ++p) {
+      const std::span<const double> grid = remade.grid(p);
+      const std::span<const double> expected = whole.grid(p);
+      for (std::size_t n = 0; n < grid.size(); ++n)
+        ASSERT_EQ(grid[n], expected[n]) << "weighted " << weighted << " pair " << p << " lag " << n;
+      EXPECT_EQ(remade.pair(p).peak.lag_s, whole.pair(p).peak.lag_s);
+      EXPECT_EQ(remade.pair(p).peak.value, whole.pair(p).peak.value);
+      EXPECT_EQ(remade.pair(p).coherence, whole.pair(p).coherence);
+      EXPECT_EQ(remade.pair(p).tdoa_variance_s2, whole.pair(p).tdoa_variance_s2);
+    }
+    // After a correlation the phasors carry the mask and weights: a partial remake would mix.
+    EXPECT_THROW(remade.remake_bins(changed), std::logic_error);
+    std::fill(changed.begin(), changed.end(), std::uint8_t{0});
+  }
+}
+
 TEST(GccPhat, RefineFromKnownLagMatchesTheGridRefinement) {
   const int length = 2 * 8192;
   const testing::BandNoise source(length, kRate, 1500.0, 3500.0, 31);
