@@ -184,6 +184,11 @@ struct EvalReport {
   double track_time_s = 0.0;          // sum over counted tracks of their time
   double false_track_time_s = 0.0;    // of which associated to no truth
   double false_track_fraction = 0.0;  // false / track time
+  // Of the false-track time, that near no other source of the truth either (a ghost, a
+  // reflection): the rest follows a real non-drone source (an aircraft tracked and classed as
+  // one is false-track time, not a ghost).
+  double ghost_track_time_s = 0.0;
+  double ghost_track_fraction = 0.0;  // ghost / track time
   std::vector<OtherSourceMetrics> others;
   // Track time of counted tracks that follow no drone (another source or nothing) while they
   // say "drone", and that over the run (end - start): issue 14's "<= 1 % of the run".

@@ -323,6 +323,8 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
             o >= 0) {
           report.others[static_cast<std::size_t>(o)].tracked_time_s += tick;
           if (says_drone) report.others[static_cast<std::size_t>(o)].as_drone_time_s += tick;
+        } else {
+          report.ghost_track_time_s += tick;
         }
         continue;
       }
@@ -386,6 +388,8 @@ EvalReport evaluate(const Truth& truth, const std::vector<TrackRecord>& tracks,
   report.tracks_seen = static_cast<int>(counted_ids.size());
   report.false_track_fraction =
       report.track_time_s > 0.0 ? report.false_track_time_s / report.track_time_s : 0.0;
+  report.ghost_track_fraction =
+      report.track_time_s > 0.0 ? report.ghost_track_time_s / report.track_time_s : 0.0;
   const double run_s = std::max(end - start, 0.0);
   report.non_drone_as_drone_fraction = run_s > 0.0 ? report.non_drone_as_drone_time_s / run_s : 0.0;
   if (alerts != nullptr) {

@@ -64,8 +64,11 @@ std::string format_table(const EvalReport& r) {
                   source.travelled_m, source.final_error_m, source.converged_after_s,
                   source.first_tracked_s, source.one_array_time_s);
   }
-  out += format("\ntracks %d, track time %.1f s, false-track time %.1f s (%.2f%%)\n", r.tracks_seen,
-                r.track_time_s, r.false_track_time_s, 100.0 * r.false_track_fraction);
+  out += format(
+      "\ntracks %d, track time %.1f s, false-track time %.1f s (%.2f%%), of which near no source "
+      "%.1f s (%.2f%%)\n",
+      r.tracks_seen, r.track_time_s, r.false_track_time_s, 100.0 * r.false_track_fraction,
+      r.ghost_track_time_s, 100.0 * r.ghost_track_fraction);
   out += "\nclass   tracked_s  said_drone  drone_share  classified_after_s\n";
   for (const SourceMetrics& source : r.sources) {
     out += format("%-8s %8.1f %11.1f %11.2f%% %19.1f\n", source.id.c_str(), source.tracked_time_s,
@@ -142,6 +145,8 @@ nlohmann::json to_json(const EvalReport& r) {
           {"track_time_s", r.track_time_s},
           {"false_track_time_s", r.false_track_time_s},
           {"false_track_fraction", r.false_track_fraction},
+          {"ghost_track_time_s", r.ghost_track_time_s},
+          {"ghost_track_fraction", r.ghost_track_fraction},
           {"others", others},
           {"non_drone_as_drone_time_s", r.non_drone_as_drone_time_s},
           {"non_drone_as_drone_fraction", r.non_drone_as_drone_fraction},

@@ -117,6 +117,18 @@ TEST(EvalMetrics, CoverageIdSwitchesAndFalseTracks) {
   EXPECT_NEAR(report.false_track_time_s, 2.0, 1e-9);
   EXPECT_NEAR(report.false_track_fraction, 20.0 / (91.0 + 20.0), 1e-9);
   EXPECT_EQ(report.sources[0].track_ids, (std::vector<int>{1, 2}));
+  // Near no source at all: the whole false track is a ghost...
+  EXPECT_NEAR(report.ghost_track_time_s, 2.0, 1e-9);
+  EXPECT_NEAR(report.ghost_track_fraction, 20.0 / (91.0 + 20.0), 1e-9);
+  // ... until a real non-drone source (an aircraft) is where it is: still a false track (it
+  // follows no drone), no longer a ghost.
+  Truth with_aircraft = truth;
+  with_aircraft.others.push_back(moving_source("P1", {500, 500, 50}, {0, 0, 0}, 10.0));
+  with_aircraft.other_classes.push_back("aircraft");
+  const EvalReport on_aircraft = evaluate(with_aircraft, tracks, {}, EvalOptions{});
+  EXPECT_NEAR(on_aircraft.false_track_time_s, 2.0, 1e-9);
+  EXPECT_NEAR(on_aircraft.ghost_track_time_s, 0.0, 1e-12);
+  EXPECT_NEAR(on_aircraft.others[0].tracked_time_s, 2.0, 1e-9);
 
   EvalOptions tentative;
   tentative.include_tentative = true;
@@ -393,6 +405,7 @@ TEST(EvalReport, TableAndJsonCarryTheFigures) {
   const auto json = to_json(report);
   EXPECT_NEAR(json["position"]["rmse_3d_m"].get<double>(), 1.0, 1e-9);
   EXPECT_EQ(json["sources"][0]["track_ids"][0].get<int>(), 7);
+  EXPECT_TRUE(json.contains("ghost_track_time_s") && json.contains("ghost_track_fraction"));
 }
 
 // The command end to end: files in, table out; a bad file is one line and exit 1.
