@@ -75,8 +75,10 @@ bench_log="build/arm64/doa_bench.txt"
 qemu-aarch64 build/arm64/bench/doa_bench --benchmark_min_time=0.2 \
   --benchmark_filter='BM_FftCrossSpectrumKernel|BM_NodePipeline/0$' \
   --benchmark_counters_tabular=true | tee "$bench_log"
+# The counter's column counted from the row's end (the time columns carry units, the header not).
 doas_per_frame=$(sed 's/\x1b\[[0-9;]*m//g' "$bench_log" |
-  awk '$1 == "BM_NodePipeline/0" { print $NF }')
+  awk '{ for (i = 1; i <= NF; ++i) if ($i == "doas_per_frame") from_end = NF - i }
+       $1 == "BM_NodePipeline/0" && from_end != "" { print $(NF - from_end) }')
 if ! awk -v d="${doas_per_frame:-0}" 'BEGIN { exit !(d > 0.5) }'; then
   echo "arm64-test: doa_bench published ${doas_per_frame:-no} DOAs per frame on arm64" >&2
   exit 1
