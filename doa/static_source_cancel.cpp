@@ -18,6 +18,35 @@ StaticSourceCancel::StaticSourceCancel(const GccPhat& gcc, StaticCancelSettings 
   spectrum_.assign(per_bin, {0.0, 0.0});
   iterated_.assign(per_bin, {0.0, 0.0});
   cancelled_bins_.assign(bins, 0);
+  if (mics_ >= 3 && mics_ <= kMaxEigenMics) eigen_input_.resize(mics_, mics_);
+}
+
+double StaticSourceCancel::noise_residual_share(const std::complex<double>* covariance,
+                                                const std::complex<double>* steering) {
+  // R has unit trace (every frame enters by its direction alone). Isotropic noise holds the
+  // same share in each of its mics_ dimensions and the projection removes one of them. The
+  // owner takes the largest eigenvalue; a second steady source (a hovering rotor's line in the
+  // same bin) may take the next: the noise per dimension is the mean of the others.
+  const auto per_bin = static_cast<std::size_t>(mics_);
+  if (mics_ < 3 || mics_ > kMaxEigenMics) {
+    double captured = 0.0;  // a^H R a: fall back to everything the owner leaves
+    for (std::size_t i = 0; i < per_bin; ++i) {
+      std::complex<double> sum{0.0, 0.0};
+      for (std::size_t j = 0; j < per_bin; ++j) sum += covariance[i * per_bin + j] * steering[j];
+      captured += (std::conj(steering[i]) * sum).real();
+    }
+    return std::clamp(1.0 - captured, 0.0, 1.0);
+  }
+  for (int i = 0; i < mics_; ++i)
+    for (int j = 0; j < mics_; ++j)
+      eigen_input_(i, j) =
+          covariance[static_cast<std::size_t>(i) * per_bin + static_cast<std::size_t>(j)];
+  eigen_.compute(eigen_input_, Eigen::EigenvaluesOnly);
+  if (eigen_.info() != Eigen::Success) return 1.0;  // keep nothing on a failed solve
+  // Ascending: the mics_ - 2 smallest are the noise's.
+  double noise = 0.0;
+  for (int i = 0; i < mics_ - 2; ++i) noise += std::max(0.0, eigen_.eigenvalues()(i));
+  return static_cast<double>(mics_ - 1) * noise / (mics_ - 2);
 }
 
 void StaticSourceCancel::apply(GccPhat& gcc) {
@@ -89,7 +118,11 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
       spectrum_[i] -= along * steering[i];
       residual2 += std::norm(spectrum_[i]);
     }
-    if (residual2 < settings_.min_residual_share * norm2) continue;
+    if (residual2 <
+        std::max(settings_.min_residual_share,
+                 settings_.min_residual_over_noise * noise_residual_share(covariance, steering)) *
+            norm2)
+      continue;
     gcc.set_bin_spectrum(k, spectrum_);
     keep[bin] = 1;
     cancelled_bins_[bin] = 1;

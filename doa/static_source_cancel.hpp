@@ -26,6 +26,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "doa/gcc_phat.hpp"
 
 namespace dronetrack::doa {
@@ -38,6 +40,13 @@ struct StaticCancelSettings {
   // power: with the owner alone in it, noise and the steering vector's error leave a few percent,
   // which PHAT would lift to a full bin's weight of noise in every correlation.
   double min_residual_share = 0.1;
+  // ... and at least this multiple of the share the bin's noise leaves: (mics - 1) x the noise's
+  // share per mic dimension, the mean of the learned covariance's eigenvalues but the two largest
+  // (the owner's and one more steady source's, a hovering rotor's line in the same bin). A
+  // residual no larger than the noise's is noise; 2 keeps a bin only when something else holds at
+  // least as much power as the noise there (0 dB). Without it an array far from the owner, where
+  // the owner stands only a few dB over the ambient noise in its bins, keeps them on their noise.
+  double min_residual_over_noise = 2.0;
 };
 
 class StaticSourceCancel {
@@ -59,6 +68,15 @@ class StaticSourceCancel {
   }
 
  private:
+  // Mic counts up to this get the eigenvalue split (fixed-size storage, no allocation per frame);
+  // larger arrays fall back to everything the owner leaves as the noise's share.
+  static constexpr int kMaxEigenMics = 8;
+  using Covariance = Eigen::Matrix<std::complex<double>, Eigen::Dynamic, Eigen::Dynamic, 0,
+                                   kMaxEigenMics, kMaxEigenMics>;
+  // The share of a bin the noise leaves after the projection, from its learned covariance.
+  double noise_residual_share(const std::complex<double>* covariance,
+                              const std::complex<double>* steering);
+
   StaticCancelSettings settings_;
   int mics_ = 0;
   int bins_ = 0;
@@ -71,6 +89,8 @@ class StaticSourceCancel {
   std::vector<std::complex<double>> iterated_;  // R a
   std::vector<std::uint8_t> cancelled_bins_;    // per band bin: 1 = projected this frame
   double cancelled_share_ = 0.0;
+  Covariance eigen_input_;
+  Eigen::SelfAdjointEigenSolver<Covariance> eigen_;
 };
 
 }  // namespace dronetrack::doa
