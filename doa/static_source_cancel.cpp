@@ -18,6 +18,7 @@ StaticSourceCancel::StaticSourceCancel(const GccPhat& gcc, StaticCancelSettings 
   spectrum_.assign(per_bin, {0.0, 0.0});
   iterated_.assign(per_bin, {0.0, 0.0});
   cancelled_bins_.assign(bins, 0);
+  noise_share_.assign(bins, -1.0);
   if (mics_ >= 3 && mics_ <= kMaxEigenMics) eigen_input_.resize(mics_, mics_);
 }
 
@@ -118,11 +119,13 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
       spectrum_[i] -= along * steering[i];
       residual2 += std::norm(spectrum_[i]);
     }
-    if (residual2 <
-        std::max(settings_.min_residual_share,
-                 settings_.min_residual_over_noise * noise_residual_share(covariance, steering)) *
-            norm2)
-      continue;
+    if (residual2 < settings_.min_residual_share * norm2) continue;
+    // The noise's share moves with the covariance's ~learn_s average: solved again every
+    // kNoiseRefreshFrames frames of the bin (staggered over the bins), not every frame.
+    double& noise_share = noise_share_[bin];
+    if (noise_share < 0.0 || (updates + k) % kNoiseRefreshFrames == 0)
+      noise_share = noise_residual_share(covariance, steering);
+    if (residual2 < settings_.min_residual_over_noise * noise_share * norm2) continue;
     gcc.set_bin_spectrum(k, spectrum_);
     keep[bin] = 1;
     cancelled_bins_[bin] = 1;
