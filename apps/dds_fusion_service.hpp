@@ -104,7 +104,6 @@ class DdsFusionService {
                           const std::string& array_id);
   double rebased(std::int64_t time_ns) const;
 
-  const config::SiteConfig& site_;
   std::vector<std::string> array_ids_;
   FusionServiceOptions options_;
   dds::Topic<dronetrack_Doa> doa_topic_;

@@ -241,13 +241,6 @@ std::vector<std::vector<double>> frame_residuals(const std::vector<ArrayNominal>
   return out;
 }
 
-double median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
-
 // The centre of the densest `width_s` window of `values`: the median of the values in it. When
 // a channel's skew makes the GCC take a wrong cycle of the rotor's harmonic on many frames, the
 // right cycle is still the largest cluster, though not always half of the frames.
@@ -821,6 +814,13 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     result.arrays.push_back(std::move(out));
   }
   return result;
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
 }
 
 }  // namespace dronetrack::calib
