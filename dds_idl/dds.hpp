@@ -217,6 +217,9 @@ bool Writer<T>::wait_for_readers(std::uint32_t count, std::chrono::nanoseconds t
 
 // Up to kMaxSamples samples on loan from a reader; the loan is returned in the destructor.
 // Neither copyable nor movable: use it in the scope that took it and copy out what you keep.
+// Any other loaned read on such a reader needs room for kMaxSamples buffer pointers: Cyclone 0.10
+// hands out the reader's cached loan by filling as many pointers as it holds, whatever `bufsz`
+// says (a one-pointer array in a test had 63 written past it; docs/ci.md).
 template <class T>
 class Samples {
  public:

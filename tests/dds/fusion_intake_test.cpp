@@ -9,6 +9,7 @@
 // DdsConversions.EachKindOfDamagedDoaIsNamed.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -363,14 +364,18 @@ TEST(DdsFusionIntake, SubscribersDropEndedTracksAndTheirAlerts) {
   ASSERT_FALSE(alert_keys.empty()) << "the track in the yard raised no alert";
 
   // Whether a reader still keeps an instance: reading it by handle fails with
-  // PRECONDITION_NOT_MET once the reader has dropped it.
+  // PRECONDITION_NOT_MET once the reader has dropped it. Room for as many buffers as the reader's
+  // largest loan (dds::Samples takes up to kMaxSamples): Cyclone 0.10 hands a loan back by
+  // filling that many pointers, whatever bufsz and maxs say (an array of one here had 63 of them
+  // written past it, on the stack: clang's ASan build crashed on the return).
   const auto reader_keeps = [](const auto& reader, const auto& key) {
     const dds_instance_handle_t handle = dds_lookup_instance(reader.handle(), &key);
     if (handle == DDS_HANDLE_NIL) return false;
-    void* buffers[1] = {nullptr};
-    dds_sample_info_t info{};
-    const dds_return_t read = dds_read_instance(reader.handle(), buffers, &info, 1, 1, handle);
-    if (read > 0) dds_return_loan(reader.handle(), buffers, read);
+    std::array<void*, dds::Samples<dronetrack_Track>::kMaxSamples> buffers{};
+    std::array<dds_sample_info_t, dds::Samples<dronetrack_Track>::kMaxSamples> infos{};
+    const dds_return_t read =
+        dds_read_instance(reader.handle(), buffers.data(), infos.data(), 1, 1, handle);
+    if (read > 0) dds_return_loan(reader.handle(), buffers.data(), read);
     return read >= 0;
   };
   dronetrack_Track track_key{};
