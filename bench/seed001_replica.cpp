@@ -28,11 +28,13 @@
 #include <string>
 #include <vector>
 
+#include "common/statistics.hpp"
 #include "sim/alpha_stable.hpp"
 #include "sim/random.hpp"
 
 namespace {
 
+using dronetrack::median;
 using dronetrack::sim::AlphaStable;
 using dronetrack::sim::Random;
 
@@ -192,11 +194,6 @@ RunResult run_once(const Model& model, double share, double process_share, int p
     robust_errors.push_back(x - robust.step(t_s, z));
   }
   return {stats(kalman_errors), stats(particle_errors), stats(robust_errors)};
-}
-
-double median(std::vector<double> values) {
-  std::sort(values.begin(), values.end());
-  return values[values.size() / 2];
 }
 
 }  // namespace

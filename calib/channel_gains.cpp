@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "calib/site_calibration.hpp"
+#include "common/statistics.hpp"
 
 namespace dronetrack::calib {
 

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 
 #include "calib/tdoa_model.hpp"
+#include "common/statistics.hpp"
 
 namespace dronetrack::calib {
 namespace {
@@ -814,13 +815,6 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
     result.arrays.push_back(std::move(out));
   }
   return result;
-}
-
-double median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
 }
 
 }  // namespace dronetrack::calib

@@ -146,8 +146,4 @@ CalibrationResult calibrate_site(const std::vector<ArrayNominal>& arrays,
                                  const CalibrationSettings& settings,
                                  const std::vector<ArrayNominal>* prior_centres = nullptr);
 
-// The median of `values` (the upper middle one of an even count; 0 for none). Shared with
-// channel_gains.cpp.
-double median(std::vector<double> values);
-
 }  // namespace dronetrack::calib

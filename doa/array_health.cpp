@@ -9,6 +9,8 @@
 
 #include <Eigen/SVD>
 
+#include "common/statistics.hpp"
+
 namespace dronetrack::doa {
 
 namespace {
@@ -19,15 +21,7 @@ constexpr std::size_t kEventsPerProblem = 4;
 
 // Median of `values` (reordered); 0 for none.
 double median_of(std::span<double> values) {
-  if (values.empty()) return 0.0;
-  const std::size_t half = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half),
-                   values.end());
-  const double upper = values[half];
-  if (values.size() % 2 == 1) return upper;
-  const double lower =
-      *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half));
-  return 0.5 * (lower + upper);
+  return values.empty() ? 0.0 : median_in_place(values);
 }
 
 }  // namespace
@@ -283,12 +277,12 @@ void ArrayHealth::observe_levels(double time_s, std::span<const double> channel_
   }
   if (++level_frames_ < level_stretch_frames_) return;
   const std::span<double> levels(scratch_.data(), static_cast<std::size_t>(channels_));
-  for (int c = 0; c < channels_; ++c)
-    levels[static_cast<std::size_t>(c)] =
-        10.0 *
-        std::log10(std::max(power_sums_[static_cast<std::size_t>(c)] / level_frames_, 1e-30));
-  std::array<double, 8> own{};
-  std::copy(levels.begin(), levels.end(), own.begin());
+  std::array<double, 8> own{};  // the levels in channel order; median_of reorders `levels`
+  for (int c = 0; c < channels_; ++c) {
+    const auto index = static_cast<std::size_t>(c);
+    own[index] = 10.0 * std::log10(std::max(power_sums_[index] / level_frames_, 1e-30));
+    levels[index] = own[index];
+  }
   const double median_db = median_of(levels);
   level_frames_ = 0;
   std::fill(power_sums_.begin(), power_sums_.end(), 0.0);

@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack {
+namespace dronetrack::input_file_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -55,4 +55,4 @@ TEST_F(InputFileTest, NamesTheFileAndWhatIsWrong) {
 }
 
 }  // namespace
-}  // namespace dronetrack
+}  // namespace dronetrack::input_file_test

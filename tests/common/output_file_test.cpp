@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack {
+namespace dronetrack::output_file_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -114,4 +114,4 @@ TEST_F(OutputFileTest, PathCheckFindsAnInputUnderAnotherName) {
 }
 
 }  // namespace
-}  // namespace dronetrack
+}  // namespace dronetrack::output_file_test

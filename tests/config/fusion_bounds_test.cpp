@@ -13,7 +13,7 @@
 #include "config/fusion_bounds.hpp"
 #include "config/site_config.hpp"
 
-namespace dronetrack::config {
+namespace dronetrack::config::fusion_bounds_test {
 namespace {
 
 bool has(const std::vector<std::string>& problems, const std::string& line) {
@@ -141,4 +141,4 @@ TEST(FusionBounds, SpeedOfSoundIsBounded) {
 }
 
 }  // namespace
-}  // namespace dronetrack::config
+}  // namespace dronetrack::config::fusion_bounds_test

@@ -14,7 +14,7 @@
 #include "config/pose_file.hpp"
 #include "config/site_config.hpp"
 
-namespace dronetrack::config {
+namespace dronetrack::config::pose_file_test {
 namespace {
 
 using nlohmann::json;
@@ -195,4 +195,4 @@ TEST_F(PoseFileConfig, AttitudeKeysAreBounded) {
 }
 
 }  // namespace
-}  // namespace dronetrack::config
+}  // namespace dronetrack::config::pose_file_test

@@ -10,7 +10,7 @@
 
 #include "config/site_config.hpp"
 
-namespace dronetrack::config {
+namespace dronetrack::config::site_config_test {
 namespace {
 
 using nlohmann::json;
@@ -588,9 +588,9 @@ TEST(SiteConfig, OneArrayLocalisersAreConfigured) {
             1u);
 }
 
-}  // namespace dronetrack::config
+}  // namespace dronetrack::config::site_config_test
 
-namespace dronetrack::config {
+namespace dronetrack::config::site_config_test {
 namespace {
 
 // A site calibration's keys (docs/calibration.md): read per mic, bounded, named when wrong.
@@ -615,9 +615,9 @@ TEST(SiteConfig, CalibrationKeys) {
 }
 
 }  // namespace
-}  // namespace dronetrack::config
+}  // namespace dronetrack::config::site_config_test
 
-namespace dronetrack::config {
+namespace dronetrack::config::site_config_test {
 namespace {
 
 TEST(SiteConfig, IncidentCaptureKeys) {
@@ -645,4 +645,4 @@ TEST(SiteConfig, IncidentCaptureKeys) {
 }
 
 }  // namespace
-}  // namespace dronetrack::config
+}  // namespace dronetrack::config::site_config_test

@@ -7,7 +7,7 @@
 
 #include "dds_idl/conversions.hpp"
 
-namespace dronetrack::dds {
+namespace dronetrack::dds::conversions_test {
 namespace {
 
 const std::vector<std::string> kArrays{"N1", "N2"};
@@ -339,4 +339,4 @@ TEST(DdsConversions, LongIdsAreTruncatedToTheirBound) {
 }
 
 }  // namespace
-}  // namespace dronetrack::dds
+}  // namespace dronetrack::dds::conversions_test

@@ -13,7 +13,7 @@
 #include "dds_idl/topics.hpp"
 #include "tests/dds/dds_test_support.hpp"
 
-namespace dronetrack::dds {
+namespace dronetrack::dds::wrappers_test {
 namespace {
 
 using namespace std::chrono_literals;
@@ -336,4 +336,4 @@ TEST_F(DdsWrappers, VanishedWriterLeavesInstanceWithoutWriters) {
 }
 
 }  // namespace
-}  // namespace dronetrack::dds
+}  // namespace dronetrack::dds::wrappers_test

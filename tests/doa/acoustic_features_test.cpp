@@ -10,7 +10,7 @@
 #include "doa/node_pipeline.hpp"
 #include "synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::acoustic_features_test {
 namespace {
 
 using testing::BandNoise;
@@ -177,4 +177,4 @@ TEST(AcousticFeatures, OffMeansNoFeatures) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::acoustic_features_test

@@ -14,7 +14,7 @@
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::bin_snr_weight_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -193,4 +193,4 @@ TEST(BinSnrWeight, WeightedCorrelationTimesAHarmonicSourceBetter) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::bin_snr_weight_test

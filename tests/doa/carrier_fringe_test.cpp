@@ -11,7 +11,7 @@
 #include "doa/harmonic_comb.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::carrier_fringe_test {
 namespace {
 
 constexpr double kSoundMps = 343.0;
@@ -101,4 +101,4 @@ TEST(CarrierFringe, AFringeShowsTheSourcesCombOrNoneAndASecondDroneItsOwn) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::carrier_fringe_test

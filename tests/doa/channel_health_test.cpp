@@ -15,7 +15,7 @@
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::channel_health_test {
 namespace {
 
 constexpr double kRate = 8000.0;
@@ -348,4 +348,4 @@ TEST(ChannelHealth, TheNodePipelineCountsPerChannelAndRaisesOnce) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::channel_health_test

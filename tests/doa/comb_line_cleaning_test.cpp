@@ -18,7 +18,7 @@
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::comb_line_cleaning_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -195,4 +195,4 @@ TEST(CombLineCleaning, ALoneCombWithItsOwnBroadbandIsUnchanged) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::comb_line_cleaning_test

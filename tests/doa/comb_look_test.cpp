@@ -13,7 +13,7 @@
 #include "doa/node_pipeline.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::comb_look_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -165,4 +165,4 @@ TEST(CombLook, FindsNothingInACombWithoutADirection) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::comb_look_test

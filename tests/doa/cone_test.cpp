@@ -15,13 +15,14 @@
 #include <string>
 #include <vector>
 
+#include "common/statistics.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/ls_doa_solver.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::cone_test {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
@@ -461,13 +462,6 @@ std::vector<DoaMeasurement> run(NodePipeline& pipeline, const testing::Recording
   return out;
 }
 
-double median(std::vector<double> values) {
-  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
-                   values.end());
-  return values[values.size() / 2];
-}
-
 class ConeFromAudio : public ::testing::TestWithParam<double> {};
 
 TEST_P(ConeFromAudio, NodeMeasuresTheConeAngle) {
@@ -747,4 +741,4 @@ TEST(ConeFromAudio, SilentAndNanFramesGiveNoDoaAndNoCrash) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::cone_test

@@ -19,7 +19,7 @@
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::gcc_phat_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -468,4 +468,4 @@ TEST(MultichannelFft, OverlapVarianceFactorOfHannFrames) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::gcc_phat_test

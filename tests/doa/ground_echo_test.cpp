@@ -11,13 +11,14 @@
 #include <cmath>
 #include <vector>
 
+#include "common/statistics.hpp"
 #include "doa/bin_snr_weight.hpp"
 #include "doa/gcc_phat.hpp"
 #include "doa/node_pipeline.hpp"
 #include "doa/spectral_frame.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::ground_echo_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -90,13 +91,6 @@ EchoResult follow_echo(const ArrayGeometry& geometry, const testing::Recording& 
     result.gains.push_back(echo.gain());
   });
   return result;
-}
-
-double median(std::vector<double> values) {
-  if (values.empty()) return std::nan("");
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
-                   values.end());
-  return values[values.size() / 2];
 }
 
 // The node pipeline's DOAs over a recording, after its first second (the noise floor settled).
@@ -253,4 +247,4 @@ TEST(GroundEcho, EachOfTwoSourcesLosesItsOwnEcho) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::ground_echo_test

@@ -15,7 +15,7 @@
 #include "doa/harmonic_comb.hpp"
 #include "doa/spectral_frame.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::harmonic_comb_test {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
@@ -317,4 +317,4 @@ TEST(HarmonicComb, DetectFindsExactlyTheCombsAnalyseFinds) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::harmonic_comb_test

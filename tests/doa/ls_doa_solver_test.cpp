@@ -10,7 +10,7 @@
 
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::ls_doa_solver_test {
 namespace {
 
 using testing::tetrahedron;
@@ -155,4 +155,4 @@ TEST(LsDoaSolver, CovarianceMatchesScatterOfNoisyTdoas) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::ls_doa_solver_test

@@ -18,7 +18,7 @@
 #include "doa/srp_phat.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::multi_source_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -451,4 +451,4 @@ TEST(SrpPhat, BoundedSearchFindsWhatEveryDirectionFinds) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::multi_source_test

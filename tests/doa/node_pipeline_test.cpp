@@ -12,9 +12,10 @@
 #include <numbers>
 #include <vector>
 
+#include "common/statistics.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::node_pipeline_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -37,13 +38,6 @@ testing::Recording plane_wave(const ArrayGeometry& geometry, const Eigen::Vector
   if (noise_rms > 0.0)
     testing::add_sensor_noise(recording, kRate, 200.0, 8000.0, noise_rms, seed + 99);
   return recording;
-}
-
-double median(std::vector<double> values) {
-  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
-                   values.end());
-  return values[values.size() / 2];
 }
 
 TEST(NodePipeline, FindsAPlaneWaveWithFrameCentreTimes) {
@@ -321,4 +315,4 @@ TEST(NodePipeline, RejectsBadParametersByName) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::node_pipeline_test

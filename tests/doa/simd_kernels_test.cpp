@@ -16,7 +16,7 @@
 #include "doa/simd/dispatch.hpp"
 #include "doa/simd/kernels.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::simd_kernels_test {
 namespace {
 
 // Runs `check` once per target available here (at least the best one), then restores dispatch.
@@ -518,4 +518,4 @@ TEST(SimdKernels, LaggedProductIsTheAutocorrelation) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::simd_kernels_test

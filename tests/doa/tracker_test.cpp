@@ -12,7 +12,7 @@
 #include "doa/node_pipeline.hpp"
 #include "tests/doa/synthetic_audio.hpp"
 
-namespace dronetrack::doa {
+namespace dronetrack::doa::tracker_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -82,4 +82,4 @@ TEST(TdoaTrackers, RemoveSingleFrameOutliersBetterThanPerFrame) {
 }
 
 }  // namespace
-}  // namespace dronetrack::doa
+}  // namespace dronetrack::doa::tracker_test

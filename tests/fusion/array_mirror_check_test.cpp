@@ -13,7 +13,7 @@
 #include "fusion/fusion_engine.hpp"
 #include "scene.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::array_mirror_check_test {
 namespace {
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
@@ -170,4 +170,4 @@ TEST(ArrayMirrorCheck, EngineNamesTheSwappedArray) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::array_mirror_check_test

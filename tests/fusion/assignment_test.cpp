@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::assignment_test {
 namespace {
 
 // Brute force over all injective maps rows -> cols (or -1), maximising the number of allowed
@@ -67,4 +67,4 @@ TEST(Assignment, MatchesBruteForceWithForbiddenPairs) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::assignment_test

@@ -10,7 +10,7 @@
 #include "fusion/state.hpp"
 #include "scene.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::doa_admission_test {
 namespace {
 
 std::vector<doa::ArrayGeometry> two_arrays() {
@@ -83,4 +83,4 @@ TEST(DoaAdmission, ACone) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::doa_admission_test

@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::doa_likelihood_test {
 namespace {
 
 // An innovation whose state part is zero: S = R = diag(r), so d^2(w) = w * d0^2.
@@ -113,4 +113,4 @@ TEST(DoaLikelihood, StudentCostGrowsSlowlyInTheTail) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::doa_likelihood_test

@@ -15,7 +15,7 @@
 #include "fusion/measurement_model.hpp"
 #include "scene.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::engine_test {
 namespace {
 
 using testing::DoaNoise;
@@ -1034,4 +1034,4 @@ TEST(FusionEngine, ConstructorRefusesTheArraysItCannotHold) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::engine_test

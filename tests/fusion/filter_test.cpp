@@ -14,7 +14,7 @@
 #include "fusion/motion_model.hpp"
 #include "fusion/outlier_share.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::filter_test {
 namespace {
 
 constexpr double kSpeedOfSound = 343.0;
@@ -610,4 +610,4 @@ TEST(TrackFilter, RobustCholeskyRepairsAnIndefiniteMatrix) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::filter_test

@@ -23,7 +23,7 @@
 #include "fusion/triangulation.hpp"
 #include "scene.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::one_array_test {
 namespace {
 
 constexpr double kWaterSpeed = 1500.0;
@@ -879,4 +879,4 @@ TEST(FusionEngineMirror, PlanarArraysTrackTheDroneBehindTheirPlanes) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::one_array_test

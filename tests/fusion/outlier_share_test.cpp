@@ -7,7 +7,7 @@
 
 #include "fusion/doa_likelihood.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::outlier_share_test {
 namespace {
 
 // Gated DOAs drawn from the outlier mixture itself (a direction, gate 0.999): an inlier's d^2 is
@@ -63,4 +63,4 @@ TEST(OutlierShareEstimate, UninformativeDoasKeepThePrior) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::outlier_share_test

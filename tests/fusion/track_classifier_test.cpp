@@ -9,7 +9,7 @@
 #include <functional>
 #include <utility>
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::track_classifier_test {
 namespace {
 
 doa::AcousticFeatures comb_at(double fundamental_hz, double persistence = 0.9) {
@@ -270,4 +270,4 @@ TEST(TrackClassifier, NamesRoundTrip) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::track_classifier_test

@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::track_confirmation_test {
 namespace {
 
 Track track_at(const Eigen::Vector3d& position_m, double position_std_m, bool confirmed) {
@@ -282,4 +282,4 @@ TEST(TrackConfirmation, AOneArrayTrackBesideASharperTracksRayIsKept) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::track_confirmation_test

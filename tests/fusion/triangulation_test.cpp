@@ -10,7 +10,7 @@
 
 #include "fusion/measurement_model.hpp"
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::triangulation_test {
 namespace {
 
 Ray ray_to(const Eigen::Vector3d& origin, const Eigen::Vector3d& target, double std_rad) {
@@ -99,4 +99,4 @@ TEST(Triangulation, ChiSquareQuantile) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::triangulation_test

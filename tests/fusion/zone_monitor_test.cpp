@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack::fusion {
+namespace dronetrack::fusion::zone_monitor_test {
 namespace {
 
 Zone yard() { return {"yard", {{-50, -50}, {50, -50}, {50, 50}, {-50, 50}}, 0.0, 150.0}; }
@@ -106,4 +106,4 @@ TEST(ZoneMonitor, OnlyTheAlertPolicysClassesAlertAndClassChangesAreReported) {
 }
 
 }  // namespace
-}  // namespace dronetrack::fusion
+}  // namespace dronetrack::fusion::zone_monitor_test

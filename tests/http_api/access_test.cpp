@@ -27,7 +27,7 @@
 // Eigen.
 #include <httplib.h>
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::access_test {
 namespace {
 
 using namespace std::chrono_literals;
@@ -418,4 +418,4 @@ TEST(HttpLimits, RequestRateAndStreamsPerClient) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::access_test

@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::hostile_clients_test {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -271,4 +271,4 @@ TEST_F(HttpHostileClientsTest, StopReturnsPromptlyWhateverTheClientsDo) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::hostile_clients_test

@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::http_server_test {
 namespace {
 
 using nlohmann::json;
@@ -343,4 +343,4 @@ TEST_F(HttpServerTest, StopEndsOpenStreamsPromptly) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::http_server_test

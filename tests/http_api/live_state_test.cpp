@@ -10,7 +10,7 @@
 #include "doa/pose_sample.hpp"
 #include "tests/http_api/test_support.hpp"
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::live_state_test {
 namespace {
 
 using nlohmann::json;
@@ -322,4 +322,4 @@ TEST(LiveState, AFullQueueDropsItsClientWithoutBlockingThePublisher) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::live_state_test

@@ -11,9 +11,10 @@
 
 #include <stdexcept>
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::metrics_text_test {
 namespace {
 
+using ::dronetrack::test::check_exposition;
 using Type = MetricsText::Type;
 
 TEST(MetricsText, WritesFamiliesWithEscapedLabels) {
@@ -31,7 +32,7 @@ TEST(MetricsText, WritesFamiliesWithEscapedLabels) {
             "# HELP dronetrack_level plain\n"
             "# TYPE dronetrack_level gauge\n"
             "dronetrack_level -1.5e-07\n");
-  const auto parsed = test::check_exposition(out.text());
+  const auto parsed = check_exposition(out.text());
   EXPECT_TRUE(parsed.ok()) << parsed.problems.front();
   EXPECT_EQ(parsed.value("dronetrack_test_total{array=\"B2\",reason=\"late\"}"), 0.25);
 }
@@ -50,7 +51,7 @@ TEST(MetricsText, HistogramBucketsAreCumulativeWithInfEqualToCount) {
             "latency_seconds_bucket{role=\"x\",le=\"+Inf\"} 5\n"
             "latency_seconds_sum{role=\"x\"} 7.6875\n"
             "latency_seconds_count{role=\"x\"} 5\n");
-  EXPECT_TRUE(test::check_exposition(out.text()).ok());
+  EXPECT_TRUE(check_exposition(out.text()).ok());
 }
 
 TEST(MetricsText, RefusesInvalidNames) {
@@ -78,7 +79,7 @@ TEST(ExpositionChecker, RefusesBrokenBodies) {
       "# TYPE h histogram\nh_bucket{le=\"1\"} 1\nh_bucket{le=\"+Inf\"} 2\nh_count 3\n",
       "# TYPE h histogram\nh_bucket{le=\"1\"} 1\nh_count 1\n",  // no +Inf
   };
-  for (const char* body : broken) EXPECT_FALSE(test::check_exposition(body).ok()) << body;
+  for (const char* body : broken) EXPECT_FALSE(check_exposition(body).ok()) << body;
 }
 
 TEST(MetricsEndpoint, MetricsOnlyServerServesTextAndNothingElse) {
@@ -115,4 +116,4 @@ TEST(MetricsEndpoint, MetricsOnlyServerServesTextAndNothingElse) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::metrics_text_test

@@ -17,7 +17,7 @@
 #include <cstdio>
 #include <thread>
 
-namespace dronetrack::http_api {
+namespace dronetrack::http_api::sse_load_test {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -172,4 +172,4 @@ TEST(SseLoad, FiftyClientsAndAStuckOneDoNotSlowThePublisher) {
 }
 
 }  // namespace
-}  // namespace dronetrack::http_api
+}  // namespace dronetrack::http_api::sse_load_test

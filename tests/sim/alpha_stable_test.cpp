@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::alpha_stable_test {
 namespace {
 
 constexpr int kDraws = 200000;
@@ -113,4 +113,4 @@ TEST(AlphaStable, RefusesParametersOutsideTheirRanges) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::alpha_stable_test

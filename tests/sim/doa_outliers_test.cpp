@@ -8,7 +8,7 @@
 
 #include "doa/array_geometry.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::doa_outliers_test {
 namespace {
 
 std::vector<doa::DoaMeasurement> level_doas(int count) {
@@ -62,4 +62,4 @@ TEST(DoaOutliers, SameSeedSameOutliersNoneWithoutShare) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::doa_outliers_test

@@ -11,7 +11,7 @@
 
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::impulsive_noise_test {
 namespace {
 
 constexpr double kRate = 48000.0;
@@ -121,4 +121,4 @@ TEST(ImpulsiveNoise, ScenarioKeyRendersBursts) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::impulsive_noise_test

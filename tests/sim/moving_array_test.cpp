@@ -16,7 +16,7 @@
 #include "sim/propagation.hpp"
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::moving_array_test {
 namespace {
 
 using nlohmann::json;
@@ -461,4 +461,4 @@ TEST(MovingArray, SampleRateBoundsAreTheSiteConfigs) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::moving_array_test

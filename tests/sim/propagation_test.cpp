@@ -8,7 +8,7 @@
 #include "sim/propagation.hpp"
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::propagation_test {
 namespace {
 
 using nlohmann::json;
@@ -204,4 +204,4 @@ TEST(Propagation, TruthDirectionsPointWhereTheSoundLeftTheSource) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::propagation_test

@@ -11,7 +11,7 @@
 
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::replica_scenes_test {
 namespace {
 
 using test::channel;
@@ -97,4 +97,4 @@ INSTANTIATE_TEST_SUITE_P(Seeds, ReplicaScene,
                                            "seed004-multipeak.json"));
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::replica_scenes_test

@@ -7,7 +7,7 @@
 #include "config/site_config.hpp"
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::scenario_test {
 namespace {
 
 using nlohmann::json;
@@ -142,4 +142,4 @@ TEST(Scenario, PerimeterScenarioMatchesThePerimeterSite) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::scenario_test

@@ -8,7 +8,7 @@
 #include "config/site_config.hpp"
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::scene_test {
 namespace {
 
 using nlohmann::json;
@@ -208,4 +208,4 @@ TEST(Scene, RealRecordingSourceKeepsExactPairDelays) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::scene_test

@@ -9,7 +9,7 @@
 #include "sim/scenario.hpp"
 #include "sim_test_util.hpp"
 
-namespace dronetrack::sim {
+namespace dronetrack::sim::source_types_test {
 namespace {
 
 using nlohmann::json;
@@ -99,4 +99,4 @@ TEST(SourceTypes, ClassMustFitTheKind) {
 }
 
 }  // namespace
-}  // namespace dronetrack::sim
+}  // namespace dronetrack::sim::source_types_test

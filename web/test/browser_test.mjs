@@ -386,8 +386,11 @@ try {
     (await field('class')).value === 'drone', 10000, 200);
   log(`class: ${(await field('class')).text}`);
   await page.selectOption('#class-filter', 'ground');
-  if (await page.locator(`#track-list li[data-track-id="${moved.id}"]`).count() !== 0) fail('the ground filter still lists the drone');
-  if (await page.locator(`#plan [data-track-id="${moved.id}"]`).count() !== 0) fail('the ground filter still draws the drone');
+  // The page redraws on its next animation frame, not within the change event: wait for it
+  // (a loaded machine showed the list as it was before the frame).
+  await waitFor('the ground filter to hide the drone from the list and the plan', async () =>
+    await page.locator(`#track-list li[data-track-id="${moved.id}"]`).count() === 0 &&
+    await page.locator(`#plan [data-track-id="${moved.id}"]`).count() === 0, 3000);
   await page.selectOption('#class-filter', 'drone');
   await page.waitForSelector(`#track-list li[data-track-id="${moved.id}"][data-class="drone"]`, { timeout: 3000 });
   await page.selectOption('#class-filter', 'all');
