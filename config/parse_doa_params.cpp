@@ -151,6 +151,8 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.static_null_max_sources =
       section.integer("static_null_max_sources", params.static_null_max_sources, 0, 4);
   params.static_null_cancel = section.boolean("static_null_cancel", params.static_null_cancel);
+  params.static_null_cancel_refill =
+      section.boolean("static_null_cancel_refill", params.static_null_cancel_refill);
   if (section.has("static_look")) {
     ObjectReader static_look = section.object("static_look");
     parse_static_look_settings(static_look, params.static_look);

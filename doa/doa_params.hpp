@@ -178,6 +178,10 @@ struct DoaParams {
   // generator in its own comb bins keeps them (ground-interferer draws 58-63: track coverage
   // >= 93 % and RMSE 0.61-0.83 m, against 66-98 % and 0.80-2.89 m with the bins dropped).
   bool static_null_cancel = true;
+  // docs/doa.md stage 3c, session 24: each cancelled bin's component along the nulled source's
+  // steering vector refilled so the bin's mic moduli are equal again (a far source's plane wave),
+  // instead of left out: the projection bends every pair's phase.
+  bool static_null_cancel_refill = true;
 
   StaticLookSettings static_look;  // issue 14: docs/doa.md stage 7a
   AcousticSettings acoustic;  // features of each source's spectrum for the classifier (issue 14)

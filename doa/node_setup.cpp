@@ -190,9 +190,11 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
   if (params.static_null && params.static_null_max_sources > 0)
     static_null = std::make_unique<StaticSourceNull>(
         geometry, gcc, static_null_settings(params, tracker_settings.hop_s, speed_of_sound_mps));
-  if (static_null && params.static_null_cancel)
-    static_cancel = std::make_unique<StaticSourceCancel>(
-        gcc, StaticCancelSettings{tracker_settings.hop_s, params.static_null_learn_s});
+  if (static_null && params.static_null_cancel) {
+    StaticCancelSettings cancel_settings{tracker_settings.hop_s, params.static_null_learn_s};
+    cancel_settings.refill_plane_wave = params.static_null_cancel_refill;
+    static_cancel = std::make_unique<StaticSourceCancel>(gcc, cancel_settings);
+  }
   if (params.snr_weighting)
     snr_weight =
         std::make_unique<BinSnrWeight>(gcc.band(), tracker_settings.hop_s,

@@ -50,6 +50,57 @@ double StaticSourceCancel::noise_residual_share(const std::complex<double>* cova
   return static_cast<double>(mics_ - 1) * noise / (mics_ - 2);
 }
 
+void StaticSourceCancel::refill_plane_wave(const std::complex<double>* steering, double residual2,
+                                           double bin_power) {
+  // Least squares on r_m = |y_m + a_m c|^2 - their mean, Gauss-Newton on (Re c, Im c) from
+  // c = 0 (2x2 normal equations): 8 steps, where the noise-free model has converged
+  // (scripts/projection-bias.py: A1's error median 0.28 -> 0.04 deg).
+  constexpr int kSteps = 8;
+  const auto per_bin = static_cast<std::size_t>(mics_);
+  double refill_re = 0.0;
+  double refill_im = 0.0;
+  for (int step = 0; step < kSteps; ++step) {
+    double mean_power = 0.0;
+    double mean_d_re = 0.0;
+    double mean_d_im = 0.0;
+    for (std::size_t m = 0; m < per_bin; ++m) {
+      const std::complex<double> x =
+          spectrum_[m] + steering[m] * std::complex<double>(refill_re, refill_im);
+      const std::complex<double> xa = std::conj(x) * steering[m];
+      mean_power += std::norm(x);
+      mean_d_re += 2.0 * xa.real();   // d|x_m|^2 / d Re c
+      mean_d_im += -2.0 * xa.imag();  // d|x_m|^2 / d Im c = 2 Re(conj(x) j a)
+    }
+    mean_power /= mics_;
+    mean_d_re /= mics_;
+    mean_d_im /= mics_;
+    double jtj00 = 0.0, jtj01 = 0.0, jtj11 = 0.0, jtr0 = 0.0, jtr1 = 0.0;
+    for (std::size_t m = 0; m < per_bin; ++m) {
+      const std::complex<double> x =
+          spectrum_[m] + steering[m] * std::complex<double>(refill_re, refill_im);
+      const std::complex<double> xa = std::conj(x) * steering[m];
+      const double residual = std::norm(x) - mean_power;
+      const double d_re = 2.0 * xa.real() - mean_d_re;
+      const double d_im = -2.0 * xa.imag() - mean_d_im;
+      jtj00 += d_re * d_re;
+      jtj01 += d_re * d_im;
+      jtj11 += d_im * d_im;
+      jtr0 += d_re * residual;
+      jtr1 += d_im * residual;
+    }
+    const double determinant = jtj00 * jtj11 - jtj01 * jtj01;
+    if (!(determinant > 1e-12 * (jtj00 + jtj11) * (jtj00 + jtj11))) break;
+    refill_re -= (jtj11 * jtr0 - jtj01 * jtr1) / determinant;
+    refill_im -= (jtj00 * jtr1 - jtj01 * jtr0) / determinant;
+  }
+  // The refilled bin cannot hold more than the bin did before the cancel: a c that would make it
+  // louder is no source's (the steps went astray on noise); keep the projection there.
+  const double refill2 = refill_re * refill_re + refill_im * refill_im;
+  if (!(residual2 + refill2 <= bin_power)) return;
+  for (std::size_t m = 0; m < per_bin; ++m)
+    spectrum_[m] += steering[m] * std::complex<double>(refill_re, refill_im);
+}
+
 void StaticSourceCancel::apply(GccPhat& gcc) {
   cancelled_share_ = 0.0;
   const std::span<std::uint8_t> keep = gcc.bin_keep();
@@ -126,6 +177,7 @@ void StaticSourceCancel::apply(GccPhat& gcc) {
     if (noise_share < 0.0 || (updates + k) % kNoiseRefreshFrames == 0)
       noise_share = noise_residual_share(covariance, steering);
     if (residual2 < settings_.min_residual_over_noise * noise_share * norm2) continue;
+    if (settings_.refill_plane_wave) refill_plane_wave(steering, residual2, norm2);
     gcc.set_bin_spectrum(k, spectrum_);
     keep[bin] = 1;
     cancelled_bins_[bin] = 1;

@@ -14,11 +14,13 @@
 // averages out of the covariance's leading direction.
 //
 // Localising on P x: for a source with steering vector b the projected data is P b. Its pair
-// cross-spectra hold b_i b_j* at half weight, plus terms whose phase wanders with frequency
-// (they sum incoherently over bins), so the pair correlations still peak at the source's lags
-// and every later stage (GCC peaks, SRP looks, re-measures, ground echoes) runs unchanged on the
-// projected units. The steered power |v^H P x|^2 = |(P v)^H x|^2 is what a search on projected
-// steering vectors P v sums, without their normalisation |P v|^2 (docs/doa.md, stage 3c).
+// cross-spectra hold b_i b_j* at half weight, plus terms whose phase wanders with frequency, so
+// the pair correlations peak near the source's lags, but not on them: with four mics |a^H b|^2
+// stays near 1/4 at any separation, and the lost a (a^H b) bends each pair's phase in each bin
+// (ground-interferer A1, no noise: a median 0.28 deg). So the kept bins are refilled with the
+// a c that makes the mics' moduli equal again (a far source's plane wave: b itself when only
+// b and the owner are in the bin), and every later stage (GCC peaks, SRP looks, re-measures,
+// ground echoes) runs unchanged on them (docs/doa.md, stage 3c and "A1 beside the generator").
 //
 // Per frame: apply() right after StaticSourceNull::mask(), before any correlation. Everything is
 // sized in the constructor; nothing is allocated per frame.
@@ -47,6 +49,13 @@ struct StaticCancelSettings {
   // least as much power as the noise there (0 dB). Without it an array far from the owner, where
   // the owner stands only a few dB over the ambient noise in its bins, keeps them on their noise.
   double min_residual_over_noise = 2.0;
+  // Refill each kept bin's component along the steering vector a (what the projection took from
+  // the other sources too): P b is not a steering vector, its pairs' phases are bent by
+  // -a (a^H b) (a 4-mic array's sidelobes put |a^H b|^2 near 1/4 at any separation), and
+  // GCC-PHAT on it misplaces the drone by tenths of a degree with no noise at all. A far
+  // source's mic moduli are equal, so b = P b + a c for the c that equalises |(P b + a c)_m|;
+  // solved by Gauss-Newton on (Re c, Im c) from c = 0 (docs/doa.md stage 3c, session 24).
+  bool refill_plane_wave = true;
 };
 
 class StaticSourceCancel {
@@ -80,6 +89,9 @@ class StaticSourceCancel {
   // The share of a bin the noise leaves after the projection, from its learned covariance.
   double noise_residual_share(const std::complex<double>* covariance,
                               const std::complex<double>* steering);
+  // spectrum_ (P x, power residual2) += a c, c the component that equalises the mics' moduli;
+  // kept as P x when the refilled bin would hold more than bin_power, |x|^2 before the cancel.
+  void refill_plane_wave(const std::complex<double>* steering, double residual2, double bin_power);
 
   StaticCancelSettings settings_;
   int mics_ = 0;

@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""(issue 14, session 24) What the static cancel's projection does to a drone's DOA with no noise
+at all, at one array of a ground-interferer render (docs/doa.md "A1 beside the generator"): the
+drone's plane wave b (the truth's direction over time) in its comb's bins (harmonics of its blade
+pass in the band), projected orthogonal to the generator's steering vector a (G1's near field:
+direct path + ground image of the scenario's reflection coefficient), P b = b - a (a^H b); per
+truth sample each pair's GCC-PHAT peak over those bins, the LS direction from the six pair lags,
+its angle to the truth. Printed: that error (median, p90, mean az*cos el / el) projected and
+refilled (P b + a c, c equalising the mics' moduli: StaticSourceCancel's refill), |a^H b|^2 and
+the drone-generator separation. With DOAS, each of the array's drone DOAs (within 5 deg) against
+the model's projected error at its time: correlation per axis (does the projection explain the
+measured error?).
+
+Usage: scripts/projection-bias.py DIR [ARRAY=A1] [DOAS]   (DIR: a scene-draws.sh render with
+scenario.json and truth.json). Needs numpy (Debian: python3-numpy).
+"""
+import json, math, sys
+import numpy as np
+d = sys.argv[1]; array = sys.argv[2] if len(sys.argv) > 2 else "A1"
+doas = sys.argv[3] if len(sys.argv) > 3 else None
+sc = json.load(open(f"{d}/scenario.json")); truth = json.load(open(f"{d}/truth.json"))
+c = sc["site"]["speed_of_sound_mps"]
+site = [a for a in sc["site"]["arrays"] if a["id"] == array][0]
+mics = np.array(site["mics_m"]) + np.array(site["position_m"])  # the scene's arrays: yaw 0
+g = np.array([s for s in sc["sources"] if s["id"] == "G1"][0]["trajectory"]["position_m"], float)
+image = g * np.array([1, 1, -1]); refl = sc.get("ground", {}).get("reflection_coefficient", 0.0)
+drone = [s for s in sc["sources"] if s["kind"] == "drone"][0]
+low, high = sc["site"]["doa"]["bands_hz"][0]; fundamental = drone["signal"]["blade_pass_hz"]
+freqs = np.array([k * fundamental for k in range(1, 400) if low <= k * fundamental <= high], float)
+def generator(f):
+    r1 = np.linalg.norm(mics - g, axis=1); r2 = np.linalg.norm(mics - image, axis=1)
+    v = np.exp(-2j * np.pi * f * r1 / c) / r1 + refl * np.exp(-2j * np.pi * f * r2 / c) / r2
+    return v / np.linalg.norm(v)
+A = np.array([generator(f) for f in freqs])
+pairs = [(i, j) for i in range(len(mics)) for j in range(i + 1, len(mics))]
+M = np.array([mics[j] - mics[i] for i, j in pairs])
+offsets = np.linspace(-3e-4, 3e-4, 601)
+def direction(X, u):  # GCC-PHAT peak per pair within 0.3 ms of the truth's lag, LS direction
+    lags = []
+    for p, (i, j) in enumerate(pairs):
+        cross = X[:, i] * np.conj(X[:, j]); cross = cross / np.maximum(np.abs(cross), 1e-300)
+        t = M[p] @ u / c + offsets
+        lags.append(t[np.argmax(np.real(np.exp(2j * np.pi * np.outer(t, freqs)) @ cross))])
+    e, *_ = np.linalg.lstsq(M / c, np.array(lags), rcond=None); return e / np.linalg.norm(e)
+def refill(y, a):  # Gauss-Newton on (Re c, Im c) from 0, as StaticSourceCancel::refill_plane_wave
+    cc = 0j
+    for _ in range(8):
+        x = y + a * cc; p = np.abs(x) ** 2
+        J = np.stack([2 * np.real(np.conj(x) * a), -2 * np.imag(np.conj(x) * a)], 1); J = J - J.mean(0)
+        step, *_ = np.linalg.lstsq(J, -(p - p.mean()), rcond=None); cc += step[0] + 1j * step[1]
+    return y + a * cc  # no generator in the model: the guard on the bin's own power never binds
+def azel(u): return math.degrees(math.atan2(u[1], u[0])), math.degrees(math.asin(max(-1, min(1, u[2]))))
+def errors(u, e):
+    taz, tel = azel(u); eaz, eel = azel(e)
+    return (math.degrees(math.acos(min(1, float(e @ u)))),
+            ((eaz - taz + 180) % 360 - 180) * math.cos(math.radians(tel)), eel - tel)
+rate = truth["rate_hz"]
+D = np.array([s for s in truth["sources"] if s["id"] == drone["id"]][0]["doa"][array]["direction"])
+def truth_dir(t):
+    x = t * rate; k = max(0, min(int(x), len(D) - 2)); f = x - k
+    u = D[k] * (1 - f) + D[k + 1] * f; return u / np.linalg.norm(u)
+centre = mics.mean(0); towards_g = (g - centre) / np.linalg.norm(g - centre)
+rows = []
+for k in range(0, len(D), 25):
+    u = D[k] / np.linalg.norm(D[k])
+    B = np.exp(2j * np.pi * np.outer(freqs, mics @ u) / c) / math.sqrt(len(mics))
+    ab = np.sum(np.conj(A) * B, axis=1); PB = B - A * ab[:, None]
+    R = np.array([refill(PB[q], A[q]) for q in range(len(freqs))])
+    rows.append((*errors(u, direction(PB, u)), *errors(u, direction(R, u)), float(np.mean(np.abs(ab) ** 2)),
+                 math.degrees(math.acos(float(u @ towards_g)))))
+x = np.array(rows)
+for name, o in (("projected", 0), ("refilled", 3)):
+    print(f"{array} {name} ({len(freqs)} comb bins, no noise): error median {np.median(x[:,o]):.3f} deg, p90 "
+          f"{np.percentile(x[:,o],90):.3f}, mean az*cos el {x[:,o+1].mean():+.3f} / el {x[:,o+2].mean():+.3f}")
+print(f"mean |a^H b|^2 {x[:,6].mean():.3f}, drone-generator separation {x[:,7].min():.1f}-{x[:,7].max():.1f} deg")
+if doas:
+    meas, model = [], []
+    for line in open(doas):
+        r = json.loads(line)
+        if r["array"] != array: continue
+        u = truth_dir(r["t"]); v = np.array(r["direction"])
+        if math.degrees(math.acos(max(-1, min(1, float(u @ v))))) > 5: continue
+        meas.append(errors(u, v)[1:])
+        B = np.exp(2j * np.pi * np.outer(freqs, mics @ u) / c) / math.sqrt(len(mics))
+        model.append(errors(u, direction(B - A * np.sum(np.conj(A) * B, axis=1)[:, None], u))[1:])
+    m = np.array(meas); p = np.array(model)
+    for k, name in enumerate(("az*cos el", "el")):
+        print(f"{name}: {len(m)} DOAs, corr with the projected model {np.corrcoef(m[:,k], p[:,k])[0,1]:.2f}, rms "
+              f"measured {np.sqrt(np.mean(m[:,k]**2)):.3f}, model {np.sqrt(np.mean(p[:,k]**2)):.3f} deg")
