@@ -14,7 +14,14 @@ section_done() {
   echo "ci-time: $1 $((SECONDS - section_start)) s" >&2
   section_start=$SECONDS
 }
-trap 'echo "ci-time: ${section_times[*]:-none} (total ${SECONDS} s)" >&2' EXIT
+# The background builds (below) run in their own process group: a failed release test or a
+# Ctrl-C ends them too, rather than leaving compilers and qemu running for another ~20 min.
+background=""
+stop_background() {
+  if [[ -n "$background" ]]; then kill -- "-$background" 2>/dev/null || true; fi
+}
+trap 'stop_background; echo "ci-time: ${section_times[*]:-none} (total ${SECONDS} s)" >&2' EXIT
+trap 'exit 130' INT TERM
 bash scripts/install-deps.sh --tests
 # The arm64 cross-build's packages too, now: the section itself runs beside the release tests
 # (below), and apt should not change the package database under a running test.
@@ -33,6 +40,7 @@ section_done "release-build"
 # cycles no test wants, so the tests' timing is as it was), into a log printed when they end.
 mkdir -p build
 background_log=build/ci-background.log
+set -m  # job control: the subshell below leads a process group of its own
 (
   set -euo pipefail
   chrt --idle -p 0 $BASHPID 2>/dev/null || renice -n 19 -p $BASHPID >/dev/null
@@ -52,14 +60,20 @@ background_log=build/ci-background.log
   echo "ci-time: asan-build $((SECONDS - started)) s (beside the release tests, then alone)" >&2
 ) >"$background_log" 2>&1 &
 background=$!
+set +m
 release_tests=0
 ctest --preset release -j"$jobs" || release_tests=$?
 section_done "release-tests"
+if ((release_tests != 0)); then
+  stop_background
+  echo "release tests failed (above); the background builds were stopped: $background_log" >&2
+  exit "$release_tests"
+fi
 background_status=0
 wait "$background" || background_status=$?
+background=""
 cat "$background_log"
 section_done "arm64+asan-build-remainder"
-((release_tests == 0)) || { echo "release tests failed (above)" >&2; exit "$release_tests"; }
 ((background_status == 0)) || { echo "arm64 or asan build failed: $background_log" >&2; exit 1; }
 
 # Leaks in third-party singletons (Cyclone, PortAudio) are not ours to fix; ASan still reports
