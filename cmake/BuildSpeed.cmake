@@ -22,8 +22,10 @@ endif()
 # by an object library below and reused (REUSE_FROM) by all targets of that kind, so no
 # translation unit parses them again. The reusing targets compile with the same flags
 # (dronetrack_options); if one did not, GCC would read the headers as text (-Winvalid-pch, added
-# by CMake, says so in the build log). Off: -DDRONETRACK_PCH=OFF (e.g. to check a file's
-# includes are complete on its own).
+# by CMake, says so in the build log) and Clang would stop with an error. Clang (the asan preset,
+# with the fuzz harnesses) uses them too since session 25: its ASan + fuzz build alone took
+# 978 s without, 774 s with them, 672 s with the unity batches below as well (docs/ci.md).
+# Off: -DDRONETRACK_PCH=OFF (e.g. to check a file's includes are complete on its own).
 option(DRONETRACK_PCH "Precompiled headers for our libraries, executables and tests" ON)
 
 # Unity builds (CI time): a library's or the executable's files compiled in batches, so that the
@@ -34,8 +36,9 @@ option(DRONETRACK_PCH "Precompiled headers for our libraries, executables and te
 # kernels, which are not batched: they include themselves once per vector target). A file
 # that must compile alone: set_source_files_properties(... SKIP_UNITY_BUILD_INCLUSION ON).
 # Off: -DDRONETRACK_UNITY=OFF (e.g. to check that each file's includes are complete alone).
-# GCC only: Clang (the fuzz build) rejects Eigen's out-of-line product kernels in a batch that
-# includes httplib before Eigen (session 22, not traced): the fuzz build compiles file by file.
+# Clang batches too, with the PCH on: without it Clang rejected Eigen's out-of-line product kernels in a batch
+# that included httplib before Eigen (session 22, not traced); the PCH puts Eigen first in every
+# batch, and with it the whole asan preset (tests and fuzz harnesses) builds and passes.
 option(DRONETRACK_UNITY "Compile our libraries and the executable in batches of files" ON)
 set(DRONETRACK_UNITY_BATCH_SIZE 8 CACHE STRING "Files per unity batch")
 
@@ -51,7 +54,8 @@ function(_dronetrack_targets_below dir out)
 endfunction()
 
 function(dronetrack_build_speed)
-  if(DRONETRACK_UNITY AND CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  # Clang's batches need the PCH (above): without it, Clang compiles file by file.
+  if(DRONETRACK_UNITY AND (DRONETRACK_PCH OR CMAKE_CXX_COMPILER_ID STREQUAL "GNU"))
     _dronetrack_targets_below(${PROJECT_SOURCE_DIR} unity_targets)
     foreach(target IN LISTS unity_targets)
       get_target_property(type ${target} TYPE)
@@ -64,9 +68,7 @@ function(dronetrack_build_speed)
       endif()
     endforeach()
   endif()
-  # GCC only: it reads the headers as text where a PCH does not fit a target's flags; Clang
-  # refuses such a PCH (e.g. a fuzz target's -fsanitize=fuzzer), so Clang builds go without.
-  if(NOT DRONETRACK_PCH OR NOT CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  if(NOT DRONETRACK_PCH)
     return()
   endif()
   set(here ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
@@ -95,7 +97,8 @@ function(dronetrack_build_speed)
       continue()
     endif()
     # -pthread (PortAudio's pkg-config flags, in dronetrack_capture) defines _REENTRANT, and GCC
-    # then refuses the PCH and reads every header of it as text: such a target goes without.
+    # then refuses the PCH and reads every header of it as text (Clang: an error): such a target
+    # goes without.
     set(pthread FALSE)
     foreach(lib IN LISTS links)
       if(TARGET ${lib})
