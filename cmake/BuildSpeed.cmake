@@ -36,9 +36,10 @@ option(DRONETRACK_PCH "Precompiled headers for our libraries, executables and te
 # kernels, which are not batched: they include themselves once per vector target). A file
 # that must compile alone: set_source_files_properties(... SKIP_UNITY_BUILD_INCLUSION ON).
 # Off: -DDRONETRACK_UNITY=OFF (e.g. to check that each file's includes are complete alone).
-# Clang batches too, with the PCH on: without it Clang rejected Eigen's out-of-line product kernels in a batch
-# that included httplib before Eigen (session 22, not traced); the PCH puts Eigen first in every
-# batch, and with it the whole asan preset (tests and fuzz harnesses) builds and passes.
+# Clang batches too, with the PCH on: without it Clang rejected Eigen's out-of-line product
+# kernels in a batch that included httplib before Eigen (session 22, not traced); the PCH puts
+# Eigen first in every batch, and with it the whole asan preset (tests and fuzz harnesses)
+# builds and passes.
 option(DRONETRACK_UNITY "Compile our libraries and the executable in batches of files" ON)
 set(DRONETRACK_UNITY_BATCH_SIZE 8 CACHE STRING "Files per unity batch")
 
