@@ -23,8 +23,8 @@ endif()
 # translation unit parses them again. The reusing targets compile with the same flags
 # (dronetrack_options); if one did not, GCC would read the headers as text (-Winvalid-pch, added
 # by CMake, says so in the build log) and Clang would stop with an error. Clang (the asan preset,
-# with the fuzz harnesses) uses them too since session 25: its ASan + fuzz build alone took
-# 978 s without, 774 s with them, 672 s with the unity batches below as well (docs/ci.md).
+# with the fuzz harnesses) uses them too since session 25 (its build times with and without
+# them: docs/ci.md "The sanitizer build with the PCH and unity batches").
 # Off: -DDRONETRACK_PCH=OFF (e.g. to check a file's includes are complete on its own).
 option(DRONETRACK_PCH "Precompiled headers for our libraries, executables and tests" ON)
 

@@ -21,7 +21,8 @@ stop_background() {
   if [[ -n "$background" ]]; then kill -- "-$background" 2>/dev/null || true; fi
 }
 trap 'stop_background; echo "ci-time: ${section_times[*]:-none} (total ${SECONDS} s)" >&2' EXIT
-trap 'exit 130' INT TERM
+trap 'exit 130' INT
+trap 'exit 143' TERM
 bash scripts/install-deps.sh --tests
 # The arm64 cross-build's packages too, now: the section itself runs beside the release tests
 # (below), and apt should not change the package database under a running test.
@@ -66,7 +67,10 @@ ctest --preset release -j"$jobs" || release_tests=$?
 section_done "release-tests"
 if ((release_tests != 0)); then
   stop_background
-  echo "release tests failed (above); the background builds were stopped: $background_log" >&2
+  # What the stopped builds had done, so a failed run's log shows it too.
+  echo "== background builds, stopped (last 40 lines of $background_log)" >&2
+  tail -n 40 "$background_log" >&2 || true
+  echo "release tests failed (above); the background builds were stopped" >&2
   exit "$release_tests"
 fi
 background_status=0
