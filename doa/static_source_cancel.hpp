@@ -21,6 +21,9 @@
 // a c that makes the mics' moduli equal again (a far source's plane wave: b itself when only
 // b and the owner are in the bin), and every later stage (GCC peaks, SRP looks, re-measures,
 // ground echoes) runs unchanged on them (docs/doa.md, stage 3c and "A1 beside the generator").
+// The premise's limit: a drone's own ground echo makes its moduli differ between mics at
+// different heights, and the refill then adds back the wrong component (with the echo the
+// noise-free model's A1 error is 0.39 deg, not 0.04: docs/doa.md "What is left at A1").
 //
 // Per frame: apply() right after StaticSourceNull::mask(), before any correlation. Everything is
 // sized in the constructor; nothing is allocated per frame.

@@ -11,13 +11,28 @@ the drone-generator separation. With DOAS, each of the array's drone DOAs (withi
 the model's projected error at its time: correlation per axis (does the projection explain the
 measured error?).
 
-Usage: scripts/projection-bias.py DIR [ARRAY=A1] [DOAS]   (DIR: a scene-draws.sh render with
-scenario.json and truth.json). Needs numpy (Debian: python3-numpy).
+(session 26) --drone-echo: the drone as the simulator renders it instead of a plane wave: from
+its true position (truth.json), near field, direct path + its ground image of the scenario's
+reflection coefficient; the truth direction is then the position's from the array's centre (the
+DOA truth lags it by the sound's travel time), and a first line gives plain GCC-PHAT's error on
+those bins with no generator and no projection. --null-steered (with or without --drone-echo):
+also, every 100th truth sample, the direction that maximises sum_k |(P v)^H x|^2 / |P v|^2 (v
+the plane wave of a direction on a 0.05 deg grid within 2 deg of the truth: the null-steered
+search, no refill) and, for comparison, sum_k |v^H x|^2 / |v|^2 on the same grid with no
+projection; ~2 min.
+
+Usage: scripts/projection-bias.py [--drone-echo] [--null-steered] DIR [ARRAY=A1] [DOAS]
+(DIR: a scene-draws.sh render with scenario.json and truth.json, or `dronetrack sim SCENARIO
+--out DIR` with the scenario copied in as DIR/scenario.json). Needs numpy (Debian:
+python3-numpy; a pyenv python may lack it: /usr/bin/python3).
 """
 import json, math, sys
 import numpy as np
-d = sys.argv[1]; array = sys.argv[2] if len(sys.argv) > 2 else "A1"
-doas = sys.argv[3] if len(sys.argv) > 3 else None
+flags = {a for a in sys.argv[1:] if a.startswith("--")}
+args = [a for a in sys.argv[1:] if not a.startswith("--")]
+drone_echo = "--drone-echo" in flags; null_steered = "--null-steered" in flags
+d = args[0]; array = args[1] if len(args) > 1 else "A1"
+doas = args[2] if len(args) > 2 else None
 sc = json.load(open(f"{d}/scenario.json")); truth = json.load(open(f"{d}/truth.json"))
 c = sc["site"]["speed_of_sound_mps"]
 site = [a for a in sc["site"]["arrays"] if a["id"] == array][0]
@@ -60,15 +75,29 @@ def truth_dir(t):
     x = t * rate; k = max(0, min(int(x), len(D) - 2)); f = x - k
     u = D[k] * (1 - f) + D[k + 1] * f; return u / np.linalg.norm(u)
 centre = mics.mean(0); towards_g = (g - centre) / np.linalg.norm(g - centre)
-rows = []
+positions = np.array([s for s in truth["sources"] if s["id"] == drone["id"]][0]["position_m"])
+def drone_bins(k):
+    """The truth direction at truth sample k and the drone's unit mic vectors in the comb bins."""
+    if not drone_echo:
+        u = D[k] / np.linalg.norm(D[k])
+        return u, np.exp(2j * np.pi * np.outer(freqs, mics @ u) / c) / math.sqrt(len(mics))
+    p = positions[k]; u = (p - centre) / np.linalg.norm(p - centre)
+    r1 = np.linalg.norm(mics - p, axis=1); r2 = np.linalg.norm(mics - p * np.array([1, 1, -1]), axis=1)
+    v = (np.exp(-2j * np.pi * np.outer(freqs, r1) / c) / r1
+         + refl * np.exp(-2j * np.pi * np.outer(freqs, r2) / c) / r2)
+    return u, v / np.linalg.norm(v, axis=1)[:, None]
+rows = []; plain = []
 for k in range(0, len(D), 25):
-    u = D[k] / np.linalg.norm(D[k])
-    B = np.exp(2j * np.pi * np.outer(freqs, mics @ u) / c) / math.sqrt(len(mics))
+    u, B = drone_bins(k)
+    if drone_echo: plain.append(errors(u, direction(B, u))[0])
     ab = np.sum(np.conj(A) * B, axis=1); PB = B - A * ab[:, None]
     R = np.array([refill(PB[q], A[q]) for q in range(len(freqs))])
     rows.append((*errors(u, direction(PB, u)), *errors(u, direction(R, u)), float(np.mean(np.abs(ab) ** 2)),
                  math.degrees(math.acos(float(u @ towards_g)))))
 x = np.array(rows)
+if drone_echo:
+    print(f"{array} drone with its ground echo, no generator, no projection: error median "
+          f"{np.median(plain):.3f} deg, p90 {np.percentile(plain, 90):.3f}")
 for name, o in (("projected", 0), ("refilled", 3)):
     print(f"{array} {name} ({len(freqs)} comb bins, no noise): error median {np.median(x[:,o]):.3f} deg, p90 "
           f"{np.percentile(x[:,o],90):.3f}, mean az*cos el {x[:,o+1].mean():+.3f} / el {x[:,o+2].mean():+.3f}")
@@ -87,3 +116,26 @@ if doas:
     for k, name in enumerate(("az*cos el", "el")):
         print(f"{name}: {len(m)} DOAs, corr with the projected model {np.corrcoef(m[:,k], p[:,k])[0,1]:.2f}, rms "
               f"measured {np.sqrt(np.mean(m[:,k]**2)):.3f}, model {np.sqrt(np.mean(p[:,k]**2)):.3f} deg")
+if null_steered:
+    def near(u, span=2.0, step=0.05):  # directions within span deg of u, step deg apart
+        az, el = (math.radians(v) for v in azel(u)); out = []
+        for d_el in np.arange(-span, span + 1e-9, step):
+            for d_az in np.arange(-span, span + 1e-9, step):
+                a_ = az + math.radians(d_az) / max(0.2, math.cos(el)); e_ = el + math.radians(d_el)
+                out.append([math.cos(e_) * math.cos(a_), math.cos(e_) * math.sin(a_), math.sin(e_)])
+        return np.array(out)
+    steered, unprojected = [], []
+    for k in range(0, len(D), 100):
+        u, B = drone_bins(k); grid = near(u)
+        # V[g, q, m]: plane wave of grid direction g in bin q; P_q v = v - a_q (a_q^H v)
+        V = np.exp(2j * np.pi * np.einsum("q,gm->gqm", freqs, grid @ mics.T) / c)
+        PV = V - A[None] * np.einsum("qm,gqm->gq", np.conj(A), V)[..., None]
+        PB = B - A * np.sum(np.conj(A) * B, axis=1)[:, None]
+        score = np.sum(np.abs(np.einsum("gqm,qm->gq", np.conj(PV), PB)) ** 2
+                       / np.sum(np.abs(PV) ** 2, axis=2), axis=1)
+        plain_score = np.sum(np.abs(np.einsum("gqm,qm->gq", np.conj(V), B)) ** 2, axis=1)
+        steered.append(math.degrees(math.acos(min(1, float(grid[np.argmax(score)] @ u)))))
+        unprojected.append(math.degrees(math.acos(min(1, float(grid[np.argmax(plain_score)] @ u)))))
+    for name, e in (("null-steered search", steered), ("same search, no generator, no projection", unprojected)):
+        print(f"{array} {name} ({len(e)} samples, 0.05 deg grid): error median {np.median(e):.3f} "
+              f"deg, p90 {np.percentile(e, 90):.3f}")
