@@ -19,9 +19,14 @@ those bins with no generator and no projection. --null-steered (with or without 
 also, every 100th truth sample, the direction that maximises sum_k |(P v)^H x|^2 / |P v|^2 (v
 the plane wave of a direction on a 0.05 deg grid within 2 deg of the truth: the null-steered
 search, no refill) and, for comparison, sum_k |v^H x|^2 / |v|^2 on the same grid with no
-projection; ~2 min.
+projection. --echo-refill=DEG (with --drone-echo): also the refill made on the echo's terms: the
+mics' moduli equalised after dividing each by its echo comb |1 + g e^{-j w Delta_m}| (g the
+scene's reflection coefficient, Delta_m from the truth position with its elevation moved by DEG
+degrees: the node would know the drone's direction only to its own error), and the error after
+the echo is divided out, beside the drone's own and the plain refill's.
 
-Usage: scripts/projection-bias.py [--drone-echo] [--null-steered] DIR [ARRAY=A1] [DOAS]
+Usage: scripts/projection-bias.py [--drone-echo] [--null-steered] [--echo-refill=DEG] DIR
+                                  [ARRAY=A1] [DOAS]
 (DIR: a scene-draws.sh render with scenario.json and truth.json, or `dronetrack sim SCENARIO
 --out DIR` with the scenario copied in as DIR/scenario.json). Needs numpy (Debian:
 python3-numpy; a pyenv python may lack it: /usr/bin/python3).
@@ -31,6 +36,7 @@ import numpy as np
 flags = {a for a in sys.argv[1:] if a.startswith("--")}
 args = [a for a in sys.argv[1:] if not a.startswith("--")]
 drone_echo = "--drone-echo" in flags; null_steered = "--null-steered" in flags
+echo_refill = [float(a.split("=", 1)[1]) for a in flags if a.startswith("--echo-refill=")]
 d = args[0]; array = args[1] if len(args) > 1 else "A1"
 doas = args[2] if len(args) > 2 else None
 sc = json.load(open(f"{d}/scenario.json")); truth = json.load(open(f"{d}/truth.json"))
@@ -139,3 +145,24 @@ if null_steered:
     for name, e in (("null-steered search", steered), ("same search, no generator, no projection", unprojected)):
         print(f"{array} {name} ({len(e)} samples, 0.05 deg grid): error median {np.median(e):.3f} "
               f"deg, p90 {np.percentile(e, 90):.3f}")
+if echo_refill and drone_echo:
+    moved = math.radians(echo_refill[0]); rows = []
+    for k in range(0, len(D), 25):
+        u, B = drone_bins(k)
+        offset = positions[k] - centre; flat = math.hypot(offset[0], offset[1])
+        elevation = math.atan2(offset[2], flat) + moved; distance = np.linalg.norm(offset)
+        guess = centre + distance * np.array([math.cos(elevation) * offset[0] / flat,
+                                              math.cos(elevation) * offset[1] / flat, math.sin(elevation)])
+        direct = np.linalg.norm(mics - guess, axis=1)
+        image = np.linalg.norm(mics - guess * np.array([1, 1, -1]), axis=1)
+        E = 1 + refl * np.exp(-2j * np.pi * np.outer(freqs, image - direct) / c)  # the echo comb
+        PB = B - A * np.sum(np.conj(A) * B, axis=1)[:, None]
+        # (y + a c) / E with equal moduli is y / E + (a / E) c: the same c, found on the divided bins
+        R = np.array([refill(PB[q] / E[q], A[q] / E[q]) * E[q] for q in range(len(freqs))])
+        plain_refill = np.array([refill(PB[q], A[q]) for q in range(len(freqs))])
+        rows.append((errors(u, direction(R / E, u))[0], errors(u, direction(B / E, u))[0],
+                     errors(u, direction(plain_refill / E, u))[0]))
+    x = np.array(rows)
+    print(f"{array} echo divided out (its elevation {echo_refill[0]:+.2f} deg off): refill on the echo's "
+          f"terms {np.median(x[:, 0]):.3f} deg, the drone itself {np.median(x[:, 1]):.3f}, the plain "
+          f"refill {np.median(x[:, 2]):.3f} (medians)")
