@@ -19,8 +19,9 @@ those bins with no generator and no projection. --null-steered (with or without 
 also, every 100th truth sample, the direction that maximises sum_k |(P v)^H x|^2 / |P v|^2 (v
 the plane wave of a direction on a 0.05 deg grid within 2 deg of the truth: the null-steered
 search, no refill) and, for comparison, sum_k |v^H x|^2 / |v|^2 on the same grid with no
-projection. --echo-refill=DEG (with --drone-echo): also the refill made on the echo's terms: the
-mics' moduli equalised after dividing each by its echo comb |1 + g e^{-j w Delta_m}| (g the
+projection; with --drone-echo also with v the direct path plus its ground image of a source at
+the truth's range (and at 1.2x it) in each grid direction. --echo-refill=DEG (with
+--drone-echo): also the refill made on the echo's terms: the mics' moduli equalised after dividing each by its echo comb |1 + g e^{-j w Delta_m}| (g the
 scene's reflection coefficient, Delta_m from the truth position with its elevation moved by DEG
 degrees: the node would know the drone's direction only to its own error), and the error after
 the echo is divided out, beside the drone's own and the plain refill's.
@@ -130,19 +131,35 @@ if null_steered:
                 a_ = az + math.radians(d_az) / max(0.2, math.cos(el)); e_ = el + math.radians(d_el)
                 out.append([math.cos(e_) * math.cos(a_), math.cos(e_) * math.sin(a_), math.sin(e_)])
         return np.array(out)
-    steered, unprojected = [], []
-    for k in range(0, len(D), 100):
-        u, B = drone_bins(k); grid = near(u)
-        # V[g, q, m]: plane wave of grid direction g in bin q; P_q v = v - a_q (a_q^H v)
-        V = np.exp(2j * np.pi * np.einsum("q,gm->gqm", freqs, grid @ mics.T) / c)
-        PV = V - A[None] * np.einsum("qm,gqm->gq", np.conj(A), V)[..., None]
-        PB = B - A * np.sum(np.conj(A) * B, axis=1)[:, None]
+    def best(V, PB):  # the grid direction whose projected steering vectors fit PB best
+        PV = V - A[None] * np.einsum("qm,gqm->gq", np.conj(A), V)[..., None]  # P_q v = v - a_q (a_q^H v)
         score = np.sum(np.abs(np.einsum("gqm,qm->gq", np.conj(PV), PB)) ** 2
                        / np.sum(np.abs(PV) ** 2, axis=2), axis=1)
+        return np.argmax(score)
+    def echo_steering(grid, distance):  # direct path + ground image of a source `distance` away
+        sources = centre[None] + distance * grid
+        direct = np.linalg.norm(mics[None] - sources[:, None], axis=2)
+        image = np.linalg.norm(mics[None] - (sources * np.array([1, 1, -1]))[:, None], axis=2)
+        return (np.exp(-2j * np.pi * np.einsum("q,gm->gqm", freqs, direct) / c) / direct[:, None]
+                + refl * np.exp(-2j * np.pi * np.einsum("q,gm->gqm", freqs, image) / c) / image[:, None])
+    steered, unprojected, with_echo, echo_far = [], [], [], []
+    for k in range(0, len(D), 100):
+        u, B = drone_bins(k); grid = near(u)
+        # V[g, q, m]: plane wave of grid direction g in bin q
+        V = np.exp(2j * np.pi * np.einsum("q,gm->gqm", freqs, grid @ mics.T) / c)
+        PB = B - A * np.sum(np.conj(A) * B, axis=1)[:, None]
         plain_score = np.sum(np.abs(np.einsum("gqm,qm->gq", np.conj(V), B)) ** 2, axis=1)
-        steered.append(math.degrees(math.acos(min(1, float(grid[np.argmax(score)] @ u)))))
-        unprojected.append(math.degrees(math.acos(min(1, float(grid[np.argmax(plain_score)] @ u)))))
-    for name, e in (("null-steered search", steered), ("same search, no generator, no projection", unprojected)):
+        def error(g): return math.degrees(math.acos(min(1, float(grid[g] @ u))))
+        steered.append(error(best(V, PB))); unprojected.append(error(np.argmax(plain_score)))
+        if drone_echo:
+            distance = np.linalg.norm(positions[k] - centre)
+            with_echo.append(error(best(echo_steering(grid, distance), PB)))
+            echo_far.append(error(best(echo_steering(grid, 1.2 * distance), PB)))
+    results = [("null-steered search", steered), ("same search, no generator, no projection", unprojected)]
+    if drone_echo:
+        results += [("null-steered search, the echo in its steering vectors (true range)", with_echo),
+                    ("the same, its range 1.2x the truth", echo_far)]
+    for name, e in results:
         print(f"{array} {name} ({len(e)} samples, 0.05 deg grid): error median {np.median(e):.3f} "
               f"deg, p90 {np.percentile(e, 90):.3f}")
 if echo_refill and drone_echo:
