@@ -26,8 +26,12 @@ scene's reflection coefficient, Delta_m from the truth position with its elevati
 degrees: the node would know the drone's direction only to its own error), and the error after
 the echo is divided out, beside the drone's own and the plain refill's.
 
-Usage: scripts/projection-bias.py [--drone-echo] [--null-steered] [--echo-refill=DEG] DIR
-                                  [ARRAY=A1] [DOAS]
+--snr-db=DB: the mics' noise added to the drone's bins (isotropic, DB under the drone's power
+in each bin, seeded) before the projection, for the projected and refilled rows (the generator
+is still cancelled exactly: its a is the true one).
+
+Usage: scripts/projection-bias.py [--drone-echo] [--null-steered] [--echo-refill=DEG]
+                                  [--snr-db=DB] DIR [ARRAY=A1] [DOAS]
 (DIR: a scene-draws.sh render with scenario.json and truth.json, or `dronetrack sim SCENARIO
 --out DIR` with the scenario copied in as DIR/scenario.json). Needs numpy (Debian:
 python3-numpy; a pyenv python may lack it: /usr/bin/python3).
@@ -38,6 +42,7 @@ flags = {a for a in sys.argv[1:] if a.startswith("--")}
 args = [a for a in sys.argv[1:] if not a.startswith("--")]
 drone_echo = "--drone-echo" in flags; null_steered = "--null-steered" in flags
 echo_refill = [float(a.split("=", 1)[1]) for a in flags if a.startswith("--echo-refill=")]
+snr_db = [float(a.split("=", 1)[1]) for a in flags if a.startswith("--snr-db=")]
 d = args[0]; array = args[1] if len(args) > 1 else "A1"
 doas = args[2] if len(args) > 2 else None
 sc = json.load(open(f"{d}/scenario.json")); truth = json.load(open(f"{d}/truth.json"))
@@ -94,19 +99,25 @@ def drone_bins(k):
          + refl * np.exp(-2j * np.pi * np.outer(freqs, r2) / c) / r2)
     return u, v / np.linalg.norm(v, axis=1)[:, None]
 rows = []; plain = []
+noise_rng = np.random.default_rng(1)
 for k in range(0, len(D), 25):
     u, B = drone_bins(k)
-    if drone_echo: plain.append(errors(u, direction(B, u))[0])
+    if snr_db:  # the mics' own noise, isotropic, at snr_db under the drone's power in each bin
+        sigma = math.sqrt(10 ** (-snr_db[0] / 10) / len(mics))
+        B = B + sigma * (noise_rng.standard_normal(B.shape) + 1j * noise_rng.standard_normal(B.shape)) / math.sqrt(2)
+    if drone_echo or snr_db: plain.append(errors(u, direction(B, u))[0])
     ab = np.sum(np.conj(A) * B, axis=1); PB = B - A * ab[:, None]
     R = np.array([refill(PB[q], A[q]) for q in range(len(freqs))])
     rows.append((*errors(u, direction(PB, u)), *errors(u, direction(R, u)), float(np.mean(np.abs(ab) ** 2)),
                  math.degrees(math.acos(float(u @ towards_g)))))
 x = np.array(rows)
-if drone_echo:
-    print(f"{array} drone with its ground echo, no generator, no projection: error median "
+if drone_echo or snr_db:
+    what = ("with its ground echo" if drone_echo else "") + (" and " if drone_echo and snr_db else "")
+    what += f"noise {snr_db[0]:g} dB under it" if snr_db else ""
+    print(f"{array} drone {what}, no generator, no projection: error median "
           f"{np.median(plain):.3f} deg, p90 {np.percentile(plain, 90):.3f}")
 for name, o in (("projected", 0), ("refilled", 3)):
-    print(f"{array} {name} ({len(freqs)} comb bins, no noise): error median {np.median(x[:,o]):.3f} deg, p90 "
+    print(f"{array} {name} ({len(freqs)} comb bins, {f'noise {snr_db[0]:g} dB under' if snr_db else 'no noise'}): error median {np.median(x[:,o]):.3f} deg, p90 "
           f"{np.percentile(x[:,o],90):.3f}, mean az*cos el {x[:,o+1].mean():+.3f} / el {x[:,o+2].mean():+.3f}")
 print(f"mean |a^H b|^2 {x[:,6].mean():.3f}, drone-generator separation {x[:,7].min():.1f}-{x[:,7].max():.1f} deg")
 if doas:
