@@ -153,6 +153,9 @@ void parse_doa_params(ObjectReader& section, doa::DoaParams& params) {
   params.static_null_cancel = section.boolean("static_null_cancel", params.static_null_cancel);
   params.static_null_cancel_refill =
       section.boolean("static_null_cancel_refill", params.static_null_cancel_refill);
+  params.static_null_cancel_min_residual_over_noise =
+      section.number("static_null_cancel_min_residual_over_noise",
+                     params.static_null_cancel_min_residual_over_noise, 0.0, 1000.0);
   if (section.has("static_look")) {
     ObjectReader static_look = section.object("static_look");
     parse_static_look_settings(static_look, params.static_look);

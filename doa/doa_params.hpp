@@ -182,6 +182,11 @@ struct DoaParams {
   // steering vector refilled so the bin's mic moduli are equal again (a far source's plane wave),
   // instead of left out: the projection bends every pair's phase.
   bool static_null_cancel_refill = true;
+  // docs/doa.md stage 3c: a cancelled bin is kept only where what the projection leaves is at
+  // least this many times the share the bin's noise would leave (a ratio of power shares; 2:
+  // something else holds at least as much power there as the noise). 0 keeps every bin the
+  // 10 % share rule keeps, also on an array far from the generator where only noise is left.
+  double static_null_cancel_min_residual_over_noise = 2.0;
 
   StaticLookSettings static_look;  // issue 14: docs/doa.md stage 7a
   AcousticSettings acoustic;  // features of each source's spectrum for the classifier (issue 14)

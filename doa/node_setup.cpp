@@ -193,6 +193,7 @@ NodePipeline::Impl::Impl(ArrayGeometry geometry_in, int array_index_in, const Do
   if (static_null && params.static_null_cancel) {
     StaticCancelSettings cancel_settings{tracker_settings.hop_s, params.static_null_learn_s};
     cancel_settings.refill_plane_wave = params.static_null_cancel_refill;
+    cancel_settings.min_residual_over_noise = params.static_null_cancel_min_residual_over_noise;
     static_cancel = std::make_unique<StaticSourceCancel>(gcc, cancel_settings);
   }
   if (params.snr_weighting)

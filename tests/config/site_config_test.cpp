@@ -190,9 +190,13 @@ TEST(SiteConfig, UnknownKeysWarnButParse) {
 
 TEST(SiteConfig, ProcessingSectionsValidated) {
   json site = two_array_site();
-  site["doa"] = {{"tdoa_tracker", "magic"}, {"bands_hz", {{3000, 1000}}},
-                 {"snr_weight_floor", 1.5}, {"snr_weighting", "yes"},
-                 {"ground_echo", 1},        {"ground_height_m", "low"}};
+  site["doa"] = {{"tdoa_tracker", "magic"},
+                 {"bands_hz", {{3000, 1000}}},
+                 {"snr_weight_floor", 1.5},
+                 {"snr_weighting", "yes"},
+                 {"ground_echo", 1},
+                 {"ground_height_m", "low"},
+                 {"static_null_cancel_min_residual_over_noise", -1}};
   site["fusion"] = {{"confirm_hits", 9}, {"confirm_window", 4}};
   const auto problems = problems_of(site);
   auto has = [&](const std::string& line) {
@@ -203,10 +207,23 @@ TEST(SiteConfig, ProcessingSectionsValidated) {
   EXPECT_TRUE(has("doa.snr_weighting: expected true or false, got a string"));
   EXPECT_TRUE(has("doa.ground_echo: expected true or false, got a number"));
   EXPECT_TRUE(has("doa.ground_height_m: expected a number, got a string"));
+  EXPECT_TRUE(has("doa.static_null_cancel_min_residual_over_noise: must be in [0, 1000], got -1"));
   EXPECT_TRUE(
       has("doa.tdoa_tracker: unknown value \"magic\", expected one of: per_frame, "
           "bayesian_grid, multi_peak, robust_regression"));
   EXPECT_TRUE(has("fusion.confirm_hits: must not exceed confirm_window"));
+}
+
+TEST(SiteConfig, StaticCancelResidualRuleKey) {
+  json site = two_array_site();
+  std::vector<std::string> warnings;
+  EXPECT_DOUBLE_EQ(parse_site_config(site.dump(), ".", warnings, no_recordings())
+                       .doa.static_null_cancel_min_residual_over_noise,
+                   2.0);
+  site["doa"] = {{"static_null_cancel_min_residual_over_noise", 0.5}};
+  EXPECT_DOUBLE_EQ(parse_site_config(site.dump(), ".", warnings, no_recordings())
+                       .doa.static_null_cancel_min_residual_over_noise,
+                   0.5);
 }
 
 TEST(SiteConfig, PerBandDetectionKey) {
