@@ -445,9 +445,9 @@ TEST(StaticSourceCancel, NodeFindsARotorUnderTheGeneratorInItsOwnBins) {
 
 // doa.static_null_cancel_min_residual_over_noise reaches the cancel: asked for a residual 1000x
 // the noise's share, the cancel keeps only the bins where the noise's share reads under 0.1 % (the
-// generator here stands 20 dB and more over the sensor noise, so some do), and the node finds the
-// rotor 8 dB under the generator in far fewer frames (measured 25 against 55 of 56; 1 with
-// static_null_cancel off, NodeFindsARotorUnderTheGeneratorInItsOwnBins).
+// generator here is far over the sensor noise, 0.1 against 0.001 rms, so some do), and the node
+// finds the rotor 8 dB under the generator in far fewer frames (measured 25 against 55 of 56; 1
+// with static_null_cancel off, NodeFindsARotorUnderTheGeneratorInItsOwnBins).
 TEST(StaticSourceCancel, ResidualRuleKeyReachesTheCancel) {
   const ArrayGeometry geometry = testing::tetrahedron(20.0);
   const double duration_s = 5.0;
