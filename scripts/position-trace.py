@@ -8,18 +8,21 @@ stds; and the track's RMSE over the confirmed/coasting reports nearest the truth
 the rms of its error along each array's ray to the drone (the range each array does not see) and
 the mean diagonal position NEES (3 when honest). The last row is the whole run.
 
-Usage: scripts/position-trace.py DIR TRACKS [DOAS] [WINDOW_S]   (DIR: a `sim` output with
-truth.json and, unless DOAS is given, doas.jsonl, as scripts/scene-draws.sh leaves them; the
-truth's source D1 is the drone; WINDOW_S 5). Needs python3 with numpy (Debian: python3-numpy).
+Usage: scripts/position-trace.py [--source=ID] DIR TRACKS [DOAS] [WINDOW_S]   (DIR: a `sim`
+output with truth.json and, unless DOAS is given, doas.jsonl, as scripts/scene-draws.sh leaves
+them; the drone is the truth's source ID, D1 unless --source says; WINDOW_S 5). Needs python3
+with numpy (Debian: python3-numpy).
 """
 import json, math, sys, bisect
 import numpy as np
-d, tracks_path = sys.argv[1], sys.argv[2]
-doas_path = sys.argv[3] if len(sys.argv) > 3 else f"{d}/doas.jsonl"
-win = float(sys.argv[4]) if len(sys.argv) > 4 else 5.0
+source_id = next((a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--source=")), "D1")
+args = [a for a in sys.argv[1:] if not a.startswith("--source=")]
+d, tracks_path = args[0], args[1]
+doas_path = args[2] if len(args) > 2 else f"{d}/doas.jsonl"
+win = float(args[3]) if len(args) > 3 else 5.0
 truth = json.load(open(f"{d}/truth.json"))
 rate = truth["rate_hz"]
-drone = [s for s in truth["sources"] if s["id"] == "D1"][0]
+drone = [s for s in truth["sources"] if s["id"] == source_id][0]
 P = np.array(drone["position_m"])
 def truth_at(t):
     x = t * rate; k = int(math.floor(x)); f = x - k
@@ -68,7 +71,7 @@ tt = sorted(ticks)
 def split(t):
     return int(t // win)
 nwin = int(truth["duration_s"] // win)
-print(f"window | " + " | ".join(f"{a}: n, med err deg, bias az*cos el / el deg, spread az/el deg, mean NIS (2), rep std az/el" for a in sorted(rows)) + " | track: ticks, RMSE m, err along A1 ray / A2 ray / cross m (rms), mean NEES(3)")
+print(f"window | " + " | ".join(f"{a}: n, med err deg, bias az*cos el / el deg, spread az/el deg, mean NIS (2), rep std az/el" for a in sorted(rows)) + " | track: ticks, RMSE m, err along each array's ray to the drone, " + " / ".join(sorted(centres)) + " (m rms), mean NEES(3)")
 for w in list(range(nwin)) + ["all"]:
     cells = []
     for a in sorted(rows):
