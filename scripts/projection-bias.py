@@ -50,15 +50,21 @@ c = sc["site"]["speed_of_sound_mps"]
 site = [a for a in sc["site"]["arrays"] if a["id"] == array][0]
 mics = np.array(site["mics_m"]) + np.array(site["position_m"])  # the scene's arrays: yaw 0
 g = np.array([s for s in sc["sources"] if s["id"] == "G1"][0]["trajectory"]["position_m"], float)
-image = g * np.array([1, 1, -1]); refl = sc.get("ground", {}).get("reflection_coefficient", 0.0)
+refl = sc.get("ground", {}).get("reflection_coefficient", 0.0)
 drone = [s for s in sc["sources"] if s["kind"] == "drone"][0]
 low, high = sc["site"]["doa"]["bands_hz"][0]; fundamental = drone["signal"]["blade_pass_hz"]
 freqs = np.array([k * fundamental for k in range(1, 400) if low <= k * fundamental <= high], float)
-def generator(f):
-    r1 = np.linalg.norm(mics - g, axis=1); r2 = np.linalg.norm(mics - image, axis=1)
-    v = np.exp(-2j * np.pi * f * r1 / c) / r1 + refl * np.exp(-2j * np.pi * f * r2 / c) / r2
-    return v / np.linalg.norm(v)
-A = np.array([generator(f) for f in freqs])
+def paths(sources):
+    """Each mic's distance to the source(s) (..., 3) and to its ground image: (..., mics) each."""
+    sources = np.asarray(sources)[..., None, :]
+    return (np.linalg.norm(mics - sources, axis=-1),
+            np.linalg.norm(mics - sources * np.array([1, 1, -1]), axis=-1))
+def direct_and_echo(sources):
+    """Direct path + ground image (spherical spreading) in the comb bins: (..., bins, mics)."""
+    direct, image = paths(sources)
+    def tone(r): return np.exp(-2j * np.pi * freqs[:, None] * r[..., None, :] / c) / r[..., None, :]
+    return tone(direct) + refl * tone(image)
+A = direct_and_echo(g); A = A / np.linalg.norm(A, axis=1)[:, None]  # the generator's unit vectors
 pairs = [(i, j) for i in range(len(mics)) for j in range(i + 1, len(mics))]
 M = np.array([mics[j] - mics[i] for i, j in pairs])
 offsets = np.linspace(-3e-4, 3e-4, 601)
@@ -94,9 +100,7 @@ def drone_bins(k):
         u = D[k] / np.linalg.norm(D[k])
         return u, np.exp(2j * np.pi * np.outer(freqs, mics @ u) / c) / math.sqrt(len(mics))
     p = positions[k]; u = (p - centre) / np.linalg.norm(p - centre)
-    r1 = np.linalg.norm(mics - p, axis=1); r2 = np.linalg.norm(mics - p * np.array([1, 1, -1]), axis=1)
-    v = (np.exp(-2j * np.pi * np.outer(freqs, r1) / c) / r1
-         + refl * np.exp(-2j * np.pi * np.outer(freqs, r2) / c) / r2)
+    v = direct_and_echo(p)
     return u, v / np.linalg.norm(v, axis=1)[:, None]
 rows = []; plain = []
 noise_rng = np.random.default_rng(1)
@@ -148,11 +152,7 @@ if null_steered:
                        / np.sum(np.abs(PV) ** 2, axis=2), axis=1)
         return np.argmax(score)
     def echo_steering(grid, distance):  # direct path + ground image of a source `distance` away
-        sources = centre[None] + distance * grid
-        direct = np.linalg.norm(mics[None] - sources[:, None], axis=2)
-        image = np.linalg.norm(mics[None] - (sources * np.array([1, 1, -1]))[:, None], axis=2)
-        return (np.exp(-2j * np.pi * np.einsum("q,gm->gqm", freqs, direct) / c) / direct[:, None]
-                + refl * np.exp(-2j * np.pi * np.einsum("q,gm->gqm", freqs, image) / c) / image[:, None])
+        return direct_and_echo(centre[None] + distance * grid)
     steered, unprojected, with_echo, echo_far = [], [], [], []
     for k in range(0, len(D), 100):
         u, B = drone_bins(k); grid = near(u)
@@ -181,8 +181,7 @@ if echo_refill and drone_echo:
         elevation = math.atan2(offset[2], flat) + moved; distance = np.linalg.norm(offset)
         guess = centre + distance * np.array([math.cos(elevation) * offset[0] / flat,
                                               math.cos(elevation) * offset[1] / flat, math.sin(elevation)])
-        direct = np.linalg.norm(mics - guess, axis=1)
-        image = np.linalg.norm(mics - guess * np.array([1, 1, -1]), axis=1)
+        direct, image = paths(guess)
         E = 1 + refl * np.exp(-2j * np.pi * np.outer(freqs, image - direct) / c)  # the echo comb
         PB = B - A * np.sum(np.conj(A) * B, axis=1)[:, None]
         # (y + a c) / E with equal moduli is y / E + (a / E) c: the same c, found on the divided bins
